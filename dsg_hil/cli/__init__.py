@@ -1,0 +1,42 @@
+"""Command line: ``dsg-hil <command>``. Each command is a module with ``add_subparser`` and ``_do``.
+
+Errors reach the user as one line ``error: ...`` and a non-zero exit (``--debug`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .. import __version__
+from . import calibrate, params_cmd, validate
+
+COMMANDS = (validate, calibrate, params_cmd)
+EXIT_ERROR = 1
+
+
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="dsg-hil",
+        description="CAN-bus hardware-in-the-loop plant of a DSG (dual wet clutch) creeping in traffic, "
+                    "after Ma et al., 'Creeping Control Strategy for Direct Shift Gearbox ...'.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for module in COMMANDS:
+        module.add_subparser(sub)
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors
+        if args.debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_ERROR

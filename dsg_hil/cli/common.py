@@ -1,0 +1,21 @@
+"""Helpers shared by the commands: the parameter-file option and progress output (stderr)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..physics.params import Params, load_params
+
+
+def add_params_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--params", metavar="FILE",
+                        help="parameter file (TOML; default: the one shipped with dsg-hil, see 'dsg-hil params')")
+
+
+def params_from(args: argparse.Namespace) -> Params:
+    return load_params(args.params)
+
+
+def progress(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)

@@ -1,0 +1,91 @@
+"""Clutch friction: torque (5) and friction coefficient (6) of the paper.
+
+Formula (6) is garbled in the source text. Read literally, its first term raises a negative number to the power
+-5.16 and has no real value. This module uses the *Stribeck reading* of that term::
+
+    mu = A * exp(-(0.028574 n / D) ** 5.16)                         (boost near zero slip, 0 where D <= 0)
+       + 0.01 ln(0.04398 n + 1) / exp(0.005 T)
+       + 0.08 (exp(-0.005 T) - 1)(exp(-0.0022 n) - 1)
+       - 0.005 ln(28.3 P) + 0.035
+
+    D = (ln T - 3.2)(28.3 P) ** 0.4 - 0.87
+
+with ``n`` the slip speed in r/min, ``T`` the plate temperature in degC and ``P`` the pressure in MPa, as the paper
+prints them. The printed prefactor 23 gives mu >> 1 below about 150 r/min in every reading tried, so ``A`` is a
+calibrated parameter (``friction.A_stribeck`` in the parameter file, with its target). See README, "Formula (6)".
+
+Frictional memory: the plant feeds (6) a first-order lag of the slip speed magnitude (``tau_slip``), not the
+instantaneous slip; see :func:`slip_memory_step`.
+
+Guards (stated, not hidden): ``P`` is floored at ``P_floor`` inside (6) only, because ``-0.005 ln(28.3 P)`` is
+unbounded as ``P -> 0`` (the torque (5) still uses the true pressure, so zero pressure gives zero torque);
+``T <= 1 degC`` or ``D <= 0`` switches the first term off; ``n`` is the magnitude of the slip speed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .params import ClutchGeometry, Friction
+
+RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
+
+
+def mean_friction_radius(R_i: float, R_o: float) -> float:
+    """Effective friction radius of an annulus [m]: 2/3 (R_o^3 - R_i^3)/(R_o^2 - R_i^2), from (5)."""
+    return 2.0 / 3.0 * (R_o**3 - R_i**3) / (R_o**2 - R_i**2)
+
+
+def torque_per_mu(geometry: ClutchGeometry, pressure_pa: float) -> float:
+    """Clutch torque per unit friction coefficient [N*m]: N * P * A_f * r_m, from (5)."""
+    return geometry.N * max(pressure_pa, 0.0) * geometry.A_f * mean_friction_radius(geometry.R_i, geometry.R_o)
+
+
+def clutch_torque_capacity(mu: float, geometry: ClutchGeometry, pressure_pa: float) -> float:
+    """Friction torque magnitude of a slipping clutch, equation (5) [N*m]."""
+    return mu * torque_per_mu(geometry, pressure_pa)
+
+
+def stribeck_term(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> float:
+    """First term of (6) in the Stribeck reading (see module docstring); zero where D <= 0 or T <= 1 degC."""
+    if T_c <= 1.0:
+        return 0.0
+    P = max(P_mpa, f.P_floor / 1e6)
+    D = (math.log(T_c) - 3.2) * (28.3 * P) ** 0.4 - 0.87
+    if D <= 0.0:
+        return 0.0
+    return f.A_stribeck * math.exp(-((0.028574 * abs(slip_rpm) / D) ** 5.16))
+
+
+def friction_coefficient(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> float:
+    """Friction coefficient mu of the wet paper/steel pair, equation (6) in the Stribeck reading.
+
+    slip_rpm: slip speed [r/min] (sign ignored); T_c: plate temperature [degC]; P_mpa: pressure [MPa].
+    """
+    n = abs(slip_rpm)
+    P = max(P_mpa, f.P_floor / 1e6)
+    return (
+        stribeck_term(n, T_c, P, f)
+        + 0.01 * math.log(0.04398 * n + 1.0) / math.exp(0.005 * T_c)
+        + 0.08 * (math.exp(-0.005 * T_c) - 1.0) * (math.exp(-0.0022 * n) - 1.0)
+        - 0.005 * math.log(28.3 * P)
+        + 0.035
+    )
+
+
+def friction_coefficient_grid(slip_rpm, T_c, P_mpa, f: Friction) -> np.ndarray:
+    """:func:`friction_coefficient` over broadcast arrays (for maps and tests)."""
+    return np.vectorize(lambda n, T, P: friction_coefficient(n, T, P, f), otypes=[float])(slip_rpm, T_c, P_mpa)
+
+
+def slip_memory_step(slip_memory: float, slip_speed: float, dt: float, f: Friction) -> float:
+    """Exact step of tau_slip * s' = |slip_speed| - s with the slip held over dt (any speed unit)."""
+    target = abs(slip_speed)
+    return target + (slip_memory - target) * math.exp(-dt / f.tau_slip)
+
+
+def mu_si(slip_speed: float, T_plate: float, pressure: float, f: Friction) -> float:
+    """mu from the units used inside dsg_hil: slip speed [rad/s], plate temperature [degC], pressure [Pa]."""
+    return friction_coefficient(slip_speed * RAD_S_TO_RPM, T_plate, pressure / 1e6, f)

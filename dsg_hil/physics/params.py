@@ -1,0 +1,289 @@
+"""Model parameters: frozen dataclasses loaded from one TOML file.
+
+Every value in the file is an inline table ``{ value = ..., unit = "...", source = "...", <reason> = "..." }``:
+
+* ``source = "paper"`` needs ``ref`` (where in the paper, e.g. "Table I");
+* ``source = "assumed"`` needs ``why`` (the reasoning: geometry, material, typical flow ...);
+* ``source = "calibrated"`` needs ``target`` (what it was fitted to, and how).
+
+Units are SI with temperatures in degC; each field below declares its unit, and the file must state the same one.
+Anything missing, unknown, mistyped, out of range or in the wrong unit raises :class:`ParameterError` naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
+SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}
+
+
+class ParameterError(ValueError):
+    """A parameter file is missing, unreadable, or has a bad, missing or unknown value."""
+
+
+def p(unit: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> Any:
+    """Declare a parameter field with its unit and allowed range [lo, hi] (lo excluded if ``lo_open``)."""
+    return field(metadata={"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open})
+
+
+def positive(unit: str) -> Any:
+    return p(unit, 0.0, None, lo_open=True)
+
+
+def nonneg(unit: str) -> Any:
+    return p(unit, 0.0)
+
+
+def ratio() -> Any:
+    return p("1", 0.0, 1.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Formula (6) in its Stribeck reading (see :mod:`dsg_hil.physics.friction`)."""
+
+    A_stribeck: float = nonneg("1")  # amplitude of the first term of (6)
+    P_floor: float = positive("Pa")  # pressure floor inside (6) only
+    tau_slip: float = positive("s")  # frictional memory: (6) sees the slip speed through this first-order lag
+
+
+@dataclass(frozen=True)
+class ClutchGeometry:
+    """One wet multi-plate clutch, equation (5), and its plate pack's heat capacity."""
+
+    N: float = positive("1")  # number of friction surfaces
+    R_i: float = positive("m")
+    R_o: float = positive("m")
+    A_f: float = positive("m^2")  # piston area
+    C_plate: float = positive("J/K")  # heat capacity of the plates (the component of element CL/CH in (3))
+
+
+@dataclass(frozen=True)
+class Clutches:
+    test: ClutchGeometry  # the rig clutch of Section III.C
+    CL: ClutchGeometry
+    CH: ClutchGeometry
+
+
+@dataclass(frozen=True)
+class Oil:
+    rho: float = positive("kg/m^3")
+    c_p: float = positive("J/(kg*K)")
+
+
+@dataclass(frozen=True)
+class Circuit:
+    """Oil circuit of Fig. 2: reservoir F -> pump P -> valve V (and relief RV -> F) -> clutches -> radiator R -> F."""
+
+    Q_pump: float = positive("m^3/s")
+    Q_relief: float = nonneg("m^3/s")  # part of the pump flow returning through RV to F
+    Q_cool_CL: float = nonneg("m^3/s")  # cooling flow through each clutch (q_r of (4))
+    Q_cool_CH: float = nonneg("m^3/s")
+    p_line: float = nonneg("Pa")  # pump delivery pressure, throttled to zero in V and RV
+    eta_pump: float = ratio()
+
+
+@dataclass(frozen=True)
+class Element:
+    """One lumped element of (2): component capacity, oil volume and its conductances."""
+
+    C: float = positive("J/K")  # component heat capacity
+    V_o: float = positive("m^3")  # oil held in the element
+    K_io: float = nonneg("W/K")  # component <-> its oil
+    K_iE: float = nonneg("W/K")  # component <-> environment E
+    K_oE: float = nonneg("W/K")  # oil <-> environment E
+
+
+@dataclass(frozen=True)
+class ClutchThermal:
+    """What elements CL and CH need besides their plate pack (Clutches.*.C_plate)."""
+
+    h_plate_oil: float = positive("W/(m^2*K)")  # K_CL,CLo = h * N * pi (R_o^2 - R_i^2)
+    V_o: float = positive("m^3")
+    K_iE: float = nonneg("W/K")
+    K_oE: float = nonneg("W/K")
+
+
+@dataclass(frozen=True)
+class Thermal:
+    T_E: float = p("degC", -40.0, 60.0)  # environment
+    clutch: ClutchThermal
+    F: Element
+    P: Element
+    RV: Element
+    V: Element
+    R: Element
+
+
+@dataclass(frozen=True)
+class Powertrain:
+    """Lumped torsional model of Fig. 6, equations (7)-(12), (14)-(17)."""
+
+    I_e: float = positive("kg*m^2")
+    I_m: float = positive("kg*m^2")
+    I_in: float = positive("kg*m^2")
+    I_1: float = positive("kg*m^2")
+    I_2: float = positive("kg*m^2")
+    I_3: float = positive("kg*m^2")
+    I_4: float = positive("kg*m^2")
+    I_40: float = positive("kg*m^2")
+    I_50: float = positive("kg*m^2")
+    I_5: float = positive("kg*m^2")
+    I_R: float = positive("kg*m^2")
+    K_in: float = positive("N*m/rad")
+    K_a1: float = positive("N*m/rad")
+    K_a2: float = positive("N*m/rad")
+    K_a3: float = positive("N*m/rad")
+    C_in: float = nonneg("N*m*s/rad")
+    C_a1: float = nonneg("N*m*s/rad")
+    C_a2: float = nonneg("N*m*s/rad")
+    C_a3: float = nonneg("N*m*s/rad")
+    i_a: float = positive("1")
+    i_L: float = positive("1")
+    i_H: float = positive("1")
+    i_1: float = positive("1")
+    i_b: float = positive("1")
+    eta_e: float = ratio()
+    eta_a: float = ratio()
+    eta_L: float = ratio()
+    eta_H: float = ratio()
+    eta_1: float = ratio()
+    eta_b: float = ratio()
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """Road load (13)."""
+
+    m: float = positive("kg")
+    g: float = positive("m/s^2")
+    f: float = nonneg("1")
+    beta: float = p("rad", -0.5, 0.5)
+    delta: float = p("1", 1.0)
+    r_w: float = positive("m")
+    A: float = positive("m^2")
+    C_D: float = nonneg("1")
+    rho_air: float = positive("kg/m^3")
+    v_stick: float = positive("m/s")  # below this speed rolling resistance and brake act as static friction
+    M_brake_max: float = nonneg("N*m")  # service brake torque at the wheels at full request
+
+
+@dataclass(frozen=True)
+class Engine:
+    """Engine with an idle governor (the paper gives no engine map)."""
+
+    omega_idle: float = positive("rad/s")
+    M_max: float = positive("N*m")  # full-load torque, flat from idle to omega_rated
+    omega_rated: float = positive("rad/s")
+    M_drag: float = nonneg("N*m")  # friction torque at zero fuel
+    Kp_gov: float = nonneg("N*m*s/rad")
+    Ki_gov: float = nonneg("N*m/rad")
+
+
+@dataclass(frozen=True)
+class Hydraulics:
+    """Clutch pressure response: first-order lag towards the clamped command."""
+
+    tau: float = positive("s")
+    P_max: float = positive("Pa")
+
+
+@dataclass(frozen=True)
+class Params:
+    friction: Friction
+    clutch: Clutches
+    oil: Oil
+    circuit: Circuit
+    thermal: Thermal
+    powertrain: Powertrain
+    vehicle: Vehicle
+    engine: Engine
+    hydraulics: Hydraulics
+    provenance: Mapping[str, tuple[str, str]] = field(default_factory=dict, compare=False, repr=False)
+
+
+def _entry(key: str, raw: Any, meta: Mapping[str, Any], provenance: dict) -> float:
+    if not isinstance(raw, dict) or "value" not in raw:
+        raise ParameterError(f"{key}: expected {{ value = ..., unit = ..., source = ... }}, got {raw!r}")
+    extra = set(raw) - {"value", "unit", "source", "ref", "why", "target"}
+    if extra:
+        raise ParameterError(f"{key}: unknown field(s) {sorted(extra)}")
+    value = raw["value"]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ParameterError(f"{key}: value must be a finite number, got {value!r}")
+    if raw.get("unit") != meta["unit"]:
+        raise ParameterError(f"{key}: unit must be {meta['unit']!r}, got {raw.get('unit')!r}")
+    source = raw.get("source")
+    if source not in SOURCES:
+        raise ParameterError(f"{key}: source must be one of {sorted(SOURCES)}, got {source!r}")
+    reason = raw.get(SOURCES[source])
+    if not isinstance(reason, str) or not reason.strip():
+        raise ParameterError(f"{key}: source {source!r} needs a non-empty {SOURCES[source]!r}")
+    lo, hi = meta["lo"], meta["hi"]
+    if lo is not None and (value < lo or (meta["lo_open"] and value == lo)):
+        raise ParameterError(f"{key}: {value} is out of range (must be {'>' if meta['lo_open'] else '>='} {lo})")
+    if hi is not None and value > hi:
+        raise ParameterError(f"{key}: {value} is out of range (must be <= {hi})")
+    provenance[key] = (source, reason)
+    return float(value)
+
+
+def _build(cls: type, table: Any, prefix: str, provenance: dict) -> Any:
+    if not isinstance(table, dict):
+        raise ParameterError(f"{prefix or 'file'}: expected a table, got {table!r}")
+    own = [f for f in fields(cls) if f.name != "provenance"]
+    unknown = set(table) - {f.name for f in own}
+    if unknown:
+        raise ParameterError(f"{prefix + '.' if prefix else ''}{sorted(unknown)[0]}: unknown key")
+    values = {}
+    for f in own:
+        key = f"{prefix}.{f.name}" if prefix else f.name
+        if f.name not in table:
+            raise ParameterError(f"{key}: missing")
+        sub = f.type if isinstance(f.type, type) else globals().get(str(f.type))
+        if sub is not None and is_dataclass(sub):
+            values[f.name] = _build(sub, table[f.name], key, provenance)
+        else:
+            values[f.name] = _entry(key, table[f.name], f.metadata, provenance)
+    return cls(**values)
+
+
+def _check_consistency(params: Params) -> None:
+    for name in ("test", "CL", "CH"):
+        g = getattr(params.clutch, name)
+        if g.R_i >= g.R_o:
+            raise ParameterError(f"clutch.{name}.R_i: must be smaller than R_o ({g.R_i} >= {g.R_o})")
+    c = params.circuit
+    if c.Q_relief + c.Q_cool_CL + c.Q_cool_CH > c.Q_pump:
+        raise ParameterError("circuit.Q_pump: smaller than Q_relief + Q_cool_CL + Q_cool_CH")
+    if params.engine.omega_rated <= params.engine.omega_idle:
+        raise ParameterError("engine.omega_rated: must be above omega_idle")
+
+
+def parse_params(text: str, origin: str = "<string>") -> Params:
+    """Parse parameter TOML text into :class:`Params` (raises :class:`ParameterError`)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{origin}: not valid TOML: {exc}") from None
+    data.pop("meta", None)
+    provenance: dict[str, tuple[str, str]] = {}
+    params = _build(Params, data, "", provenance)
+    _check_consistency(params)
+    return Params(**{f.name: getattr(params, f.name) for f in fields(Params) if f.name != "provenance"},
+                  provenance=provenance)
+
+
+def load_params(path: str | Path | None = None) -> Params:
+    """Load a parameter file (default: the one shipped with the package)."""
+    path = Path(path) if path is not None else DEFAULT_PARAMS_PATH
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read parameter file ({exc.strerror or exc})") from None
+    return parse_params(text, str(path))

@@ -1,0 +1,182 @@
+"""Lumped thermal network of the gearbox cooling system, equations (1)-(4).
+
+Each element i of Fig. 2 (F, P, RV, V, CL, CH, R) has a component node ``i`` and an oil node ``i_o`` as in (2);
+the environment E is a fixed-temperature boundary. Conductances join nodes both ways (K_ij (T_i - T_j));
+the oil circuit reservoir F -> pump P -> valve V (relief RV -> F) -> clutches CL, CH -> radiator R -> F carries
+heat downstream only (m_dot c_p (T_upstream - T_i)), which conserves energy around the closed loop.
+
+In matrix form: ``C dT/dt = -L T + g_E T_E + q``. With ``q`` held over a step this is linear with constant
+coefficients, so :func:`discretize` gives its exact solution (matrix exponential).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from .friction import torque_per_mu
+from .params import ClutchGeometry, Element, Params
+
+ELEMENTS = ("F", "P", "RV", "V", "CL", "CH", "R")
+NODES = tuple(n for e in ELEMENTS for n in (e, e + "o"))
+
+
+@dataclass(frozen=True)
+class Network:
+    """A linear thermal network: capacities C [J/K], operator L [W/K], conductances to E g_E [W/K]."""
+
+    names: tuple[str, ...]
+    C: np.ndarray
+    L: np.ndarray
+    g_E: np.ndarray
+    T_E: float
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+    def derivative(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """dT/dt [K/s] for node temperatures T [degC] and heat sources q [W]."""
+        return (-self.L @ T + self.g_E * self.T_E + q) / self.C
+
+    def heat_to_environment(self, T: np.ndarray) -> float:
+        """Heat flow leaving the network to E [W]."""
+        return float(self.g_E @ (T - self.T_E))
+
+
+class NetworkBuilder:
+    """Collects nodes and edges, then builds a :class:`Network`."""
+
+    def __init__(self, names: tuple[str, ...], T_E: float) -> None:
+        self.names = names
+        self.T_E = T_E
+        n = len(names)
+        self.C = np.zeros(n)
+        self.L = np.zeros((n, n))
+        self.g_E = np.zeros(n)
+
+    def capacity(self, node: str, C: float) -> None:
+        self.C[self.names.index(node)] = C
+
+    def conductance(self, a: str, b: str, K: float) -> None:
+        """Two-way exchange K (T_a - T_b) [W/K]; b = "E" is the environment."""
+        i = self.names.index(a)
+        if b == "E":
+            self.g_E[i] += K
+            self.L[i, i] += K
+            return
+        j = self.names.index(b)
+        self.L[i, i] += K
+        self.L[j, j] += K
+        self.L[i, j] -= K
+        self.L[j, i] -= K
+
+    def flow(self, upstream: str, downstream: str, W: float) -> None:
+        """Oil flow carrying heat from upstream to downstream, W = m_dot c_p [W/K]."""
+        i, j = self.names.index(upstream), self.names.index(downstream)
+        self.L[j, j] += W
+        self.L[j, i] -= W
+
+    def build(self) -> Network:
+        if np.any(self.C <= 0.0):
+            missing = [n for n, c in zip(self.names, self.C) if c <= 0.0]
+            raise ValueError(f"thermal nodes without capacity: {missing}")
+        return Network(self.names, self.C.copy(), self.L.copy(), self.g_E.copy(), self.T_E)
+
+
+def clutch_element(params: Params, geometry: ClutchGeometry) -> Element:
+    """Element CL or CH of (3): plate pack, its oil, and K_CL,CLo = h N pi (R_o^2 - R_i^2)."""
+    t = params.thermal.clutch
+    wetted = geometry.N * np.pi * (geometry.R_o**2 - geometry.R_i**2)
+    return Element(C=geometry.C_plate, V_o=t.V_o, K_io=t.h_plate_oil * wetted, K_iE=t.K_iE, K_oE=t.K_oE)
+
+
+def gearbox_network(params: Params, CL: ClutchGeometry | None = None, CH: ClutchGeometry | None = None) -> Network:
+    """The network of Fig. 2 with the circuit's oil flows; CL/CH default to the vehicle's clutches."""
+    th, c, oil = params.thermal, params.circuit, params.oil
+    elements = {
+        "F": th.F, "P": th.P, "RV": th.RV, "V": th.V, "R": th.R,
+        "CL": clutch_element(params, CL or params.clutch.CL),
+        "CH": clutch_element(params, CH or params.clutch.CH),
+    }
+    b = NetworkBuilder(NODES, th.T_E)
+    for name, e in elements.items():
+        o = name + "o"
+        b.capacity(name, e.C)
+        b.capacity(o, oil.rho * oil.c_p * e.V_o)
+        b.conductance(name, o, e.K_io)
+        b.conductance(name, "E", e.K_iE)
+        b.conductance(o, "E", e.K_oE)
+    W = oil.rho * oil.c_p  # J/(m^3 K)
+    Q_valve = c.Q_pump - c.Q_relief
+    Q_bypass = Q_valve - c.Q_cool_CL - c.Q_cool_CH
+    b.flow("Fo", "Po", W * c.Q_pump)
+    b.flow("Po", "RVo", W * c.Q_relief)
+    b.flow("RVo", "Fo", W * c.Q_relief)
+    b.flow("Po", "Vo", W * Q_valve)
+    b.flow("Vo", "CLo", W * c.Q_cool_CL)
+    b.flow("Vo", "CHo", W * c.Q_cool_CH)
+    b.flow("Vo", "Ro", W * Q_bypass)
+    b.flow("CLo", "Ro", W * c.Q_cool_CL)
+    b.flow("CHo", "Ro", W * c.Q_cool_CH)
+    b.flow("Ro", "Fo", W * Q_valve)
+    return b.build()
+
+
+def heat_sources(params: Params, Q_CL: float, Q_CH: float, P_CL: float, P_CH: float) -> np.ndarray:
+    """Source vector q [W] over NODES, equation (4) and the hydraulics.
+
+    Q_CL, Q_CH: friction heat M * delta_omega into the plates [W]. Throttle losses q_r * delta_p into the clutch oil,
+    with q_r the cooling flow and delta_p the clutch pressure P_CL/P_CH [Pa]; the rest of the pump's hydraulic power
+    is throttled in V and RV, and the pump's own losses heat its oil, so the circuit turns all pump power into heat.
+    """
+    c = params.circuit
+    q = np.zeros(len(NODES))
+    throttle_CL = c.Q_cool_CL * max(P_CL, 0.0)
+    throttle_CH = c.Q_cool_CH * max(P_CH, 0.0)
+    hydraulic = c.Q_pump * c.p_line
+    q[NODES.index("CL")] = Q_CL
+    q[NODES.index("CH")] = Q_CH
+    q[NODES.index("CLo")] = throttle_CL
+    q[NODES.index("CHo")] = throttle_CH
+    q[NODES.index("Po")] = hydraulic * (1.0 / c.eta_pump - 1.0)
+    q[NODES.index("RVo")] = c.Q_relief * c.p_line
+    q[NODES.index("Vo")] = (c.Q_pump - c.Q_relief) * c.p_line - throttle_CL - throttle_CH
+    return q
+
+
+@dataclass(frozen=True)
+class DiscreteNetwork:
+    """Exact zero-order-hold step of a network: T[k+1] = Phi T[k] + Gamma (g_E T_E + q[k]) / C."""
+
+    network: Network
+    dt: float
+    Phi: np.ndarray
+    Gamma: np.ndarray
+
+    def step(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
+        n = self.network
+        return self.Phi @ T + self.Gamma @ ((n.g_E * n.T_E + q) / n.C)
+
+
+def zoh(A: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact discretization of x' = A x + u with u held over dt: returns (e^{A dt}, int_0^dt e^{A s} ds)."""
+    n = A.shape[0]
+    aug = np.zeros((2 * n, 2 * n))
+    aug[:n, :n] = A
+    aug[:n, n:] = np.eye(n)
+    E = expm(aug * dt)
+    return E[:n, :n], E[:n, n:]
+
+
+def discretize(network: Network, dt: float) -> DiscreteNetwork:
+    if not dt > 0.0:
+        raise ValueError(f"dt must be positive, got {dt}")
+    Phi, Gamma = zoh(-network.L / network.C[:, None], dt)
+    return DiscreteNetwork(network, dt, Phi, Gamma)
+
+
+def friction_heat(mu: float, geometry: ClutchGeometry, pressure: float, slip_speed: float) -> float:
+    """Friction power of a slipping clutch, (4) with (5): M * delta_omega [W] (pressure [Pa], slip [rad/s])."""
+    return mu * torque_per_mu(geometry, pressure) * abs(slip_speed)

@@ -1,0 +1,43 @@
+"""The paper's published numbers (Ma et al., Sections III.C and V.B), copied here so that the package and its
+tests never need the paper itself."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class RigReference:
+    """One Section III.C case: 100 s at constant pressure and relative speed from 40 degC (Figs. 3-5)."""
+
+    case: int
+    pressure_mpa: float
+    speed_rpm: float
+    temperature_rise_c: float  # simulated rise after 100 s, Fig. 3
+    torque_start_nm: float | None = None  # Fig. 4 (published for case 4 only)
+    torque_end_nm: float | None = None
+    mu_start: float | None = None  # Fig. 5 (published for case 4 only)
+    mu_end: float | None = None
+    T_end_c: float | None = None
+
+
+RIG_T_START_C = 40.0
+RIG_DURATION_S = 100.0
+
+RIG_CASES: tuple[RigReference, ...] = (
+    RigReference(1, 0.2, 150.0, 21.0),
+    RigReference(2, 0.2, 300.0, 47.0),
+    RigReference(3, 0.3, 150.0, 33.0),
+    RigReference(4, 0.3, 300.0, 74.0, 149.5, 164.8, 0.054, 0.060, 114.0),
+)
+
+# Section V.B: the first CH slip (Figs. 10, 11).
+CREEP_MU_CH = (0.063, 0.075)  # start, end
+CREEP_P_CH_MPA = (0.75, 0.65)  # start, end
+CREEP_T_START_C = 100.0  # both clutches start at 100 degC (CL heats 100 -> 250)
+SAFETY_TEMPERATURE_C = 250.0
+
+# Done-when bands of issue 2 (|simulated - published|).
+TOL_RISE_C = 4.0
+TOL_TORQUE_REL = 0.07
+TOL_MU = 0.004

@@ -1,0 +1,30 @@
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from dsg_hil.physics.engine import full_load_torque, governor, net_torque
+from dsg_hil.physics.hydraulics import clamp_command, pressure_step
+
+
+def test_governor_limits_and_anti_windup(params):
+    e = params.engine
+    fuel, d_int = governor(e.omega_idle - 5.0, 0.0, e.omega_idle, e)
+    assert fuel == pytest.approx(e.Kp_gov * 5.0) and d_int == pytest.approx(e.Ki_gov * 5.0)
+    fuel, d_int = governor(e.omega_idle - 500.0, 1e4, e.omega_idle, e)  # saturated high: integral frozen
+    assert fuel == e.M_max and d_int == 0.0
+    fuel, d_int = governor(e.omega_idle + 50.0, -1e3, e.omega_idle, e)  # saturated at zero fuel
+    assert fuel == 0.0 and d_int == 0.0
+    assert net_torque(0.0, e) == -e.M_drag
+    assert full_load_torque(1.2 * e.omega_rated, e) == 0.0
+
+
+def test_pressure_lag_exact_and_clamped(params):
+    h = params.hydraulics
+    P = pressure_step(0.0, 0.5e6, h.tau, h)
+    assert P == pytest.approx(0.5e6 * (1 - math.exp(-1)))
+    assert pressure_step(0.0, 9e6, 10.0, h) == pytest.approx(h.P_max)
+    assert clamp_command(-1.0, h) == 0.0
+    assert clamp_command(float("nan"), h) == 0.0  # a garbled command opens the clutch
+    assert pressure_step(1e6, 0.0, 1.0, h) == pytest.approx(1e6 * math.exp(-1.0 / h.tau))

@@ -1,0 +1,79 @@
+"""Friction torque (5) and coefficient (6) against hand calculations and the paper's points."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dsg_hil.physics.friction import (clutch_torque_capacity, friction_coefficient, friction_coefficient_grid,
+                                      mean_friction_radius, stribeck_term, torque_per_mu)
+from dsg_hil.reference import RIG_CASES
+
+
+def four_printed_terms(n, T, P):
+    """The last four terms of (6), written out by hand."""
+    return (0.01 * math.log(0.04398 * n + 1) / math.exp(0.005 * T)
+            + 0.08 * (math.exp(-0.005 * T) - 1) * (math.exp(-0.0022 * n) - 1)
+            - 0.005 * math.log(28.3 * P) + 0.035)
+
+
+def test_mean_radius_and_torque_hand_calculation(params):
+    r_m = 2 / 3 * (0.125**3 - 0.086**3) / (0.125**2 - 0.086**2)
+    assert mean_friction_radius(0.086, 0.125) == pytest.approx(r_m)
+    assert r_m == pytest.approx(0.10670, abs=1e-5)
+    # Section III.C case 4 at the paper's mu: 0.054 * 2 * 0.3e6 Pa * 0.0427 m^2 * r_m = 147.6 N m (paper: 149.5)
+    assert clutch_torque_capacity(0.054, params.clutch.test, 0.3e6) == pytest.approx(0.054 * 2 * 0.3e6 * 0.0427 * r_m)
+    assert clutch_torque_capacity(0.054, params.clutch.test, 0.3e6) == pytest.approx(149.5, rel=0.02)
+
+
+def test_zero_pressure_gives_zero_torque(params):
+    assert torque_per_mu(params.clutch.CL, 0.0) == 0.0
+    assert torque_per_mu(params.clutch.CL, -1e5) == 0.0
+    assert math.isfinite(friction_coefficient(100.0, 80.0, 0.0, params.friction))
+
+
+@pytest.mark.parametrize("T, expected", [(40.0, 0.05303), (114.0, 0.05610)])
+def test_section_iii_c_case4_points(params, T, expected):
+    mu = friction_coefficient(300.0, T, 0.3, params.friction)
+    assert mu == pytest.approx(four_printed_terms(300.0, T, 0.3), abs=1e-12)  # first term is zero there
+    assert mu == pytest.approx(expected, abs=1e-5)
+
+
+def test_stribeck_term_is_zero_at_all_validation_points(params):
+    for ref in RIG_CASES:
+        for T in np.linspace(40.0, 40.0 + ref.temperature_rise_c + 5.0, 50):
+            assert stribeck_term(ref.speed_rpm, T, ref.pressure_mpa, params.friction) < 1e-9
+
+
+def test_section_v_mu_ch(params):
+    """mu_CH 0.063 -> 0.075 at one slip speed (the calibration's 114 r/min), 100 -> 250 degC, 0.75 -> 0.65 MPa."""
+    assert friction_coefficient(114.0, 100.0, 0.75, params.friction) == pytest.approx(0.063, abs=5e-4)
+    assert friction_coefficient(114.0, 250.0, 0.65, params.friction) == pytest.approx(0.075, abs=5e-4)
+
+
+def test_stribeck_first_term_by_hand(params):
+    n, T, P = 114.0, 100.0, 0.75
+    D = (math.log(T) - 3.2) * (28.3 * P) ** 0.4 - 0.87
+    expected = params.friction.A_stribeck * math.exp(-((0.028574 * n / D) ** 5.16))
+    assert stribeck_term(n, T, P, params.friction) == pytest.approx(expected)
+    assert stribeck_term(n, 20.0, P, params.friction) == 0.0  # D < 0 below ~25 degC
+    assert stribeck_term(n, -5.0, P, params.friction) == 0.0
+
+
+def test_whole_operating_range_is_finite_positive_plausible(params):
+    n = np.linspace(0.0, 400.0, 81)[:, None, None]
+    T = np.linspace(20.0, 300.0, 57)[None, :, None]
+    P = np.linspace(0.0, 1.5, 31)[None, None, :]
+    mu = friction_coefficient_grid(n, T, P, params.friction)
+    assert mu.shape == (81, 57, 31)
+    assert np.all(np.isfinite(mu))
+    assert mu.min() > 0.01 and mu.max() < 0.15  # wet paper/steel: a few hundredths to about 0.15
+
+
+def test_literal_prefactor_would_be_implausible(params):
+    """Why A_stribeck is calibrated: the printed 23 gives mu >> 1 at creep slip speeds."""
+    literal = replace(params.friction, A_stribeck=23.0)
+    assert friction_coefficient(100.0, 150.0, 0.7, literal) > 1.0

@@ -1,0 +1,83 @@
+"""The parameter file: Table I as printed, every value tagged, bad files rejected with the key named."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from dsg_hil.physics.params import DEFAULT_PARAMS_PATH, ParameterError, load_params, parse_params
+
+# Table I of the paper (SI), copied here independently of the parameter file.
+TABLE_I = {
+    "vehicle.A": 3.6, "clutch.test.A_f": 0.0427, "vehicle.C_D": 0.62,
+    "powertrain.C_a1": 2, "powertrain.C_a2": 0.5, "powertrain.C_a3": 0.5, "powertrain.C_in": 0.5,
+    "powertrain.I_R": 18.9021, "powertrain.I_e": 3.65, "powertrain.I_m": 0.01637, "powertrain.I_in": 0.01538,
+    "powertrain.I_1": 0.2102, "powertrain.I_2": 0.002373, "powertrain.I_3": 0.002373, "powertrain.I_4": 0.2034,
+    "powertrain.I_40": 0.01931, "powertrain.I_50": 0.001535, "powertrain.I_5": 0.2523,
+    "powertrain.K_a1": 89389, "powertrain.K_a2": 110088, "powertrain.K_a3": 65114, "powertrain.K_in": 283429,
+    "clutch.test.R_i": 0.086, "clutch.test.R_o": 0.125, "vehicle.f": 0.123,
+    "powertrain.i_a": 5.3585, "powertrain.i_b": 3.818, "powertrain.i_L": 1.59, "powertrain.i_H": 0.92,
+    "powertrain.i_1": 0.925, "vehicle.m": 7840, "vehicle.beta": 0.174, "vehicle.delta": 1.0554,
+    "vehicle.r_w": 0.1935,
+}
+
+
+def value(params, key):
+    obj = params
+    for part in key.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def test_table_i_values_are_the_papers(params):
+    for key, expected in TABLE_I.items():
+        assert value(params, key) == pytest.approx(expected, rel=1e-12), key
+        assert params.provenance[key][0] == "paper", key
+
+
+def test_every_value_is_tagged_with_a_reason(params):
+    assert len(params.provenance) > 90
+    for key, (source, reason) in params.provenance.items():
+        assert source in {"paper", "assumed", "calibrated"}
+        assert len(reason) >= 5, key
+    calibrated = {k for k, (s, _) in params.provenance.items() if s == "calibrated"}
+    assert calibrated == {"friction.A_stribeck", "thermal.clutch.h_plate_oil"}
+
+
+BASE = DEFAULT_PARAMS_PATH.read_text(encoding="utf-8")
+
+
+def mutate(pattern: str, repl: str) -> str:
+    text, n = re.subn(pattern, repl, BASE, count=1, flags=re.M)
+    assert n == 1, pattern
+    return text
+
+
+@pytest.mark.parametrize("text, key, words", [
+    (mutate(r"^K_a1 = .*\n", ""), "powertrain.K_a1", "missing"),
+    (mutate(r"^\[powertrain\]\n", "[powertrain]\nK_a9 = { value = 1.0, unit = \"1\", source = \"assumed\", why = \"xxxxxxxxxxx\" }\n"),
+     "powertrain.K_a9", "unknown key"),
+    (mutate(r'(^K_a1 = \{ value = 89389.0, unit = )"N\*m/rad"', r'\1"N*m"'), "powertrain.K_a1", "unit"),
+    (mutate(r'(^K_a1 = \{ value = )89389.0', r'\g<1>-1.0'), "powertrain.K_a1", "out of range"),
+    (mutate(r'(^K_a1 = \{ value = )89389.0', r'\g<1>"big"'), "powertrain.K_a1", "finite number"),
+    (mutate(r'(^K_a1 = \{ value = 89389.0, unit = "N\*m/rad", source = )"paper"', r'\1"folklore"'),
+     "powertrain.K_a1", "source"),
+    (mutate(r'(^K_a1 = \{ value = 89389.0, unit = "N\*m/rad", source = "paper"), ref = "Table I"', r"\1"),
+     "powertrain.K_a1", "'ref'"),
+    (mutate(r'^(R_i = \{ value = )0.086', r"\g<1>0.2"), "clutch.test.R_i", "R_o"),
+    (mutate(r"^Q_pump = \{ value = 3.333e-4", "Q_pump = { value = 1e-5"), "circuit.Q_pump", "smaller"),
+])
+def test_bad_values_name_their_key(text, key, words):
+    with pytest.raises(ParameterError) as err:
+        parse_params(text)
+    assert key in str(err.value) and words in str(err.value)
+
+
+def test_garbled_and_missing_files(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[friction\nA_stribeck = ", encoding="utf-8")
+    with pytest.raises(ParameterError, match="not valid TOML"):
+        load_params(bad)
+    with pytest.raises(ParameterError, match="cannot read"):
+        load_params(tmp_path / "absent.toml")

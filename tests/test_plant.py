@@ -1,0 +1,106 @@
+"""The assembled plant: steady states by hand, stick/slip, energy balance, determinism, no NaN."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import astuple
+
+import numpy as np
+import pytest
+
+from dsg_hil.physics.thermal import NODES
+from dsg_hil.plant import Plant, PlantInputs
+
+
+def run(plant, inputs, seconds):
+    out = None
+    for _ in range(int(round(seconds / plant.dt))):
+        out = plant.step(inputs)
+    return out
+
+
+def test_locked_creep_steady_state_by_hand(params):
+    """CL locked at idle on Table I's grade: v from the ratios, engine torque from the road load (13)."""
+    pt, veh = params.powertrain, params.vehicle
+    plant = Plant(params, T_init=80.0)
+    out = run(plant, PlantInputs(P_CL_cmd=0.7e6), 40.0)
+    assert out.locked_CL and not out.locked_CH
+    ratio = pt.i_a * pt.i_L * pt.i_1 * pt.i_b
+    v = params.engine.omega_idle / ratio * veh.r_w
+    assert out.v == pytest.approx(v, rel=1e-3)
+    force = veh.m * veh.g * (math.sin(veh.beta) + veh.f * math.cos(veh.beta)) + 0.5 * veh.rho_air * veh.C_D * veh.A * v**2
+    M_e = force * veh.r_w / (ratio * pt.eta_a * pt.eta_L * pt.eta_1 * pt.eta_b)
+    assert out.M_e == pytest.approx(M_e, rel=2e-3)
+    assert out.Q_CL == 0.0
+
+
+def test_zero_pressure_transmits_nothing(params):
+    plant = Plant(params, T_init=60.0)
+    out = run(plant, PlantInputs(P_CL_cmd=0.0, P_CH_cmd=0.0, brake=1.0), 2.0)
+    assert out.M_CL == 0.0 and out.M_CH == 0.0 and out.Q_CL == 0.0
+    assert out.vehicle_held and out.v == 0.0
+    # brake released on a 0.174 rad grade with open clutches: gravity beats rolling resistance, it rolls back
+    out = run(plant, PlantInputs(brake=0.0), 1.0)
+    assert out.v < -0.1
+
+
+def test_slipping_clutch_locks_and_unlocks(params):
+    plant = Plant(params, T_init=80.0)
+    out = run(plant, PlantInputs(P_CL_cmd=1.0e6, brake=1.0), 1.0)  # brake held: the clutch slips
+    assert not out.locked_CL and out.vehicle_held and out.Q_CL > 0.0
+    out = run(plant, PlantInputs(P_CL_cmd=1.0e6), 6.0)  # brake off: drives away and locks
+    assert out.locked_CL and not out.vehicle_held and out.Q_CL == 0.0
+    out = run(plant, PlantInputs(P_CL_cmd=0.35e6), 3.0)  # below what the grade needs: slips again, stops
+    assert not out.locked_CL and out.omega_in - out.omega_CL > 10.0 and out.Q_CL > 0.0
+    assert out.vehicle_held
+
+
+def test_energy_balance_of_a_creep_run(params):
+    """Friction work + hydraulic heat = heat stored + heat rejected to E, to 0.1 %."""
+    plant = Plant(params, T_init=90.0)
+    net = plant.network
+    T0 = plant.state.T.copy()
+    work = rejected = hydraulic = 0.0
+    c = params.circuit
+    for k in range(20_000):
+        T_before = plant.state.T.copy()
+        P_CL = plant.state.P_CL
+        out = plant.step(PlantInputs(P_CL_cmd=0.45e6 + 0.05e6 * math.sin(k / 500.0), brake=0.0))
+        work += (out.Q_CL + out.Q_CH) * plant.dt
+        hydraulic += (c.Q_pump * c.p_line / c.eta_pump) * plant.dt
+        rejected += 0.5 * (net.heat_to_environment(T_before) + net.heat_to_environment(plant.state.T)) * plant.dt
+        del P_CL
+    stored = float(net.C @ (plant.state.T - T0))
+    assert work > 1e5
+    assert work + hydraulic == pytest.approx(stored + rejected, rel=1e-3)
+
+
+def test_same_inputs_same_outputs_bit_for_bit(params):
+    def trace():
+        plant = Plant(params, T_init={"CL": 100.0, "CH": 100.0, "Fo": 80.0})
+        rows = []
+        for k in range(3000):
+            rows.append(astuple(plant.step(PlantInputs(P_CL_cmd=0.4e6 + 100.0 * k, P_CH_cmd=0.1e6, brake=0.0))))
+        return rows
+    assert trace() == trace()
+
+
+def test_no_nan_on_random_inputs(params):
+    rng = np.random.default_rng(7)
+    plant = Plant(params, T_init=float(rng.uniform(20, 200)))
+    for _ in range(60):
+        inputs = PlantInputs(P_CL_cmd=float(rng.uniform(-0.5e6, 2.5e6)), P_CH_cmd=float(rng.uniform(-0.5e6, 2.5e6)),
+                             brake=float(rng.uniform(0, 1)), grade=float(rng.uniform(-0.2, 0.2)),
+                             engine_speed_request=float(rng.uniform(70, 260)))
+        for _ in range(100):
+            out = plant.step(inputs)
+        values = [v for v in astuple(out) if isinstance(v, float)]
+        assert all(math.isfinite(v) for v in values)
+        assert 0.0 <= out.P_CL <= params.hydraulics.P_max and 0.0 <= out.P_CH <= params.hydraulics.P_max
+    assert np.all(np.isfinite(plant.state.T)) and plant.state.T.max() < 400.0
+
+
+def test_unknown_initial_node_is_rejected(params):
+    with pytest.raises(ValueError, match="unknown thermal node"):
+        Plant(params, T_init={"XX": 1.0})
+    assert len(NODES) == 14
