@@ -35,6 +35,8 @@ def _fmt_row(name: str, sim: float, pub: float, dev: float, ok: bool) -> str:
 
 def _do_validate(args: argparse.Namespace) -> int:
     params = params_from(args)
+    if not args.dt > 0.0:
+        raise ValueError(f"--dt: dt must be positive, got {args.dt}")
     if args.plots:  # fail before the long run, not after it
         from ..plots import require_matplotlib
         require_matplotlib()
@@ -51,8 +53,10 @@ def _do_validate(args: argparse.Namespace) -> int:
         Path(args.json).write_text(json.dumps(validation_json(results), indent=2) + "\n", encoding="utf-8")
         progress(f"wrote {args.json}")
     if args.plots:
-        from ..plots import validation_figures
-        for path in validation_figures(results, Path(args.plots)):
+        from ..plots import friction_map_figure, validation_figures
+        paths = validation_figures(results, Path(args.plots))
+        paths.append(friction_map_figure(params.friction, Path(args.plots) / "friction_map.png"))
+        for path in paths:
             progress(f"wrote {path}")
     if not all_ok:
         print("some numbers fall outside the accepted band (see README, 'Validation')")
