@@ -1,0 +1,43 @@
+"""``dsg-hil plant``: the plant alone on a bus, for a TCU started separately (ecu-stub or a real ECU)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from contextlib import ExitStack
+from pathlib import Path
+
+from .busopts import add_bus_options, plant_runner, scenario_from, setup_logging
+from .common import add_params_option, progress
+
+
+def add_subparser(sub) -> None:
+    parser = sub.add_parser(
+        "plant", help="run the plant process on a bus (the TCU runs elsewhere)",
+        description="Run the plant on a CAN bus against a TCU started separately (ecu-stub, or a real ECU on "
+                    "can0). Real time by default: frames at their DBC cycle times, commands used as they "
+                    "arrive, unpowered hydraulics when TCU_CMD is missing for 3 cycle times. Lockstep: the "
+                    "plant waits for the TCU's answer to each SIM_SYNC tick.")
+    add_bus_options(parser, default_mode="realtime")
+    parser.add_argument("--summary", metavar="FILE", help="write the JSON summary at the end")
+    add_params_option(parser)
+    parser.set_defaults(func=_do_plant)
+
+
+def _do_plant(args: argparse.Namespace) -> int:
+    setup_logging(args.verbose)
+    scenario = scenario_from(args)
+    with ExitStack() as stack:
+        runner, config = plant_runner(args, stack, scenario)
+        progress(f"plant: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on "
+                 f"{config['interface']}:{config['channel']}")
+        if args.mode == "lockstep":
+            runner.run_lockstep(args.reply_timeout)
+        else:
+            runner.run_realtime()
+        summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,
+                                         f"{config['interface']}:{config['channel']}", scenario.duration_s)
+    if args.summary:
+        Path(args.summary).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    progress(f"done: stop {summary['stop_reason']}, frames {summary['frames']}")
+    return 0

@@ -1,0 +1,99 @@
+"""``dsg-hil run``: the plant and the TCU together, and a summary of what happened."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import threading
+import time
+from contextlib import ExitStack
+from pathlib import Path
+
+from ..protocol import Codec, load_dbc
+from ..protocol.bus import open_bus
+from .busopts import add_bus_options, plant_runner, scenario_from, setup_logging
+from .common import add_params_option, progress
+
+
+def add_subparser(sub) -> None:
+    parser = sub.add_parser(
+        "run", help="run the plant and the TCU (ecu-stub) together on a bus",
+        description="Run a scenario with the plant and the TCU: as two processes on a real bus (socketcan, "
+                    "...: the TCU is started as 'ecu-stub'), or in one process on python-can's 'virtual' "
+                    "interface. With no interface configured and no vcan0 present, runs on 'virtual' in "
+                    "lockstep, so it works on any machine.")
+    add_bus_options(parser, default_mode="lockstep")
+    parser.add_argument("--summary", metavar="FILE", help="write a JSON summary (creep and slip times, "
+                        "peak temperatures, handovers, stop reason, frame counts)")
+    add_params_option(parser)
+    parser.set_defaults(func=_do_run)
+
+
+def _tcu_in_process(bus_config: dict, dbc):
+    from ecu_stub.runner import TCU_USES, TcuRunner  # the TCU side, in this process (virtual bus only)
+    return TcuRunner(Codec(dbc, TCU_USES), open_bus(bus_config))
+
+
+def _do_run(args: argparse.Namespace) -> int:
+    setup_logging(args.verbose)
+    scenario = scenario_from(args)
+    with ExitStack() as stack:
+        runner, config = plant_runner(args, stack, scenario)
+        progress(f"{scenario.name}: {scenario.duration_s:g} s, {args.mode} on {config['interface']}:"
+                 f"{config['channel']}")
+        t0 = time.monotonic()
+        if config["interface"] == "virtual":
+            tcu = _tcu_in_process(config, runner.codec.db)
+            stack.callback(tcu.bus.shutdown)
+            if args.mode == "lockstep":
+                runner.run_lockstep(args.reply_timeout, pump=tcu.pump)
+            else:
+                errors: list[BaseException] = []
+
+                def serve() -> None:
+                    try:
+                        tcu.run(duration=scenario.duration_s + 1.0)
+                    except BaseException as exc:  # noqa: BLE001 - re-raised in the main thread
+                        errors.append(exc)
+
+                thread = threading.Thread(target=serve, name="ecu-stub", daemon=True)
+                thread.start()
+                runner.run_realtime()
+                thread.join()
+                if errors:
+                    raise errors[0]
+        else:
+            cmd = [sys.executable, "-m", "ecu_stub", "--interface", str(config["interface"]),
+                   "--channel", str(config["channel"]), "--idle-exit", "2"]
+            tcu_proc = subprocess.Popen(cmd)
+            stack.callback(_stop_process, tcu_proc)
+            time.sleep(0.5)
+            if tcu_proc.poll() is not None:
+                raise RuntimeError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
+            if args.mode == "lockstep":
+                runner.run_lockstep(max(args.reply_timeout, 10.0))
+            else:
+                runner.run_realtime()
+        wall = time.monotonic() - t0
+        summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,
+                                         f"{config['interface']}:{config['channel']}", scenario.duration_s)
+        summary["wall_time_s"] = round(wall, 3)
+    progress(f"done: {scenario.duration_s:g} simulated s in {wall:.1f} s wall; stop: {summary['stop_reason']}; "
+             f"handovers: {len(summary['handovers'])}; frames sent {summary['frames']['sent']}, received "
+             f"{summary['frames']['received']}, rejected {summary['frames']['rejected']}")
+    if args.summary:
+        Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.summary).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        progress(f"wrote {args.summary}")
+    return 0
+
+
+def _stop_process(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()

@@ -1,0 +1,136 @@
+"""DBC codec with the frame protection of this contract: a 4-bit rolling ``Counter`` and a ``CRC`` (CRC-8 SAE
+J1850 over the frame ID, 2 bytes little endian, and bytes 0-6), both filled here, never by callers.
+
+Every message and signal the code uses is resolved once, at start-up: a missing one raises :class:`ProtocolError`
+naming it. Encoding clamps each value to its signal's DBC range, then encodes with ``strict=True``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import cantools
+from cantools.database.can import Database, Message
+
+from .crc import crc8_j1850
+
+DEFAULT_DBC = Path(__file__).resolve().parent.parent / "data" / "dsg_hil.dbc"
+COUNTER, CRC = "Counter", "CRC"
+
+
+class ProtocolError(ValueError):
+    """The DBC is missing, unreadable, or lacks a message or signal the code needs."""
+
+
+class FrameError(ValueError):
+    """A received frame is not acceptable. ``reason`` is one of: unknown, dlc, crc, range, malformed."""
+
+    def __init__(self, reason: str, message: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class DecodedFrame:
+    name: str
+    values: dict[str, float]
+    counter: int
+
+
+def load_dbc(path: str | Path | None = None) -> Database:
+    path = Path(path) if path is not None else DEFAULT_DBC
+    try:
+        return cantools.database.load_file(str(path), strict=True)
+    except FileNotFoundError:
+        raise ProtocolError(f"{path}: DBC file not found") from None
+    except Exception as exc:  # cantools raises several types for a bad file
+        raise ProtocolError(f"{path}: cannot load DBC ({exc})") from None
+
+
+class Codec:
+    """Encode and decode the messages named in ``uses`` ({message: [signals the code reads or writes]})."""
+
+    def __init__(self, db: Database, uses: Mapping[str, Sequence[str]]) -> None:
+        self.db = db
+        self._by_name: dict[str, Message] = {}
+        self._by_id: dict[int, Message] = {}
+        for name, signals in uses.items():
+            try:
+                message = db.get_message_by_name(name)
+            except KeyError:
+                raise ProtocolError(f"message {name} is not in the DBC") from None
+            for signal in (*signals, COUNTER, CRC):
+                try:
+                    message.get_signal_by_name(signal)
+                except KeyError:
+                    raise ProtocolError(f"signal {name}.{signal} is not in the DBC") from None
+            if message.cycle_time is None or message.cycle_time <= 0:
+                raise ProtocolError(f"message {name} has no GenMsgCycleTime in the DBC")
+            self._by_name[name] = message
+            self._by_id[message.frame_id] = message
+
+    # ---- lookup --------------------------------------------------------------------------------------------
+    def message(self, name: str) -> Message:
+        return self._by_name[name]
+
+    def frame_id(self, name: str) -> int:
+        return self._by_name[name].frame_id
+
+    def cycle_time(self, name: str) -> float:
+        """The message's GenMsgCycleTime [s]."""
+        return self._by_name[name].cycle_time / 1000.0
+
+    def names(self) -> list[str]:
+        return list(self._by_name)
+
+    def knows(self, frame_id: int) -> bool:
+        return frame_id in self._by_id
+
+    # ---- encode / decode -------------------------------------------------------------------------------------
+    def encode(self, name: str, values: Mapping[str, float], counter: int) -> bytes:
+        """Frame data for ``name``: values clamped to their DBC ranges (NaN -> the signal's initial value or
+        its minimum), counter and CRC filled in. Signals not given take their DBC initial value (or 0)."""
+        message = self._by_name[name]
+        data: dict[str, float] = {}
+        for signal in message.signals:
+            if signal.name in (COUNTER, CRC):
+                continue
+            value = values.get(signal.name)
+            default = signal.initial if signal.initial is not None else max(signal.minimum or 0.0, 0.0)
+            if value is None or not math.isfinite(value):
+                value = default
+            data[signal.name] = min(max(float(value), signal.minimum), signal.maximum)
+        data[COUNTER] = counter & 0x0F
+        data[CRC] = 0
+        raw = bytearray(message.encode(data, strict=True, scaling=True))
+        raw[7] = self._crc(message.frame_id, raw)
+        return bytes(raw)
+
+    def decode(self, frame_id: int, data: bytes) -> DecodedFrame:
+        """Check DLC, CRC and ranges, then decode. Raises :class:`FrameError` with a reason."""
+        message = self._by_id.get(frame_id)
+        if message is None:
+            raise FrameError("unknown", f"frame 0x{frame_id:03X} is not one this node reads")
+        if len(data) != message.length:
+            raise FrameError("dlc", f"{message.name}: DLC {len(data)}, expected {message.length}")
+        if data[7] != self._crc(frame_id, data):
+            raise FrameError("crc", f"{message.name}: CRC mismatch")
+        try:
+            values = message.decode(bytes(data), decode_choices=False, scaling=True)
+        except Exception as exc:  # noqa: BLE001 - cantools raises several types
+            raise FrameError("malformed", f"{message.name}: {exc}") from None
+        for signal in message.signals:
+            v = values[signal.name]
+            if not (signal.minimum - 1e-9 <= v <= signal.maximum + 1e-9):
+                raise FrameError("range", f"{message.name}.{signal.name} = {v} outside "
+                                          f"[{signal.minimum}, {signal.maximum}]")
+        counter = int(values.pop(COUNTER))
+        values.pop(CRC)
+        return DecodedFrame(message.name, {k: float(v) for k, v in values.items()}, counter)
+
+    @staticmethod
+    def _crc(frame_id: int, data: bytes) -> int:
+        return crc8_j1850(bytes((frame_id & 0xFF, (frame_id >> 8) & 0xFF)) + bytes(data[:7]))

@@ -1,0 +1,131 @@
+"""Per-message receive validity (deadline from the DBC cycle time, counter checks) and transmit scheduling.
+
+Time is always passed in (seconds, any monotonic origin); nothing here reads a clock.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter as Tally
+from dataclasses import dataclass, field
+
+import can
+
+from .codec import Codec, DecodedFrame, FrameError
+
+log = logging.getLogger(__name__)
+
+TIMEOUT_CYCLES = 3.0
+
+
+@dataclass
+class RxState:
+    """Validity of one received message: fresh within ``TIMEOUT_CYCLES`` cycle times, counter moving."""
+
+    name: str
+    cycle_time: float
+    last_time: float | None = None
+    last_counter: int | None = None
+    values: dict[str, float] = field(default_factory=dict)
+    received: int = 0
+    counter_jumps: int = 0  # lost frames (counter advanced by more than one)
+
+    @property
+    def deadline(self) -> float:
+        return TIMEOUT_CYCLES * self.cycle_time
+
+    def update(self, now: float, frame: DecodedFrame) -> bool:
+        """Take a decoded frame; False (and nothing taken) if its counter did not move (frozen sender)."""
+        if self.last_counter is not None:
+            step = (frame.counter - self.last_counter) % 16
+            if step == 0:
+                return False
+            if step != 1:
+                self.counter_jumps += 1
+        self.last_counter = frame.counter
+        self.last_time = now
+        self.values = frame.values
+        self.received += 1
+        return True
+
+    def valid(self, now: float) -> bool:
+        return self.last_time is not None and now - self.last_time <= self.deadline
+
+
+class RxMonitor:
+    """Decodes and checks incoming frames for the messages a node reads; counts and logs what it rejects."""
+
+    def __init__(self, codec: Codec, names: list[str]) -> None:
+        self.codec = codec
+        self.states = {name: RxState(name, codec.cycle_time(name)) for name in names}
+        self._ids = {codec.frame_id(name): name for name in names}
+        self.rejected: Tally[str] = Tally()
+        self.received = 0
+
+    def wants(self, msg: can.Message) -> bool:
+        return not msg.is_extended_id and msg.arbitration_id in self._ids
+
+    def receive(self, msg: can.Message, now: float) -> DecodedFrame | None:
+        """Take one frame. Returns the decoded frame if accepted, None if it is not ours or was rejected."""
+        if msg.is_error_frame or msg.is_remote_frame or not self.wants(msg):
+            return None
+        self.received += 1
+        try:
+            if msg.is_fd:
+                raise FrameError("dlc", f"0x{msg.arbitration_id:03X}: CAN FD frame on a classic CAN contract")
+            frame = self.codec.decode(msg.arbitration_id, bytes(msg.data))
+        except FrameError as exc:
+            self._reject(exc.reason, str(exc))
+            return None
+        if not self.states[frame.name].update(now, frame):
+            self._reject("counter", f"{frame.name}: counter {frame.counter} repeated")
+            return None
+        return frame
+
+    def _reject(self, reason: str, text: str) -> None:
+        self.rejected[reason] += 1
+        n = self.rejected[reason]
+        if n <= 5 or n % 1000 == 0:  # log the first few and then every thousandth
+            log.warning("rejected frame (%s, %d so far): %s", reason, n, text)
+
+    def valid(self, name: str, now: float) -> bool:
+        return self.states[name].valid(now)
+
+    def values(self, name: str) -> dict[str, float]:
+        return self.states[name].values
+
+    @property
+    def rejected_total(self) -> int:
+        return sum(self.rejected.values())
+
+
+class TxScheduler:
+    """Absolute-deadline transmit schedule: each message due every DBC cycle time from ``start``."""
+
+    def __init__(self, codec: Codec, names: list[str], start: float = 0.0) -> None:
+        self.codec = codec
+        self.next_due = {name: start for name in names}
+        self.counters = {name: 0 for name in names}
+        self.sent = 0
+
+    def due(self, now: float, eps: float = 1e-9) -> list[str]:
+        """Messages due at ``now``, in DBC order; their next deadlines advance by whole cycle times."""
+        names = []
+        for name, due in self.next_due.items():
+            if now + eps >= due:
+                names.append(name)
+                period = self.codec.cycle_time(name)
+                missed = int((now + eps - due) // period)
+                self.next_due[name] = due + (missed + 1) * period
+        return names
+
+    def next_deadline(self) -> float:
+        return min(self.next_due.values())
+
+    def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
+        """The next frame of ``name`` (counter advanced)."""
+        data = self.codec.encode(name, values, self.counters[name])
+        self.counters[name] = (self.counters[name] + 1) & 0x0F
+        self.sent += 1
+        return can.Message(arbitration_id=self.codec.frame_id(name), data=data, is_extended_id=False,
+                           dlc=len(data), timestamp=timestamp, is_rx=False)

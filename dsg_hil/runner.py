@@ -1,0 +1,184 @@
+"""The plant process: owns the bus and the clock, steps the plant, sends its frames, takes the TCU's commands.
+
+* Lock-step (``run_lockstep``): the plant is the time master. Each control period (the TCU_CMD cycle time of the
+  DBC) it sends the frames that are due and a SIM_SYNC tick, waits for the TCU_CMD whose SyncEcho answers that
+  tick (wall-clock timeout, then a clear error), and advances. Frame timestamps are simulated time, so the same
+  scenario gives the same frames, bit for bit.
+* Real time (``run_realtime``): the plant steps at its fixed step paced by a monotonic clock against absolute
+  deadlines, sends each frame at its DBC cycle time, and uses commands as they arrive.
+
+In both, a command that is missing for 3 cycle times (or fails its counter or CRC check) puts the hydraulics in
+their unpowered default (commanded pressure 0: the pressures decay, return springs open the clutches); the event
+is counted and logged, and control resumes with the next valid command.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Callable
+
+import can
+
+from .physics.friction import RAD_S_TO_RPM
+from .plant import Plant, PlantInputs, PlantOutputs
+from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, plant_signals
+from .protocol import Codec, RxMonitor, TxScheduler
+from .scenario import Scenario
+from .summary import RunSummary
+
+log = logging.getLogger(__name__)
+
+
+class PeerTimeout(RuntimeError):
+    """The TCU did not answer a lock-step tick in time."""
+
+
+class PlantRunner:
+    def __init__(self, plant: Plant, scenario: Scenario, codec: Codec, bus: can.BusABC,
+                 listeners: tuple[Callable[[can.Message], None], ...] = (),
+                 progress: Callable[[str], None] | None = None) -> None:
+        for name, signals in PLANT_USES.items():  # resolved at start-up by the codec; fail here if not
+            codec.message(name)
+        self.plant, self.scenario, self.codec, self.bus = plant, scenario, codec, bus
+        self.listeners = listeners
+        self.progress = progress
+        self.period = codec.cycle_time("TCU_CMD")
+        self.steps_per_period = max(1, round(self.period / plant.dt))
+        self.tx = TxScheduler(codec, list(PLANT_TX))
+        self.sync = TxScheduler(codec, [SYNC])
+        self.rx = RxMonitor(codec, list(PLANT_RX))
+        self.summary = RunSummary(plant.dt)
+        self.out: PlantOutputs = plant.outputs()
+        self.command_valid = False
+        self.P_cmd = (0.0, 0.0)
+        self.tick = 0
+        self.sent = 0
+
+    # ---- frames --------------------------------------------------------------------------------------------
+    def _emit(self, msg: can.Message) -> None:
+        self.bus.send(msg)
+        self.sent += 1
+        for listener in self.listeners:
+            listener(msg)
+
+    def _publish_due(self, t: float, stamp: float) -> None:
+        values = plant_signals(self.out, self.scenario.driver_at(t))
+        for name in self.tx.due(t):
+            self._emit(self.tx.frame(name, values[name], timestamp=stamp))
+
+    def _take(self, msg: can.Message, now: float, stamp: float) -> str | None:
+        """Handle one received frame; returns the message name if accepted."""
+        frame = self.rx.receive(msg, now)
+        if frame is None:
+            return None
+        msg.timestamp = stamp
+        for listener in self.listeners:
+            listener(msg)
+        if frame.name == "TCU_CMD":
+            self.P_cmd = (frame.values["P_CL_Cmd"] * 1e6, frame.values["P_CH_Cmd"] * 1e6)
+        elif frame.name == "TCU_STATUS":
+            self.summary.on_status(self.plant.state.t, frame.values, self.out)
+        return frame.name
+
+    def _check_command(self, now: float) -> None:
+        valid = self.rx.valid("TCU_CMD", now)
+        if self.command_valid and not valid:
+            self.summary.fallback_events += 1
+            log.warning("t=%.3f s: TCU_CMD missing for %.0f ms: hydraulics unpowered (pressures decay to 0)",
+                        self.plant.state.t, 1000 * self.rx.states["TCU_CMD"].deadline)
+        elif valid and not self.command_valid and self.summary.fallback_events:
+            log.warning("t=%.3f s: valid TCU_CMD again: control resumes", self.plant.state.t)
+        self.command_valid = valid
+
+    # ---- physics -------------------------------------------------------------------------------------------
+    def _inputs(self) -> PlantInputs:
+        t = self.plant.state.t
+        driver = self.scenario.driver_at(t)
+        status = self.rx.states["TCU_STATUS"]
+        brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(t) else 0.0
+        P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
+        engine = None if self.scenario.engine_speed_rpm is None else self.scenario.engine_speed_rpm / RAD_S_TO_RPM
+        return PlantInputs(P_CL_cmd=P_CL, P_CH_cmd=P_CH, brake=max(driver.brake, brake_request),
+                           grade=self.scenario.grade_rad, engine_speed_request=engine)
+
+    def _advance(self, steps: int) -> None:
+        inputs = self._inputs()
+        creeping = self.scenario.driver_at(self.plant.state.t).creep_request
+        for _ in range(steps):
+            self.out = self.plant.step(inputs)
+            self.summary.on_step(self.out, creeping, not self.command_valid)
+
+    def _report(self, every_s: float = 10.0) -> None:
+        t = self.plant.state.t
+        if self.progress and int(t / every_s) != int((t - self.period) / every_s):
+            o, s = self.out, self.summary
+            self.progress(f"t={t:7.1f}/{self.scenario.duration_s:g} s  v={o.v:5.2f} m/s  T_CL={o.T_CL:6.1f}  "
+                          f"T_CH={o.T_CH:6.1f} degC  P_CL={o.P_CL / 1e6:4.2f}  P_CH={o.P_CH / 1e6:4.2f} MPa  "
+                          f"TCU {s.tcu_state}/{s.active_clutch}")
+
+    @property
+    def n_periods(self) -> int:
+        return int(round(self.scenario.duration_s / self.period))
+
+    # ---- lock-step ------------------------------------------------------------------------------------------
+    def run_lockstep(self, reply_timeout: float = 5.0, pump: Callable[[], None] | None = None) -> RunSummary:
+        """Run the scenario in lock-step. ``pump`` lets an in-process TCU answer (python-can ``virtual``)."""
+        for self.tick in range(self.n_periods):
+            t = self.tick * self.period
+            self._publish_due(t, stamp=t)
+            self._emit(self.sync.frame(SYNC, {"Tick": self.tick}, timestamp=t))
+            if pump is not None:
+                pump()
+            self._await_command(t, reply_timeout)
+            self._check_command(t)
+            self._advance(self.steps_per_period)
+            self._report()
+        return self.summary
+
+    def _await_command(self, t: float, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        echo = self.tick & 0xFF
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise PeerTimeout(f"no TCU_CMD answered lock-step tick {self.tick} (t={t:.2f} s) within "
+                                  f"{timeout:g} s: is the TCU (ecu-stub) running on the same bus?")
+            msg = self.bus.recv(timeout=remaining)
+            if msg is None:
+                continue
+            if self._take(msg, t, stamp=t) == "TCU_CMD" and int(self.rx.values("TCU_CMD")["SyncEcho"]) == echo:
+                return
+
+    # ---- real time ------------------------------------------------------------------------------------------
+    def run_realtime(self, clock: Callable[[], float] = time.monotonic) -> RunSummary:
+        """Run the scenario paced by ``clock``: one plant step per ``dt`` against absolute deadlines."""
+        start = clock()
+        dt = self.plant.dt
+        n_steps = int(round(self.scenario.duration_s / dt))
+        late = 0
+        for k in range(n_steps):
+            t = k * dt
+            self._publish_due(t, stamp=start + t)
+            deadline = start + (k + 1) * dt
+            while True:  # take what arrives until this step's deadline
+                remaining = deadline - clock()
+                msg = self.bus.recv(timeout=max(remaining, 0.0))
+                if msg is not None:
+                    self._take(msg, t, stamp=msg.timestamp or clock())
+                if remaining <= 0.0 and msg is None:
+                    break
+                if clock() >= deadline:
+                    break
+            self._check_command(t)
+            self._advance(1)
+            if clock() - deadline > 10 * dt:
+                late += 1
+            if k % self.steps_per_period == 0:
+                self._report()
+        if late:
+            log.warning("real time: %d steps ended more than 10 ms late (machine too slow or loaded)", late)
+        return self.summary
+
+    def frames(self) -> dict[str, int]:
+        return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total}

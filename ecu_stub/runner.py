@@ -1,0 +1,156 @@
+"""The TCU process: owns its bus, decodes the plant's frames, runs the controller each command cycle.
+
+Lock-step or real time is decided by the plant: once a SIM_SYNC tick has been seen, the TCU answers each tick
+(controller time = tick x cycle time) and sends nothing else on its own; until then it runs on its monotonic
+clock at the TCU_CMD cycle time. It transmits nothing before it has heard the plant.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Callable
+
+import can
+
+from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
+
+from .controller import CreepController, TcuInputs, TcuOutputs
+
+log = logging.getLogger(__name__)
+
+TCU_RX = {
+    "PLANT_ENGINE": ("EngineSpeed",),
+    "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
+    "PLANT_VEHICLE": ("VehicleSpeed",),
+    "PLANT_PRESSURE": ("P_CL", "P_CH"),
+    "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH"),
+    "DRIVER": ("CreepRequest", "BrakePedal", "DesiredCreepSpeed"),
+    "SIM_SYNC": ("Tick",),
+}
+TCU_TX = {
+    "TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"),
+    "TCU_STATUS": ("State", "ActiveClutch", "BrakeRequest", "T_CL_Pred", "T_CH_Pred", "FaultBits"),
+}
+TCU_USES = {**TCU_RX, **TCU_TX}
+REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
+FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
+
+
+def _choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
+    choices = codec.message(message).get_signal_by_name(signal).choices or {}
+    return {str(name): int(value) for value, name in choices.items()}
+
+
+class TcuRunner:
+    def __init__(self, codec: Codec, bus: can.BusABC, controller: CreepController | None = None) -> None:
+        for name in TCU_USES:
+            codec.message(name)
+        self.codec, self.bus = codec, bus
+        self.controller = controller or CreepController()
+        self.rx = RxMonitor(codec, list(TCU_RX))
+        self.tx = TxScheduler(codec, list(TCU_TX))
+        self.cycle = codec.cycle_time("TCU_CMD")
+        self.states = _choices(codec, "TCU_STATUS", "State")
+        self.clutches = _choices(codec, "TCU_STATUS", "ActiveClutch")
+        missing = {"IDLE", "ENGAGE", "CREEP", "HANDOVER", "STOPPED_OVERHEAT", "FAULT"} - set(self.states)
+        if missing or {"NONE", "CL", "CH"} - set(self.clutches):
+            raise ValueError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
+        self.lockstep = False
+        self.heard_plant = False
+        self.last: TcuOutputs | None = None
+
+    def inputs(self, now: float) -> TcuInputs:
+        valid = all(self.rx.valid(name, now) for name in REQUIRED)
+        v = {name: self.rx.values(name) for name in REQUIRED}
+        faults = 0
+        for reason, n in self.rx.rejected.items():
+            if n:
+                faults |= FAULT_BITS.get(reason, 0)
+        if not valid:
+            return TcuInputs(plant_valid=False, fault_bits=faults)
+        return TcuInputs(
+            plant_valid=True,
+            engine_speed_rpm=v["PLANT_ENGINE"]["EngineSpeed"],
+            clutch_in_rpm=v["PLANT_SPEEDS"]["ClutchInputSpeed"],
+            cl_out_rpm=v["PLANT_SPEEDS"]["CLOutputSpeed"],
+            ch_out_rpm=v["PLANT_SPEEDS"]["CHOutputSpeed"],
+            v_mps=v["PLANT_VEHICLE"]["VehicleSpeed"],
+            P_CL_mpa=v["PLANT_PRESSURE"]["P_CL"],
+            P_CH_mpa=v["PLANT_PRESSURE"]["P_CH"],
+            T_oil_CL_c=v["PLANT_OIL_TEMP"]["T_OilCL"],
+            T_oil_CH_c=v["PLANT_OIL_TEMP"]["T_OilCH"],
+            creep_request=v["DRIVER"]["CreepRequest"] >= 0.5,
+            brake_pct=v["DRIVER"]["BrakePedal"],
+            desired_speed_mps=v["DRIVER"]["DesiredCreepSpeed"],
+            fault_bits=faults,
+        )
+
+    def control(self, now: float, echo: int = 0) -> None:
+        """One controller cycle at ``now``: compute, then send TCU_CMD (and TCU_STATUS when due)."""
+        out = self.controller.update(self.inputs(now), now)
+        self.last = out
+        values = {
+            "TCU_CMD": {"P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa, "SyncEcho": echo},
+            "TCU_STATUS": {"State": self.states[out.state], "ActiveClutch": self.clutches[out.active_clutch],
+                           "BrakeRequest": float(out.brake_request), "T_CL_Pred": out.T_CL_pred_c,
+                           "T_CH_Pred": out.T_CH_pred_c, "FaultBits": out.fault_bits},
+        }
+        for name in self.tx.due(now):
+            self.bus.send(self.tx.frame(name, values[name]))
+
+    def handle(self, msg: can.Message, now: float) -> None:
+        """Take one frame; a SIM_SYNC tick is answered at once (lock-step).
+
+        In lock-step, time is the plant's: frames arriving before a tick belong to it (tick time = the previous
+        tick's + one cycle), so validity and controller time never depend on the wall clock."""
+        stamp = self._sim_now + self.cycle if self.lockstep else now
+        frame = self.rx.receive(msg, stamp)
+        if frame is None:
+            return
+        self.heard_plant = True
+        if frame.name != "SIM_SYNC":
+            return
+        tick = int(frame.values["Tick"])
+        self._sim_now = tick * self.cycle
+        if not self.lockstep:
+            log.info("SIM_SYNC seen: lock-step, answering each tick")
+            self.lockstep = True
+            self.tx = TxScheduler(self.codec, list(TCU_TX), start=self._sim_now)
+            for state in self.rx.states.values():
+                if state.last_time is not None:
+                    state.last_time = self._sim_now
+        self.control(self._sim_now, echo=tick & 0xFF)
+
+    _sim_now = 0.0
+
+    def pump(self) -> None:
+        """Handle every frame already waiting (for an in-process peer on python-can's virtual bus)."""
+        while (msg := self.bus.recv(timeout=0.0)) is not None:
+            self.handle(msg, self._sim_now)
+
+    def run(self, duration: float | None = None, clock: Callable[[], float] = time.monotonic,
+            idle_timeout: float | None = None) -> None:
+        """Serve the bus until ``duration`` [s] has passed (None: forever) or the plant has been silent for
+        ``idle_timeout`` seconds after having been heard."""
+        start = clock()
+        next_cycle = start
+        last_heard = start
+        while duration is None or clock() - start < duration:
+            now = clock()
+            timeout = 0.05 if self.lockstep else max(0.0, next_cycle - now)
+            msg = self.bus.recv(timeout=timeout)
+            now = clock()
+            if msg is not None:
+                last_heard = now
+                self.handle(msg, now - start)
+            elif idle_timeout is not None and self.heard_plant and now - last_heard > idle_timeout:
+                log.info("plant silent for %.1f s: stopping", idle_timeout)
+                return
+            if not self.lockstep and self.heard_plant and now >= next_cycle:
+                self.control(now - start)
+                next_cycle += self.cycle
+                if next_cycle < now:  # fell behind: skip, keep the grid
+                    next_cycle += ((now - next_cycle) // self.cycle + 1) * self.cycle
+            elif not self.heard_plant:
+                next_cycle = now
