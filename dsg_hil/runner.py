@@ -104,10 +104,10 @@ class PlantRunner:
 
     def _advance(self, steps: int) -> None:
         inputs = self._inputs()
-        creeping = self.scenario.driver_at(self.plant.state.t).creep_request
+        driver = self.scenario.driver_at(self.plant.state.t)
         for _ in range(steps):
             self.out = self.plant.step(inputs)
-            self.summary.on_step(self.out, creeping, not self.command_valid)
+            self.summary.on_step(self.out, driver.creep_request, not self.command_valid, driver.desired_speed_mps)
 
     def _report(self, every_s: float = 10.0) -> None:
         t = self.plant.state.t

@@ -28,8 +28,10 @@ class RunSummary:
     fallback_events: int = 0
     fallback_time_s: float = 0.0
     max_predicted_temp_c: dict[str, float] = field(default_factory=lambda: {"CL": -1e9, "CH": -1e9})
+    _sq_speed_error: float = 0.0
+    _creep_samples: int = 0
 
-    def on_step(self, out: PlantOutputs, creeping: bool, fallback: bool) -> None:
+    def on_step(self, out: PlantOutputs, creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
         slipping = {"CL": abs(out.omega_in - out.omega_CL) > SLIP_MIN and abs(out.M_CL) > TORQUE_MIN,
                     "CH": abs(out.omega_in - out.omega_CH) > SLIP_MIN and abs(out.M_CH) > TORQUE_MIN}
         for name, slips in slipping.items():
@@ -39,6 +41,9 @@ class RunSummary:
         self.max_plate_temp_c["CH"] = max(self.max_plate_temp_c["CH"], out.T_CH)
         if creeping and self.tcu_state in ("ENGAGE", "CREEP", "HANDOVER"):
             self.creep_time_s += self.dt
+        if creeping and self.tcu_state == "CREEP":
+            self._sq_speed_error += (out.v - desired_speed) ** 2
+            self._creep_samples += 1
         if fallback:
             self.fallback_time_s += self.dt
 
@@ -63,6 +68,8 @@ class RunSummary:
             "slip_time_s": {k: round(v, 3) for k, v in self.slip_time_s.items()},
             "max_plate_temp_c": {k: round(v, 2) for k, v in self.max_plate_temp_c.items()},
             "max_predicted_temp_c": {k: round(v, 1) for k, v in self.max_predicted_temp_c.items()},
+            "speed_error_rms_mps": round((self._sq_speed_error / self._creep_samples) ** 0.5, 4)
+            if self._creep_samples else None,
             "handovers": self.handovers,
             "stop_reason": self.stop_reason,
             "stop_time_s": self.stop_time_s,

@@ -49,6 +49,44 @@ def test_garbled_parameter_file(tmp_path):
 
 
 def test_help_explains_every_command():
-    for cmd in ([], ["validate"], ["params"], ["calibrate"]):
+    for cmd in ([], ["validate"], ["params"], ["calibrate"], ["run"], ["plant"], ["dbc"]):
         proc = subprocess.run([sys.executable, "-m", "dsg_hil", *cmd, "--help"], capture_output=True, text=True)
         assert proc.returncode == 0 and "usage:" in proc.stdout and len(proc.stdout) > 200
+
+
+def test_run_on_virtual_writes_log_and_summary(tmp_path):
+    log, summary = tmp_path / "run.log", tmp_path / "summary.json"
+    proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "--interface", "virtual", "--duration", "4",
+                           "--log", str(log), "--summary", str(summary)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(summary.read_text())
+    for key in ("creep_time_s", "slip_time_s", "max_plate_temp_c", "handovers", "stop_reason", "frames"):
+        assert key in data
+    assert set(data["slip_time_s"]) == {"CL", "CH"} and data["frames"]["sent"] > 1000
+    lines = log.read_text().splitlines()
+    assert lines[0].startswith("(0.000000) ") and "#" in lines[0]  # candump -L
+    ids = {line.split()[2].split("#")[0] for line in lines}
+    assert {"100", "200", "210", "7F0"} <= ids
+    assert "done:" in proc.stderr
+
+
+def test_dbc_command_prints_bus_load(capsys):
+    assert main(["dbc"]) == 0
+    out = capsys.readouterr().out
+    assert "TCU_CMD" in out and "total at 500 kbit/s" in out
+
+
+def test_ecu_stub_help_and_bad_interface():
+    proc = subprocess.run([sys.executable, "-m", "ecu_stub", "--help"], capture_output=True, text=True)
+    assert proc.returncode == 0 and "creep strategy" in proc.stdout
+    proc = subprocess.run([sys.executable, "-m", "ecu_stub", "--interface", "nosuchbus", "--duration", "0.1"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 1 and proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
+
+
+def test_run_with_bad_scenario_is_one_line(tmp_path):
+    bad = tmp_path / "s.toml"
+    bad.write_text("duration_s = 10\n[[driver]]\nt_s = 0\nbrake = 7\n")
+    proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "--scenario", str(bad)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 1 and "driver[0].brake" in proc.stderr and "Traceback" not in proc.stderr

@@ -49,7 +49,7 @@ class RxState:
         return True
 
     def valid(self, now: float) -> bool:
-        return self.last_time is not None and now - self.last_time <= self.deadline
+        return self.last_time is not None and now - self.last_time <= self.deadline + 1e-9
 
 
 class RxMonitor:

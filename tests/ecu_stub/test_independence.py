@@ -1,0 +1,38 @@
+"""ecu_stub knows the plant only through the DBC: it imports nothing from dsg_hil but the protocol layer."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+ECU_STUB = Path(__file__).resolve().parents[2] / "ecu_stub"
+
+
+def imported_modules(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module)
+    return names
+
+
+def test_sources_import_only_the_protocol_layer():
+    files = sorted(ECU_STUB.glob("*.py"))
+    assert len(files) >= 6
+    for path in files:
+        for name in imported_modules(path):
+            if name == "dsg_hil" or name.startswith("dsg_hil."):
+                assert name == "dsg_hil.protocol" or name.startswith("dsg_hil.protocol."), f"{path.name}: {name}"
+
+
+def test_loading_ecu_stub_loads_no_plant_module():
+    code = ("import sys, ecu_stub.cli, ecu_stub.runner, ecu_stub.controller;"
+            "print(sorted(m for m in sys.modules if m.startswith('dsg_hil')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    loaded = eval(out)  # noqa: S307 - our own printed list
+    assert "dsg_hil.protocol" in loaded
+    assert all(m in ("dsg_hil", "dsg_hil.protocol") or m.startswith("dsg_hil.protocol.") for m in loaded), loaded
