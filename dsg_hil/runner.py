@@ -22,7 +22,7 @@ import can
 
 from .physics.friction import RAD_S_TO_RPM
 from .plant import Plant, PlantInputs, PlantOutputs
-from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, plant_signals
+from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
 from .protocol import Codec, RxMonitor, TxScheduler
 from .scenario import Scenario
 from .summary import RunSummary
@@ -54,6 +54,7 @@ class PlantRunner:
         self.P_cmd = (0.0, 0.0)
         self.tick = 0
         self.sent = 0
+        self._cmd_on_bus: float | None = None
 
     # ---- frames --------------------------------------------------------------------------------------------
     def _emit(self, msg: can.Message) -> None:
@@ -122,8 +123,14 @@ class PlantRunner:
         return int(round(self.scenario.duration_s / self.period))
 
     # ---- lock-step ------------------------------------------------------------------------------------------
-    def run_lockstep(self, reply_timeout: float = 5.0, pump: Callable[[], None] | None = None) -> RunSummary:
-        """Run the scenario in lock-step. ``pump`` lets an in-process TCU answer (python-can ``virtual``)."""
+    def run_lockstep(self, reply_timeout: float = 5.0, pump: Callable[[], None] | None = None,
+                     startup_timeout: float = 60.0) -> RunSummary:
+        """Run the scenario in lock-step. ``pump`` lets an in-process TCU answer (python-can ``virtual``).
+
+        First a presence handshake (not logged): a SIM_SYNC probe every 0.2 s until the TCU answers, which
+        resets it; so the run starts from the same state whenever the TCU came up, and no tick is lost to a TCU
+        still starting."""
+        self._handshake(startup_timeout, pump)
         for self.tick in range(self.n_periods):
             t = self.tick * self.period
             self._publish_due(t, stamp=t)
@@ -135,6 +142,23 @@ class PlantRunner:
             self._advance(self.steps_per_period)
             self._report()
         return self.summary
+
+    def _handshake(self, timeout: float, pump: Callable[[], None] | None) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.bus.send(self.sync.frame(SYNC, {"Tick": SYNC_PROBE}))
+            if pump is not None:
+                pump()
+            probe_end = min(deadline, time.monotonic() + 0.2)
+            while (remaining := probe_end - time.monotonic()) > 0:
+                msg = self.bus.recv(timeout=remaining)
+                frame = None if msg is None else self.rx.receive(msg, 0.0)
+                if frame is not None and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == SYNC_PROBE & 0xFF:
+                    self.rx = RxMonitor(self.codec, list(PLANT_RX))  # the run starts from clean counters
+                    self.sync = TxScheduler(self.codec, [SYNC])
+                    return
+        raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
+                          f"(ecu-stub) running on the same bus?")
 
     def _await_command(self, t: float, timeout: float) -> None:
         deadline = time.monotonic() + timeout
@@ -152,32 +176,35 @@ class PlantRunner:
 
     # ---- real time ------------------------------------------------------------------------------------------
     def run_realtime(self, clock: Callable[[], float] = time.monotonic) -> RunSummary:
-        """Run the scenario paced by ``clock``: one plant step per ``dt`` against absolute deadlines."""
+        """Run the scenario paced by ``clock``: one plant step per ``dt`` against absolute deadlines.
+
+        Command validity is judged on the clock (a dead TCU is dead in wall time); a machine too slow to keep
+        up makes the run late, which is counted and reported as ``realtime_factor``."""
         start = clock()
         dt = self.plant.dt
         n_steps = int(round(self.scenario.duration_s / dt))
-        late = 0
         for k in range(n_steps):
             t = k * dt
             self._publish_due(t, stamp=start + t)
             deadline = start + (k + 1) * dt
-            while True:  # take what arrives until this step's deadline
-                remaining = deadline - clock()
-                msg = self.bus.recv(timeout=max(remaining, 0.0))
-                if msg is not None:
-                    self._take(msg, t, stamp=msg.timestamp or clock())
-                if remaining <= 0.0 and msg is None:
-                    break
-                if clock() >= deadline:
-                    break
-            self._check_command(t)
+            while (msg := self.bus.recv(timeout=max(deadline - clock(), 0.0))) is not None:
+                on_bus = msg.timestamp  # until this step's deadline: take what arrives
+                if self._take(msg, clock() - start, stamp=start + t) == "TCU_CMD":
+                    self._cmd_on_bus = on_bus
+            self._check_command(clock() - start)
+            if self._cmd_on_bus is not None:  # the newest command is used from this step on
+                latency = time.time() - self._cmd_on_bus
+                if 0.0 <= latency < 1.0:  # bus timestamps are wall-clock (socketcan, virtual)
+                    self.summary.command_latency_s.append(latency)
+                self._cmd_on_bus = None
             self._advance(1)
-            if clock() - deadline > 10 * dt:
-                late += 1
             if k % self.steps_per_period == 0:
                 self._report()
-        if late:
-            log.warning("real time: %d steps ended more than 10 ms late (machine too slow or loaded)", late)
+        wall = clock() - start
+        self.summary.realtime_factor = self.scenario.duration_s / wall if wall > 0 else None
+        if self.summary.realtime_factor is not None and self.summary.realtime_factor < 0.95:
+            log.warning("real time: %.1f simulated s took %.1f s (%.0f %% of real time): machine too slow",
+                        self.scenario.duration_s, wall, 100 * self.summary.realtime_factor)
         return self.summary
 
     def frames(self) -> dict[str, int]:

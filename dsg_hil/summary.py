@@ -28,6 +28,8 @@ class RunSummary:
     fallback_events: int = 0
     fallback_time_s: float = 0.0
     max_predicted_temp_c: dict[str, float] = field(default_factory=lambda: {"CL": -1e9, "CH": -1e9})
+    realtime_factor: float | None = None  # simulated s per wall s of a real-time run
+    command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
     _sq_speed_error: float = 0.0
     _creep_samples: int = 0
 
@@ -75,4 +77,15 @@ class RunSummary:
             "stop_time_s": self.stop_time_s,
             "command_fallback": {"events": self.fallback_events, "time_s": round(self.fallback_time_s, 3)},
             "frames": frames,
+            "realtime_factor": None if self.realtime_factor is None else round(self.realtime_factor, 3),
+            "command_latency_ms": _percentiles(self.command_latency_s),
         }
+
+
+def _percentiles(samples: list[float]) -> dict | None:
+    if not samples:
+        return None
+    s = sorted(samples)
+    pick = lambda q: s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))]  # noqa: E731
+    return {"n": len(s), "p50": round(1000 * pick(0.5), 3), "p99": round(1000 * pick(0.99), 3),
+            "max": round(1000 * s[-1], 3)}

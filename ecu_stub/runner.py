@@ -1,8 +1,10 @@
 """The TCU process: owns its bus, decodes the plant's frames, runs the controller each command cycle.
 
 Lock-step or real time is decided by the plant: once a SIM_SYNC tick has been seen, the TCU answers each tick
-(controller time = tick x cycle time) and sends nothing else on its own; until then it runs on its monotonic
-clock at the TCU_CMD cycle time. It transmits nothing before it has heard the plant.
+(controller time = tick x cycle time) and sends nothing on its own. It transmits nothing before it has heard the
+plant, and free-runs on its monotonic clock at the TCU_CMD cycle time only when no tick has come within
+``SYNC_WAIT_S`` of the plant's first frame (a real-time plant sends no ticks). A lock-step plant first probes for
+the TCU (SIM_SYNC with Tick 0xFFFFFFFF): the TCU resets itself and answers, and the run starts from there.
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ TCU_TX = {
 TCU_USES = {**TCU_RX, **TCU_TX}
 REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
+SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
+SYNC_PROBE = 0xFFFFFFFF  # SIM_SYNC Tick of the lockstep presence probe (see the DBC comment)
 
 
 def _choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
@@ -57,7 +61,7 @@ class TcuRunner:
         if missing or {"NONE", "CL", "CH"} - set(self.clutches):
             raise ValueError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
         self.lockstep = False
-        self.heard_plant = False
+        self.heard_plant_at: float | None = None
         self.last: TcuOutputs | None = None
 
     def inputs(self, now: float) -> TcuInputs:
@@ -108,19 +112,40 @@ class TcuRunner:
         frame = self.rx.receive(msg, stamp)
         if frame is None:
             return
-        self.heard_plant = True
+        if self.heard_plant_at is None:
+            self.heard_plant_at = now
         if frame.name != "SIM_SYNC":
             return
         tick = int(frame.values["Tick"])
+        if tick == SYNC_PROBE:
+            self._reset_for_lockstep()
+            return
         self._sim_now = tick * self.cycle
         if not self.lockstep:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
             self.lockstep = True
-            self.tx = TxScheduler(self.codec, list(TCU_TX), start=self._sim_now)
+            self.controller = type(self.controller)(self.controller.cal)  # time base: the plant's from now on
+            self.tx.next_due = {name: self._sim_now for name in self.tx.next_due}
             for state in self.rx.states.values():
                 if state.last_time is not None:
                     state.last_time = self._sim_now
         self.control(self._sim_now, echo=tick & 0xFF)
+
+    def _reset_for_lockstep(self) -> None:
+        """Answer the plant's presence probe from a clean state, so every run starts alike."""
+        log.info("lock-step presence probe: reset and answer")
+        self.lockstep = True
+        self.controller = type(self.controller)(self.controller.cal)
+        self.rx = RxMonitor(self.codec, list(TCU_RX))
+        self.tx = TxScheduler(self.codec, list(TCU_TX))
+        self.bus.send(self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF}))
+        self.tx = TxScheduler(self.codec, list(TCU_TX))
+        self._sim_now = -self.cycle  # the next tick is tick 0
+
+    def free_running(self, now: float) -> bool:
+        """True once the plant has been heard for a while without a tick: a real-time plant."""
+        return (not self.lockstep and self.heard_plant_at is not None
+                and now - self.heard_plant_at > SYNC_WAIT_S)
 
     _sim_now = 0.0
 
@@ -130,27 +155,27 @@ class TcuRunner:
             self.handle(msg, self._sim_now)
 
     def run(self, duration: float | None = None, clock: Callable[[], float] = time.monotonic,
-            idle_timeout: float | None = None) -> None:
-        """Serve the bus until ``duration`` [s] has passed (None: forever) or the plant has been silent for
-        ``idle_timeout`` seconds after having been heard."""
+            idle_timeout: float | None = None, should_stop: Callable[[], bool] = lambda: False) -> None:
+        """Serve the bus until ``duration`` [s] has passed (None: forever), ``should_stop()`` is true, or the plant
+        has been silent for ``idle_timeout`` seconds after having been heard."""
         start = clock()
         next_cycle = start
         last_heard = start
-        while duration is None or clock() - start < duration:
+        while (duration is None or clock() - start < duration) and not should_stop():
             now = clock()
-            timeout = 0.05 if self.lockstep else max(0.0, next_cycle - now)
-            msg = self.bus.recv(timeout=timeout)
+            free = self.free_running(now - start)
+            msg = self.bus.recv(timeout=max(0.0, next_cycle - now) if free else 0.05)
             now = clock()
             if msg is not None:
                 last_heard = now
                 self.handle(msg, now - start)
-            elif idle_timeout is not None and self.heard_plant and now - last_heard > idle_timeout:
+            elif idle_timeout is not None and self.heard_plant_at is not None and now - last_heard > idle_timeout:
                 log.info("plant silent for %.1f s: stopping", idle_timeout)
                 return
-            if not self.lockstep and self.heard_plant and now >= next_cycle:
+            if not self.free_running(now - start):
+                next_cycle = now
+            elif now >= next_cycle:
                 self.control(now - start)
                 next_cycle += self.cycle
                 if next_cycle < now:  # fell behind: skip, keep the grid
                     next_cycle += ((now - next_cycle) // self.cycle + 1) * self.cycle
-            elif not self.heard_plant:
-                next_cycle = now

@@ -75,6 +75,38 @@ def test_lockstep_without_tcu_fails_clearly():
     params, scenario, db = load_params(), load_scenario().with_duration(1.0), load_dbc()
     bus = can.Bus(interface="virtual", channel="lonely")
     runner = PlantRunner(Plant(params), scenario, Codec(db, PLANT_USES), bus)
-    with pytest.raises(PeerTimeout, match="no TCU_CMD answered lock-step tick 0"):
-        runner.run_lockstep(reply_timeout=0.2)
+    with pytest.raises(PeerTimeout, match="no TCU answered the lock-step presence probe within 0.5 s"):
+        runner.run_lockstep(reply_timeout=0.2, startup_timeout=0.5)
     bus.shutdown()
+
+
+def test_tcu_service_loop_answers_lockstep_ticks():
+    """The TCU's own loop (as in the ecu-stub process), not the in-process pump: it hears the plant's first
+    frames before the first tick and must not start free-running (regression: it did, then crashed)."""
+    import threading
+
+    params, scenario, db = load_params(), load_scenario().with_duration(3.0), load_dbc()
+    plant_bus = can.Bus(interface="virtual", channel="svc")
+    tcu_bus = can.Bus(interface="virtual", channel="svc")
+    tcu = TcuRunner(Codec(db, TCU_USES), tcu_bus)
+    done = threading.Event()
+    errors = []
+
+    def serve():
+        try:
+            tcu.run(should_stop=done.is_set)
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    runner = PlantRunner(Plant(params), scenario, Codec(db, PLANT_USES), plant_bus)
+    try:
+        summary = runner.run_lockstep(reply_timeout=5.0)
+    finally:
+        done.set()
+        thread.join(5)
+        plant_bus.shutdown()
+        tcu_bus.shutdown()
+    assert not errors and tcu.lockstep
+    assert summary.tcu_state in ("ENGAGE", "CREEP") and runner.frames()["rejected"] == 0

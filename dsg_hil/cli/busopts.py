@@ -37,6 +37,9 @@ def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
                              "by extension through python-can's writers")
     parser.add_argument("--reply-timeout", type=float, default=5.0, metavar="S",
                         help="lockstep: wall-clock seconds to wait for the TCU's answer to a tick (default 5)")
+    parser.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
+                        help="lockstep: wall-clock seconds to wait for the TCU to answer the presence probe "
+                             "before tick 0 (default 60)")
     parser.add_argument("-v", "--verbose", action="store_true", help="log protocol events (rejected frames ...)")
 
 

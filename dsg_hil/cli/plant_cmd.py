@@ -32,7 +32,7 @@ def _do_plant(args: argparse.Namespace) -> int:
         progress(f"plant: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on "
                  f"{config['interface']}:{config['channel']}")
         if args.mode == "lockstep":
-            runner.run_lockstep(args.reply_timeout)
+            runner.run_lockstep(args.reply_timeout, startup_timeout=args.startup_timeout)
         else:
             runner.run_realtime()
         summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,

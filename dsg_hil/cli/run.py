@@ -48,20 +48,24 @@ def _do_run(args: argparse.Namespace) -> int:
             tcu = _tcu_in_process(config, runner.codec.db)
             stack.callback(tcu.bus.shutdown)
             if args.mode == "lockstep":
-                runner.run_lockstep(args.reply_timeout, pump=tcu.pump)
+                runner.run_lockstep(args.reply_timeout, pump=tcu.pump, startup_timeout=args.startup_timeout)
             else:
                 errors: list[BaseException] = []
+                done = threading.Event()
 
                 def serve() -> None:
                     try:
-                        tcu.run(duration=scenario.duration_s + 1.0)
+                        tcu.run(should_stop=done.is_set)
                     except BaseException as exc:  # noqa: BLE001 - re-raised in the main thread
                         errors.append(exc)
 
                 thread = threading.Thread(target=serve, name="ecu-stub", daemon=True)
                 thread.start()
-                runner.run_realtime()
-                thread.join()
+                try:
+                    runner.run_realtime()
+                finally:
+                    done.set()
+                    thread.join()
                 if errors:
                     raise errors[0]
         else:
@@ -73,7 +77,7 @@ def _do_run(args: argparse.Namespace) -> int:
             if tcu_proc.poll() is not None:
                 raise RuntimeError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
             if args.mode == "lockstep":
-                runner.run_lockstep(max(args.reply_timeout, 10.0))
+                runner.run_lockstep(args.reply_timeout, startup_timeout=args.startup_timeout)
             else:
                 runner.run_realtime()
         wall = time.monotonic() - t0

@@ -1,0 +1,68 @@
+"""``dsg-hil vcan``: run the end-to-end tests (or any command) on a real SocketCAN vcan0, anywhere."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from .. import vcan
+from .common import progress
+
+DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "tests/vcan"]
+
+
+def add_subparser(sub) -> None:
+    parser = sub.add_parser(
+        "vcan", help="run the vcan end-to-end tests (or a command) natively or in a throw-away VM",
+        description="Run COMMAND (default: the vcan end-to-end tests, 'pytest -m vcan tests/vcan') where a real "
+                    "SocketCAN vcan0 exists: natively if vcan0 is there or can be created (modprobe vcan, ip "
+                    "link), else inside a throw-away VM with a stock kernel (virtme-ng + QEMU software emulation; "
+                    "needs qemu-system-x86, busybox-static, linux-image-amd64 and pip virtme-ng). The same "
+                    "command on a laptop with vcan and on a CI runner without it. Exit status: COMMAND's.")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--native", action="store_true", help="never use the VM")
+    where.add_argument("--vm", action="store_true", help="always use the VM")
+    parser.add_argument("--duration", type=float, default=10.0, metavar="S",
+                        help="simulated seconds of each end-to-end scenario (default 10; Python runs ~10x "
+                             "slower under emulation)")
+    parser.add_argument("--kernel", metavar="FILE", help="kernel image for the VM (default: newest /boot/vmlinuz-*)")
+    parser.add_argument("--outdir", metavar="DIR", help="writable directory for logs and results (default: a "
+                        "temporary one, kept when the command fails)")
+    parser.add_argument("--timeout", type=float, default=1200.0, metavar="S", help="VM time limit (default 1200)")
+    parser.add_argument("command", nargs=argparse.REMAINDER, help="command to run (after --)")
+    parser.set_defaults(func=_do_vcan)
+
+
+def _do_vcan(args: argparse.Namespace) -> int:
+    command = [c for c in args.command if c != "--"] or list(DEFAULT_TESTS)
+    if command[0] == "python":
+        command[0] = sys.executable
+    if not args.duration > 0.0:
+        raise ValueError(f"--duration must be positive, got {args.duration}")
+    outdir = Path(args.outdir or tempfile.mkdtemp(prefix="dsg-hil-vcan-")).resolve()
+    outdir.mkdir(parents=True, exist_ok=True)
+    env = {vcan.ENV_REQUIRE: "1", vcan.ENV_DURATION: f"{args.duration:g}", vcan.ENV_OUTDIR: str(outdir)}
+    native = False
+    if not args.vm:
+        if vcan.vcan_present():
+            native = True
+        else:
+            reason = vcan.create_vcan()
+            native = reason is None
+            if not native:
+                if args.native:
+                    raise vcan.VcanError(f"no vcan0 and cannot create it: {reason}")
+                progress(f"no vcan0 here ({reason}): running in a throw-away VM")
+    if native:
+        progress(f"vcan0 present: running natively; logs in {outdir}")
+        rc = subprocess.run(command, env={**os.environ, **env}).returncode
+    else:
+        kernel = vcan.find_kernel(args.kernel)
+        progress(f"booting {kernel.name} under QEMU (software emulation) with vcan0; logs in {outdir}")
+        rc = vcan.run_in_vm(vcan.vm_plan(command, outdir, kernel, env, Path.cwd()), args.timeout)
+    progress(f"{'native' if native else 'VM'} vcan run finished with status {rc}; logs in {outdir}")
+    return rc

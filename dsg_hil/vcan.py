@@ -1,0 +1,104 @@
+"""Run a command where a real SocketCAN ``vcan0`` exists: natively (already there, or created with
+``modprobe vcan`` + ``ip link``), or else inside a throw-away VM with a stock kernel (virtme-ng + QEMU software
+emulation), with the results written back to the host.
+
+Many kernels have no CAN at all (containers, cloud kernels, CI runners). The VM sees the host's filesystem
+read-only, so the same venv and checkout run inside it; ``outdir`` is the one writable directory shared back.
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+VCAN = "vcan0"
+ENV_REQUIRE = "DSG_HIL_REQUIRE_VCAN"  # tests that need vcan fail (instead of skipping) when it is set
+ENV_DURATION = "DSG_HIL_VCAN_DURATION"  # simulated seconds of the end-to-end scenarios
+ENV_OUTDIR = "DSG_HIL_VCAN_OUTDIR"  # where the end-to-end tests leave their logs
+
+
+class VcanError(RuntimeError):
+    """Neither a native vcan0 nor the VM can be had; the message says what to install."""
+
+
+def vcan_present() -> bool:
+    return Path("/sys/class/net", VCAN).exists()
+
+
+def create_vcan() -> str | None:
+    """Try ``modprobe vcan`` and ``ip link add``; returns None on success, else why it failed."""
+    steps = (["modprobe", "vcan"], ["ip", "link", "add", "dev", VCAN, "type", "vcan"], ["ip", "link", "set", "up", VCAN])
+    for cmd in steps:
+        if shutil.which(cmd[0]) is None:
+            return f"{cmd[0]} not found"
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0 and not vcan_present():
+            return f"'{' '.join(cmd)}' failed: {(proc.stderr or proc.stdout).strip()}"
+    return None if vcan_present() else "vcan0 did not appear"
+
+
+def find_kernel(explicit: str | None = None) -> Path:
+    if explicit:
+        path = Path(explicit)
+        if not path.is_file():
+            raise VcanError(f"--kernel {explicit}: no such file")
+        return path
+    images = sorted(Path("/boot").glob("vmlinuz-*"), key=lambda p: [int(x) if x.isdigit() else x
+                                                                      for x in p.name.replace("-", ".").split(".")])
+    if not images:
+        raise VcanError("no kernel image in /boot for the VM: apt-get install linux-image-amd64 "
+                        "(it ships vcan.ko), or pass --kernel")
+    return images[-1]
+
+
+def _tool(name: str, hint: str) -> str:
+    found = shutil.which(name) or (str(Path(sys.executable).parent / name)
+                                   if (Path(sys.executable).parent / name).exists() else None)
+    if not found:
+        raise VcanError(f"{name} not found: {hint}")
+    return found
+
+
+@dataclass(frozen=True)
+class VmPlan:
+    argv: list[str]
+    outdir: Path
+
+
+def vm_plan(command: list[str], outdir: Path, kernel: Path, env: dict[str, str], cwd: Path,
+            memory: str = "2G", cpus: int = 2) -> VmPlan:
+    """The vng invocation that boots ``kernel``, brings up vcan0 and runs ``command`` in ``cwd``."""
+    vng = _tool("vng", "pip install virtme-ng (and apt-get install qemu-system-x86 busybox-static)")
+    _tool("busybox", "apt-get install busybox-static (vng builds its initramfs with it)")
+    _tool("qemu-system-x86_64", "apt-get install qemu-system-x86")
+    exports = {"PATH": f"{Path(sys.executable).parent}:/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin",
+               "HOME": "/tmp", "MPLCONFIGDIR": "/tmp/mpl", "PYTHONDONTWRITEBYTECODE": "1", **env}
+    script = "; ".join([
+        "modprobe vcan && ip link add dev vcan0 type vcan && ip link set up vcan0 || echo 'vcan setup failed'",
+        *(f"export {k}={shlex.quote(v)}" for k, v in exports.items()),
+        f"cd {shlex.quote(str(cwd))}",
+        " ".join(shlex.quote(c) for c in command),
+        f"echo $? > {shlex.quote(str(outdir / 'rc'))}",
+    ])
+    argv = [vng, "--disable-kvm", "--rwdir", str(outdir), "--run", str(kernel), "--memory", memory,
+            "--cpus", str(cpus), "--exec", script]
+    return VmPlan(argv, outdir)
+
+
+def run_in_vm(plan: VmPlan, timeout: float) -> int:
+    """Boot, run, and return the command's exit status (read back from the shared directory)."""
+    rc_file = plan.outdir / "rc"
+    rc_file.unlink(missing_ok=True)
+    env = {**os.environ, "PATH": f"{Path(plan.argv[0]).parent}:{os.environ.get('PATH', '')}"}
+    try:
+        subprocess.run(plan.argv, timeout=timeout, env=env, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise VcanError(f"the VM did not finish within {timeout:g} s") from None
+    if not rc_file.exists():
+        raise VcanError("the VM ended without the command's exit status (see its output above)")
+    return int(rc_file.read_text().strip() or 1)

@@ -1,0 +1,160 @@
+"""Plant and TCU as separate OS processes on vcan0, recorded by candump, replayed by canplayer, decoded by
+cantools. Lockstep and real time. Simulated duration: DSG_HIL_VCAN_DURATION (``dsg-hil vcan --duration``)."""
+
+from __future__ import annotations
+
+import json
+import statistics
+import subprocess
+import sys
+from collections import defaultdict
+
+import pytest
+
+from .conftest import DBC, Candump, console
+
+pytestmark = pytest.mark.vcan
+BUS = ["--interface", "socketcan", "--channel", "vcan0"]
+
+
+def run_pair(outdir, name, mode, duration, extra=()):
+    """Start candump and ecu-stub, run the plant to the end, stop both; returns (summary, frames, log path)."""
+    dump = Candump(outdir / f"{name}.candump.log")
+    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "3"], stderr=subprocess.PIPE, text=True)
+    summary = outdir / f"{name}.summary.json"
+    try:
+        plant = subprocess.run([console("dsg-hil"), "plant", *BUS, "--mode", mode, "--duration", str(duration),
+                                "--reply-timeout", "60", "--summary", str(summary), *extra],
+                               capture_output=True, text=True, timeout=600 + 30 * duration)
+        assert plant.returncode == 0, plant.stderr
+        tcu_err = tcu.communicate(timeout=60)[1]
+        assert tcu.returncode == 0, tcu_err
+    finally:
+        if tcu.poll() is None:
+            tcu.kill()
+        frames = dump.stop()
+    (outdir / f"{name}.plant.stderr").write_text(plant.stderr)
+    return json.loads(summary.read_text()), frames, dump.path
+
+
+def by_id(frames):
+    groups = defaultdict(list)
+    for t, ident, data in frames:
+        groups[ident].append((t, data))
+    return groups
+
+
+def assert_counters_increment(db, frames):
+    for ident, items in by_id(frames).items():
+        m = db.get_message_by_frame_id(ident)
+        counters = [m.decode(data, decode_choices=False)["Counter"] for _, data in items]
+        steps = {(b - a) % 16 for a, b in zip(counters, counters[1:])}
+        assert steps == {1}, f"{m.name}: counter steps {steps}"
+
+
+@pytest.fixture(scope="module")
+def lockstep(outdir, duration):
+    return run_pair(outdir, "lockstep", "lockstep", duration)
+
+
+@pytest.fixture(scope="module")
+def realtime(outdir, duration):
+    return run_pair(outdir, "realtime", "realtime", min(duration, 6.0))
+
+
+def test_lockstep_creeps_with_separate_processes(lockstep, duration):
+    summary, frames, _ = lockstep
+    assert summary["frames"]["rejected"] == 0 and summary["frames"]["received"] > 0
+    assert summary["slip_time_s"]["CL"] > 0.5 * (duration - 2.0)  # CL first
+    assert summary["speed_error_rms_mps"] is not None and summary["speed_error_rms_mps"] < 0.05
+    assert summary["command_fallback"]["events"] == 0
+
+
+def test_lockstep_every_message_at_its_cycle_with_counters(db, lockstep, duration):
+    _, frames, _ = lockstep
+    groups = by_id(frames)
+    for m in db.messages:
+        assert m.frame_id in groups, f"{m.name} never on the bus"
+        expected = duration / (m.cycle_time / 1000.0)
+        assert abs(len(groups[m.frame_id]) - expected) <= 2, f"{m.name}: {len(groups[m.frame_id])} vs {expected}"
+    assert_counters_increment(db, frames)
+
+
+def test_lockstep_command_answers_each_tick(db, lockstep):
+    _, frames, _ = lockstep
+    sync, cmd = db.get_message_by_name("SIM_SYNC"), db.get_message_by_name("TCU_CMD")
+    pending, answered = None, 0
+    for _, ident, data in frames:
+        if ident == sync.frame_id:
+            assert pending is None, "a tick was not answered before the next one"
+            pending = sync.decode(data)["Tick"] & 0xFF
+        elif ident == cmd.frame_id:
+            assert pending is not None and cmd.decode(data)["SyncEcho"] == pending
+            pending, answered = None, answered + 1
+    assert answered > 100
+
+
+def test_cantools_decodes_the_recorded_log(db, lockstep):
+    _, _, log = lockstep
+    out = subprocess.run([sys.executable, "-m", "cantools", "decode", str(DBC)], stdin=log.open(),
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    for m in db.messages:
+        assert f"{m.name}(" in out.stdout, m.name
+
+
+def test_realtime_periods_and_counters(db, realtime):
+    """Each message at its DBC cycle time: the TCU's on the wall clock; the plant's on the plant's clock, which
+    is the wall clock where the machine keeps up (realtime_factor 1) and slower where it cannot (emulated VM)."""
+    summary, frames, _ = realtime
+    factor = summary["realtime_factor"]
+    assert 0.05 < factor <= 1.05
+    groups = by_id(frames)
+    for m in db.messages:
+        if m.name == "SIM_SYNC":
+            assert m.frame_id not in groups  # no ticks in real time
+            continue
+        times = [t for t, _ in groups[m.frame_id]]
+        assert len(times) > 10, m.name
+        period = statistics.median(b - a for a, b in zip(times, times[1:]))
+        expected = m.cycle_time / 1000.0 / (1.0 if m.senders == ["TCU"] else factor)
+        assert period == pytest.approx(expected, rel=0.25), m.name
+    assert_counters_increment(db, frames)
+    assert summary["frames"]["received"] > 0 and summary["frames"]["rejected"] == 0
+    assert summary["command_latency_ms"]["p50"] < 50.0
+
+
+def test_canplayer_replay_drives_a_tcu(db, realtime, outdir):
+    """Replay the plant's recorded frames (no sync ticks) into a fresh TCU: its commands come back."""
+    _, frames, log = realtime
+    plant_ids = {m.frame_id for m in db.messages if m.senders == ["PLANT"] and not m.name.startswith("SIM_")}
+    replay = outdir / "replay.log"
+    replay.write_text("".join(line + "\n" for line in log.read_text().splitlines()
+                              if line.split()[2].split("#")[0] in {f"{i:03X}" for i in plant_ids}))
+    dump = Candump(outdir / "replay.candump.log")
+    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "2"], stderr=subprocess.PIPE, text=True)
+    try:
+        player = subprocess.run(["canplayer", "-I", str(replay)], capture_output=True, text=True, timeout=300)
+        assert player.returncode == 0, player.stderr
+        tcu.communicate(timeout=60)
+    finally:
+        if tcu.poll() is None:
+            tcu.kill()
+        recorded = dump.stop()
+    cmd = db.get_message_by_name("TCU_CMD")
+    commands = [cmd.decode(data) for _, ident, data in recorded if ident == cmd.frame_id]
+    assert len(commands) > 50
+    assert max(c["P_CL_Cmd"] for c in commands) > 0.1  # the replayed creep request engaged CL
+    assert_counters_increment(db, [f for f in recorded if f[1] == cmd.frame_id])
+
+
+def test_dsg_hil_run_starts_the_tcu_as_a_process(outdir, duration):
+    summary = outdir / "run.summary.json"
+    log = outdir / "run.log"
+    proc = subprocess.run([console("dsg-hil"), "run", *BUS, "--duration", str(min(duration, 5.0)), "--log", str(log),
+                           "--summary", str(summary), "--reply-timeout", "60"], capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(summary.read_text())
+    assert data["interface"] == "socketcan:vcan0" and data["frames"]["received"] > 0
+    assert log.read_text().splitlines()[0].split()[1] == "vcan0"
