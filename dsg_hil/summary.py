@@ -29,6 +29,7 @@ class RunSummary:
     fallback_time_s: float = 0.0
     max_predicted_temp_c: dict[str, float] = field(default_factory=lambda: {"CL": -1e9, "CH": -1e9})
     realtime_factor: float | None = None  # simulated s per wall s of a real-time run
+    wall_time_s: float | None = None  # of the run itself (after the lockstep handshake)
     command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
     _sq_speed_error: float = 0.0
     _creep_samples: int = 0
@@ -78,6 +79,7 @@ class RunSummary:
             "command_fallback": {"events": self.fallback_events, "time_s": round(self.fallback_time_s, 3)},
             "frames": frames,
             "realtime_factor": None if self.realtime_factor is None else round(self.realtime_factor, 3),
+            "run_wall_time_s": None if self.wall_time_s is None else round(self.wall_time_s, 3),
             "command_latency_ms": _percentiles(self.command_latency_s),
         }
 

@@ -20,6 +20,7 @@ VCAN = "vcan0"
 ENV_REQUIRE = "DSG_HIL_REQUIRE_VCAN"  # tests that need vcan fail (instead of skipping) when it is set
 ENV_DURATION = "DSG_HIL_VCAN_DURATION"  # simulated seconds of the end-to-end scenarios
 ENV_OUTDIR = "DSG_HIL_VCAN_OUTDIR"  # where the end-to-end tests leave their logs
+ENV_WHERE = "DSG_HIL_VCAN_WHERE"  # "native" or "emulated VM (QEMU TCG)": where the figures come from
 
 
 class VcanError(RuntimeError):

@@ -41,6 +41,7 @@ def main(argv: list[str] | None = None) -> int:
         config = resolve_bus_config(args.interface, args.channel, args.config_context)
         codec = Codec(load_dbc(args.dbc), TCU_USES)
         bus = open_bus(config)
+        print(f"ecu-stub: listening on {config['interface']}:{config['channel']}", file=sys.stderr, flush=True)
         try:
             TcuRunner(codec, bus).run(duration=args.duration, idle_timeout=args.idle_exit)
         finally:

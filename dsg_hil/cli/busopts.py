@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 from contextlib import ExitStack
@@ -91,3 +92,23 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
         listeners = (listener,)
     runner = PlantRunner(make_plant(args, scenario), scenario, Codec(db, PLANT_USES), bus, listeners, progress)
     return runner, config
+
+
+def drive(runner: PlantRunner, args: argparse.Namespace, pump=None) -> None:
+    """Run the scenario in the chosen mode (``pump``: an in-process TCU on the virtual bus, lockstep)."""
+    if args.mode == "lockstep":
+        runner.run_lockstep(args.reply_timeout, pump=pump, startup_timeout=args.startup_timeout)
+    else:
+        runner.run_realtime()
+
+
+def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario, **extra) -> dict:
+    """The run's summary (written to --summary if given)."""
+    summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,
+                                     f"{config['interface']}:{config['channel']}", scenario.duration_s)
+    summary.update(extra)
+    if args.summary:
+        Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.summary).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        progress(f"wrote {args.summary}")
+    return summary

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from contextlib import ExitStack
-from pathlib import Path
 
-from .busopts import add_bus_options, plant_runner, scenario_from, setup_logging
+from .busopts import add_bus_options, drive, finish, plant_runner, scenario_from, setup_logging
 from .common import add_params_option, progress
 
 
@@ -31,13 +29,7 @@ def _do_plant(args: argparse.Namespace) -> int:
         runner, config = plant_runner(args, stack, scenario)
         progress(f"plant: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on "
                  f"{config['interface']}:{config['channel']}")
-        if args.mode == "lockstep":
-            runner.run_lockstep(args.reply_timeout, startup_timeout=args.startup_timeout)
-        else:
-            runner.run_realtime()
-        summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,
-                                         f"{config['interface']}:{config['channel']}", scenario.duration_s)
-    if args.summary:
-        Path(args.summary).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        drive(runner, args)
+        summary = finish(args, runner, config, scenario)
     progress(f"done: stop {summary['stop_reason']}, frames {summary['frames']}")
     return 0

@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 import threading
 import time
 from contextlib import ExitStack
-from pathlib import Path
 
-from ..protocol import Codec, load_dbc
+from ..protocol import Codec
 from ..protocol.bus import open_bus
-from .busopts import add_bus_options, plant_runner, scenario_from, setup_logging
+from .busopts import add_bus_options, drive, finish, plant_runner, scenario_from, setup_logging
 from .common import add_params_option, progress
 
 
@@ -48,7 +46,7 @@ def _do_run(args: argparse.Namespace) -> int:
             tcu = _tcu_in_process(config, runner.codec.db)
             stack.callback(tcu.bus.shutdown)
             if args.mode == "lockstep":
-                runner.run_lockstep(args.reply_timeout, pump=tcu.pump, startup_timeout=args.startup_timeout)
+                drive(runner, args, pump=tcu.pump)
             else:
                 errors: list[BaseException] = []
                 done = threading.Event()
@@ -76,21 +74,12 @@ def _do_run(args: argparse.Namespace) -> int:
             time.sleep(0.5)
             if tcu_proc.poll() is not None:
                 raise RuntimeError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
-            if args.mode == "lockstep":
-                runner.run_lockstep(args.reply_timeout, startup_timeout=args.startup_timeout)
-            else:
-                runner.run_realtime()
+            drive(runner, args)
         wall = time.monotonic() - t0
-        summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,
-                                         f"{config['interface']}:{config['channel']}", scenario.duration_s)
-        summary["wall_time_s"] = round(wall, 3)
+        summary = finish(args, runner, config, scenario, wall_time_s=round(wall, 3))
     progress(f"done: {scenario.duration_s:g} simulated s in {wall:.1f} s wall; stop: {summary['stop_reason']}; "
              f"handovers: {len(summary['handovers'])}; frames sent {summary['frames']['sent']}, received "
              f"{summary['frames']['received']}, rejected {summary['frames']['rejected']}")
-    if args.summary:
-        Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.summary).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-        progress(f"wrote {args.summary}")
     return 0
 
 

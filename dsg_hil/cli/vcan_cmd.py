@@ -57,6 +57,7 @@ def _do_vcan(args: argparse.Namespace) -> int:
                 if args.native:
                     raise vcan.VcanError(f"no vcan0 and cannot create it: {reason}")
                 progress(f"no vcan0 here ({reason}): running in a throw-away VM")
+    env[vcan.ENV_WHERE] = "native" if native else "emulated VM (QEMU TCG)"
     if native:
         progress(f"vcan0 present: running natively; logs in {outdir}")
         rc = subprocess.run(command, env={**os.environ, **env}).returncode

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .params import Params, Powertrain, Vehicle
+from .params import Powertrain, Vehicle
 from .thermal import zoh
 
 DOFS = ("e", "in", "1", "2", "3", "4", "5")

@@ -18,7 +18,10 @@ BUS = ["--interface", "socketcan", "--channel", "vcan0"]
 
 
 def run_pair(outdir, name, mode, duration, extra=()):
-    """Start candump and ecu-stub, run the plant to the end, stop both; returns (summary, frames, log path)."""
+    """Start candump and ecu-stub, run the plant to the end, stop both; returns (summary, frames, log path).
+
+    ``frames`` start at the run: a lockstep plant first probes for the TCU (SIM_SYNC Tick 0xFFFFFFFF, answered
+    with SyncEcho 255; documented in the DBC); those handshake frames are cut off here."""
     dump = Candump(outdir / f"{name}.candump.log")
     tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "3"], stderr=subprocess.PIPE, text=True)
     summary = outdir / f"{name}.summary.json"
@@ -34,6 +37,10 @@ def run_pair(outdir, name, mode, duration, extra=()):
             tcu.kill()
         frames = dump.stop()
     (outdir / f"{name}.plant.stderr").write_text(plant.stderr)
+    if mode == "lockstep":
+        first_tick = next(i for i, (_, ident, data) in enumerate(frames) if ident == 0x7F0 and data[:4] == bytes(4))
+        frames = frames[first_tick - 8:]  # the 8 frames due at t=0 precede tick 0
+        assert frames[0][1] == 0x100
     return json.loads(summary.read_text()), frames, dump.path
 
 
@@ -54,7 +61,7 @@ def assert_counters_increment(db, frames):
 
 @pytest.fixture(scope="module")
 def lockstep(outdir, duration):
-    return run_pair(outdir, "lockstep", "lockstep", duration)
+    return run_pair(outdir, "lockstep", "lockstep", duration, extra=("--log", str(outdir / "lockstep.plant.log")))
 
 
 @pytest.fixture(scope="module")
@@ -124,15 +131,16 @@ def test_realtime_periods_and_counters(db, realtime):
     assert summary["command_latency_ms"]["p50"] < 50.0
 
 
-def test_canplayer_replay_drives_a_tcu(db, realtime, outdir):
-    """Replay the plant's recorded frames (no sync ticks) into a fresh TCU: its commands come back."""
-    _, frames, log = realtime
-    plant_ids = {m.frame_id for m in db.messages if m.senders == ["PLANT"] and not m.name.startswith("SIM_")}
+def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
+    """Replay the plant's frames of the lockstep run (its own log: simulated-time stamps, so canplayer plays
+    them at their DBC cycle times; no sync ticks) into a fresh TCU: its commands come back."""
+    plant_ids = {f"{m.frame_id:03X}" for m in db.messages if m.senders == ["PLANT"] and not m.name.startswith("SIM_")}
     replay = outdir / "replay.log"
-    replay.write_text("".join(line + "\n" for line in log.read_text().splitlines()
-                              if line.split()[2].split("#")[0] in {f"{i:03X}" for i in plant_ids}))
+    lines = (outdir / "lockstep.plant.log").read_text().splitlines()
+    replay.write_text("".join(f"{line}\n" for line in lines if line.split()[2].split("#")[0] in plant_ids))
     dump = Candump(outdir / "replay.candump.log")
     tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "2"], stderr=subprocess.PIPE, text=True)
+    assert "listening on socketcan:vcan0" in tcu.stderr.readline()  # up before the replay starts
     try:
         player = subprocess.run(["canplayer", "-I", str(replay)], capture_output=True, text=True, timeout=300)
         assert player.returncode == 0, player.stderr

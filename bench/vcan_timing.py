@@ -1,0 +1,92 @@
+"""Timing on a real SocketCAN bus (vcan0): the plant in real-time mode with ecu-stub as a separate process,
+recorded by candump. Prints, per cyclic message, the deviation of its period from the DBC cycle time
+(p50/p99/max, from candump's kernel timestamps), the command -> plant latency (TCU_CMD on the bus -> the plant
+step that uses it), the real-time factor, and the lockstep closed loop over vcan0 in simulated s per wall s.
+
+Needs vcan0; anywhere:  dsg-hil vcan -- python bench/vcan_timing.py [--duration 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+from dsg_hil.protocol import load_dbc
+from dsg_hil.vcan import ENV_WHERE, vcan_present
+
+BIN = Path(sys.executable).parent
+BUS = ["--interface", "socketcan", "--channel", "vcan0"]
+
+
+def pct(values, q):
+    s = sorted(values)
+    return s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))]
+
+
+def run(mode: str, duration: float, work: Path) -> tuple[dict, list[tuple[float, int]]]:
+    dump_path = work / f"{mode}.candump.log"
+    with dump_path.open("w") as f:
+        dump = subprocess.Popen(["candump", "-L", "vcan0"], stdout=f)
+        time.sleep(0.3)
+        tcu = subprocess.Popen([str(BIN / "ecu-stub"), *BUS, "--idle-exit", "3"])
+        summary = work / f"{mode}.json"
+        subprocess.run([str(BIN / "dsg-hil"), "plant", *BUS, "--mode", mode, "--duration", str(duration),
+                        "--summary", str(summary)], check=True, stderr=subprocess.DEVNULL)
+        tcu.wait(timeout=60)
+        time.sleep(0.3)
+        dump.send_signal(signal.SIGINT)
+        dump.wait(timeout=10)
+    frames = []
+    for line in dump_path.read_text().splitlines():
+        ts, _, frame = line.split()[:3]
+        frames.append((float(ts.strip("()")), int(frame.split("#")[0], 16)))
+    return json.loads(summary.read_text()), frames
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run (default 10)")
+    args = ap.parse_args()
+    if not vcan_present():
+        sys.exit("error: no vcan0 here: run it as 'dsg-hil vcan -- python bench/vcan_timing.py'")
+    where = os.environ.get(ENV_WHERE, "native")
+    db = load_dbc()
+    work = Path(tempfile.mkdtemp(prefix="dsg-hil-timing-"))
+
+    summary, frames = run("realtime", args.duration, work)
+    times = defaultdict(list)
+    for t, ident in frames:
+        times[ident].append(t)
+    print(f"real-time mode on vcan0 ({where}), {args.duration:g} simulated s, plant pace "
+          f"{summary['realtime_factor']:.2f} x real time")
+    print(f"{'message':<16}{'cycle ms':>9}{'frames':>8}{'p50 dev ms':>12}{'p99 dev ms':>12}{'max dev ms':>12}")
+    for m in db.messages:
+        ts = times.get(m.frame_id, [])
+        if len(ts) < 3:
+            print(f"{m.name:<16}{m.cycle_time:>9}{len(ts):>8}   (not sent in real time)")
+            continue
+        dev = [abs((b - a) * 1000.0 - m.cycle_time) for a, b in zip(ts, ts[1:])]
+        print(f"{m.name:<16}{m.cycle_time:>9}{len(ts):>8}{pct(dev, 0.5):>12.2f}{pct(dev, 0.99):>12.2f}{max(dev):>12.2f}")
+    lat = summary["command_latency_ms"]
+    if lat:
+        print(f"command -> plant latency (TCU_CMD on the bus -> plant step using it): p50 {lat['p50']:.2f} ms, "
+              f"p99 {lat['p99']:.2f} ms, max {lat['max']:.2f} ms over {lat['n']} commands")
+    print(f"command fallbacks (TCU_CMD missing 3 cycles): {summary['command_fallback']['events']}")
+
+    summary, _ = run("lockstep", args.duration, work)
+    wall = summary["run_wall_time_s"]
+    print(f"lockstep closed loop over vcan0 ({where}), plant and ecu-stub as processes: {args.duration:g} simulated "
+          f"s in {wall:.2f} s wall = {args.duration / wall:.2f} simulated s per wall s")
+    print(f"(logs in {work})")
+
+
+if __name__ == "__main__":
+    main()
