@@ -84,8 +84,3 @@ def slip_memory_step(slip_memory: float, slip_speed: float, dt: float, f: Fricti
     """Exact step of tau_slip * s' = |slip_speed| - s with the slip held over dt (any speed unit)."""
     target = abs(slip_speed)
     return target + (slip_memory - target) * math.exp(-dt / f.tau_slip)
-
-
-def mu_si(slip_speed: float, T_plate: float, pressure: float, f: Friction) -> float:
-    """mu from the units used inside dsg_hil: slip speed [rad/s], plate temperature [degC], pressure [Pa]."""
-    return friction_coefficient(slip_speed * RAD_S_TO_RPM, T_plate, pressure / 1e6, f)

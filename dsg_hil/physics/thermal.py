@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from .friction import torque_per_mu
 from .params import ClutchGeometry, Element, Params
 
 ELEMENTS = ("F", "P", "RV", "V", "CL", "CH", "R")
@@ -32,9 +31,6 @@ class Network:
     L: np.ndarray
     g_E: np.ndarray
     T_E: float
-
-    def index(self, name: str) -> int:
-        return self.names.index(name)
 
     def derivative(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
         """dT/dt [K/s] for node temperatures T [degC] and heat sources q [W]."""
@@ -175,8 +171,3 @@ def discretize(network: Network, dt: float) -> DiscreteNetwork:
         raise ValueError(f"dt must be positive, got {dt}")
     Phi, Gamma = zoh(-network.L / network.C[:, None], dt)
     return DiscreteNetwork(network, dt, Phi, Gamma)
-
-
-def friction_heat(mu: float, geometry: ClutchGeometry, pressure: float, slip_speed: float) -> float:
-    """Friction power of a slipping clutch, (4) with (5): M * delta_omega [W] (pressure [Pa], slip [rad/s])."""
-    return mu * torque_per_mu(geometry, pressure) * abs(slip_speed)

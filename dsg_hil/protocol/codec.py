@@ -83,12 +83,6 @@ class Codec:
         """The message's GenMsgCycleTime [s]."""
         return self._by_name[name].cycle_time / 1000.0
 
-    def names(self) -> list[str]:
-        return list(self._by_name)
-
-    def knows(self, frame_id: int) -> bool:
-        return frame_id in self._by_id
-
     # ---- encode / decode -------------------------------------------------------------------------------------
     def encode(self, name: str, values: Mapping[str, float], counter: int) -> bytes:
         """Frame data for ``name``: values clamped to their DBC ranges (NaN -> the signal's initial value or

@@ -119,9 +119,6 @@ class TxScheduler:
                 self.next_due[name] = due + (missed + 1) * period
         return names
 
-    def next_deadline(self) -> float:
-        return min(self.next_due.values())
-
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""
         data = self.codec.encode(name, values, self.counters[name])
