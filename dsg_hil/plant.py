@@ -51,7 +51,7 @@ class PlantState:
     P_CL: float
     P_CH: float
     governor_integral: float  # N m
-    contact_torques: np.ndarray = field(default_factory=lambda: np.zeros(3))  # M_CL, M_CH, M_R friction, N m
+    contact_torques: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # M_CL, M_CH, M_R friction, N m
     slip_memory: np.ndarray = field(default_factory=lambda: np.zeros(2))  # |slip| seen by (6), rad/s
 
 
@@ -100,7 +100,12 @@ class Plant:
         self.disc: Discrete = discretize_powertrain(self.model, dt)
         self.network = gearbox_network(params)
         self.thermal = discretize_network(self.network, dt)
-        self._k = np.array([torque_per_mu(params.clutch.CL, 1.0), torque_per_mu(params.clutch.CH, 1.0)])  # per Pa
+        self._k = (torque_per_mu(params.clutch.CL, 1.0), torque_per_mu(params.clutch.CH, 1.0))  # N m per Pa
+        d = self.disc  # step-invariant products, so a step costs few small matrix-vector products
+        self._V = d.V
+        self._V_Gamma_drive, self._V_Gamma_road = d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]
+        self._W = d.W_rows
+        self._S_Phi_int, self._S_Gamma_int = d.V[:2] @ d.Phi_int, d.V[:2] @ d.Gamma_int
         self.state = self._initial_state(T_init, v_init)
         self._last = self.outputs()
 
@@ -142,16 +147,16 @@ class Plant:
         # clutch capacities (5)-(6), mu at the remembered slip (static mu once stuck long enough)
         mu = [friction_coefficient(s.slip_memory[i] * RAD_S_TO_RPM, T_plate[i], P[i] / 1e6, p.friction)
               for i in (0, 1)]
-        cap = np.array([mu[0] * self._k[0] * P[0], mu[1] * self._k[1] * P[1], M_resist])
+        cap = (mu[0] * self._k[0] * P[0], mu[1] * self._k[1] * P[1], M_resist)
 
         # free motion, then the friction torques of the three contacts, implicitly (stick/slip)
-        u = np.array([M_e, 0.0, 0.0, M_fixed])
-        x_free = d.Phi @ x + d.Gamma @ u
-        f = solve_contacts(d.V @ x_free, d.W, cap, s.contact_torques.copy())
-        u[1:] += f
-        x_new = x_free + d.Gamma[:, 1:] @ f
-        slip_integral = d.V[:2] @ (d.Phi_int @ x + d.Gamma_int @ u)  # rad, exact over the step
-        Q = np.maximum(f[:2] * slip_integral, 0.0) / self.dt  # friction heat (4), W
+        Phi_x = d.Phi @ x
+        v_free = self._V @ Phi_x + self._V_Gamma_drive * M_e + self._V_Gamma_road * M_fixed
+        f = solve_contacts(v_free.tolist(), self._W, cap, s.contact_torques)
+        u = np.array([M_e, f[0], f[1], M_fixed + f[2]])
+        x_new = Phi_x + d.Gamma @ u
+        slip_integral = (self._S_Phi_int @ x + self._S_Gamma_int @ u).tolist()  # rad, exact over the step
+        Q = [max(f[i] * slip_integral[i], 0.0) / self.dt for i in (0, 1)]  # friction heat (4), W
 
         T_new = self.thermal.step(s.T, heat_sources(p, Q[0], Q[1], s.P_CL, s.P_CH))
         s.x, s.T, s.contact_torques = x_new, T_new, f
@@ -161,7 +166,7 @@ class Plant:
         s.P_CL = hydraulics.pressure_step(s.P_CL, inputs.P_CL_cmd, self.dt, p.hydraulics)
         s.P_CH = hydraulics.pressure_step(s.P_CH, inputs.P_CH_cmd, self.dt, p.hydraulics)
         s.t += self.dt
-        stuck = np.abs(f) < cap * (1.0 - 1e-9)
+        stuck = [abs(f[i]) < cap[i] * (1.0 - 1e-9) for i in range(3)]
         self._last = self.outputs(M_e, mu, f, Q, stuck)
         return self._last
 

@@ -129,6 +129,11 @@ class Discrete:
     V: np.ndarray
     W: np.ndarray
 
+    @property
+    def W_rows(self) -> tuple[tuple[float, ...], ...]:
+        """W as plain floats, for the contact solver's scalar loop."""
+        return tuple(tuple(float(w) for w in row) for row in self.W)
+
 
 def discretize(model: Model, dt: float) -> Discrete:
     if not dt > 0.0:
@@ -146,23 +151,30 @@ def discretize(model: Model, dt: float) -> Discrete:
     return Discrete(dt, E[:n, :n], Gamma, E[n:, :n], Gam[n:], V, V @ Gamma[:, CONTACT_INPUTS])
 
 
-def solve_contacts(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f0: np.ndarray,
-                   iterations: int = 50, tol: float = 1e-9) -> np.ndarray:
+def solve_contacts(v_free, W, cap, f0, iterations: int = 50, tol: float = 1e-9) -> list[float]:
     """Friction torques f (one per contact, |f_i| <= cap_i) of the implicit time-stepping friction law.
 
     With ``v = v_free + W f`` the contact velocities at the end of the step: a contact sticks (v_i = 0) when it
     can, with |f_i| < cap_i; otherwise it slips with f_i = cap_i sign(v_i), never reversing within the step.
     Projected Gauss-Seidel from ``f0`` in a fixed order (deterministic); W has a dominant negative diagonal.
+    Scalar arithmetic on purpose: three contacts, called every step.
     """
-    f = np.clip(f0, -cap, cap)
+    n = len(cap)
+    f = [min(max(float(f0[i]), -cap[i]), cap[i]) for i in range(n)]
+    scale = tol * (1.0 + max(cap))
     for _ in range(iterations):
         change = 0.0
-        for i in range(len(f)):
-            v_i = v_free[i] + W[i] @ f
-            new = min(max(f[i] - v_i / W[i, i], -cap[i]), cap[i])
-            change = max(change, abs(new - f[i]))
+        for i in range(n):
+            row = W[i]
+            v_i = v_free[i]
+            for j in range(n):
+                v_i += row[j] * f[j]
+            new = f[i] - v_i / row[i]
+            new = cap[i] if new > cap[i] else (-cap[i] if new < -cap[i] else new)
+            if abs(new - f[i]) > change:
+                change = abs(new - f[i])
             f[i] = new
-        if change <= tol * (1.0 + cap.max()):
+        if change <= scale:
             break
     return f
 

@@ -20,6 +20,7 @@ from .params import ClutchGeometry, Element, Params
 
 ELEMENTS = ("F", "P", "RV", "V", "CL", "CH", "R")
 NODES = tuple(n for e in ELEMENTS for n in (e, e + "o"))
+_I = {name: i for i, name in enumerate(NODES)}
 
 
 @dataclass(frozen=True)
@@ -132,13 +133,13 @@ def heat_sources(params: Params, Q_CL: float, Q_CH: float, P_CL: float, P_CH: fl
     throttle_CL = c.Q_cool_CL * max(P_CL, 0.0)
     throttle_CH = c.Q_cool_CH * max(P_CH, 0.0)
     hydraulic = c.Q_pump * c.p_line
-    q[NODES.index("CL")] = Q_CL
-    q[NODES.index("CH")] = Q_CH
-    q[NODES.index("CLo")] = throttle_CL
-    q[NODES.index("CHo")] = throttle_CH
-    q[NODES.index("Po")] = hydraulic * (1.0 / c.eta_pump - 1.0)
-    q[NODES.index("RVo")] = c.Q_relief * c.p_line
-    q[NODES.index("Vo")] = (c.Q_pump - c.Q_relief) * c.p_line - throttle_CL - throttle_CH
+    q[_I["CL"]] = Q_CL
+    q[_I["CH"]] = Q_CH
+    q[_I["CLo"]] = throttle_CL
+    q[_I["CHo"]] = throttle_CH
+    q[_I["Po"]] = hydraulic * (1.0 / c.eta_pump - 1.0)
+    q[_I["RVo"]] = c.Q_relief * c.p_line
+    q[_I["Vo"]] = (c.Q_pump - c.Q_relief) * c.p_line - throttle_CL - throttle_CH
     return q
 
 
@@ -151,9 +152,13 @@ class DiscreteNetwork:
     Phi: np.ndarray
     Gamma: np.ndarray
 
-    def step(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
+    def __post_init__(self) -> None:
         n = self.network
-        return self.Phi @ T + self.Gamma @ ((n.g_E * n.T_E + q) / n.C)
+        object.__setattr__(self, "_Gamma_per_C", self.Gamma / n.C[None, :])
+        object.__setattr__(self, "_drive", self.Gamma @ (n.g_E * n.T_E / n.C))
+
+    def step(self, T: np.ndarray, q: np.ndarray) -> np.ndarray:
+        return self.Phi @ T + self._drive + self._Gamma_per_C @ q
 
 
 def zoh(A: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -42,15 +42,15 @@ def test_contacts_stick_when_they_can_and_slip_at_capacity_otherwise():
     W = np.array([[-0.1, -0.005, 0.0], [-0.005, -0.04, 0.0], [0.0, 0.0, -1e-4]])
     v_free = np.array([2.0, -1.0, 0.3])
     big = np.array([1e6, 1e6, 1e6])
-    f = solve_contacts(v_free, W, big, np.zeros(3))
+    f = np.array(solve_contacts(v_free, W, big, np.zeros(3)))
     np.testing.assert_allclose(v_free + W @ f, 0.0, atol=1e-6)  # all stick
     small = np.array([5.0, 5.0, 100.0])
-    f = solve_contacts(v_free, W, small, np.zeros(3))
+    f = np.array(solve_contacts(v_free, W, small, np.zeros(3)))
     v = v_free + W @ f
     assert f[0] == 5.0 and v[0] > 0.0  # slips forward at capacity, slip not reversed
     assert f[1] == -5.0 and v[1] < 0.0
     assert f[2] == 100.0 and v[2] > 0.0
-    assert np.all(solve_contacts(v_free, W, np.zeros(3), np.ones(3)) == 0.0)  # no capacity, no torque
+    assert solve_contacts(v_free, W, np.zeros(3), np.ones(3)) == [0.0, 0.0, 0.0]  # no capacity, no torque
 
 
 def test_exact_step_matches_fine_rk4(params):
