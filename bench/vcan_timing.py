@@ -20,7 +20,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from dsg_hil.protocol import load_dbc
-from dsg_hil.vcan import ENV_WHERE, vcan_present
+from dsg_hil.vcan import ENV_OUTDIR, ENV_WHERE, vcan_present
 
 BIN = Path(sys.executable).parent
 BUS = ["--interface", "socketcan", "--channel", "vcan0"]
@@ -52,6 +52,12 @@ def run(mode: str, duration: float, work: Path) -> tuple[dict, list[tuple[float,
 
 
 def main() -> None:
+    lines: list[str] = []
+
+    def say(text: str) -> None:  # the table also goes to a file: a VM console may interleave its output
+        print(text, flush=True)
+        lines.append(text)
+
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run (default 10)")
     args = ap.parse_args()
@@ -65,27 +71,29 @@ def main() -> None:
     times = defaultdict(list)
     for t, ident in frames:
         times[ident].append(t)
-    print(f"real-time mode on vcan0 ({where}), {args.duration:g} simulated s, plant pace "
+    say(f"real-time mode on vcan0 ({where}), {args.duration:g} simulated s, plant pace "
           f"{summary['realtime_factor']:.2f} x real time")
-    print(f"{'message':<16}{'cycle ms':>9}{'frames':>8}{'p50 dev ms':>12}{'p99 dev ms':>12}{'max dev ms':>12}")
+    say(f"{'message':<16}{'cycle ms':>9}{'frames':>8}{'p50 dev ms':>12}{'p99 dev ms':>12}{'max dev ms':>12}")
     for m in db.messages:
         ts = times.get(m.frame_id, [])
         if len(ts) < 3:
-            print(f"{m.name:<16}{m.cycle_time:>9}{len(ts):>8}   (not sent in real time)")
+            say(f"{m.name:<16}{m.cycle_time:>9}{len(ts):>8}   (not sent in real time)")
             continue
         dev = [abs((b - a) * 1000.0 - m.cycle_time) for a, b in zip(ts, ts[1:])]
-        print(f"{m.name:<16}{m.cycle_time:>9}{len(ts):>8}{pct(dev, 0.5):>12.2f}{pct(dev, 0.99):>12.2f}{max(dev):>12.2f}")
+        say(f"{m.name:<16}{m.cycle_time:>9}{len(ts):>8}{pct(dev, 0.5):>12.2f}{pct(dev, 0.99):>12.2f}{max(dev):>12.2f}")
     lat = summary["command_latency_ms"]
     if lat:
-        print(f"command -> plant latency (TCU_CMD on the bus -> plant step using it): p50 {lat['p50']:.2f} ms, "
+        say(f"command -> plant latency (TCU_CMD on the bus -> plant step using it): p50 {lat['p50']:.2f} ms, "
               f"p99 {lat['p99']:.2f} ms, max {lat['max']:.2f} ms over {lat['n']} commands")
-    print(f"command fallbacks (TCU_CMD missing 3 cycles): {summary['command_fallback']['events']}")
+    say(f"command fallbacks (TCU_CMD missing 3 cycles): {summary['command_fallback']['events']}")
 
     summary, _ = run("lockstep", args.duration, work)
     wall = summary["run_wall_time_s"]
-    print(f"lockstep closed loop over vcan0 ({where}), plant and ecu-stub as processes: {args.duration:g} simulated "
+    say(f"lockstep closed loop over vcan0 ({where}), plant and ecu-stub as processes: {args.duration:g} simulated "
           f"s in {wall:.2f} s wall = {args.duration / wall:.2f} simulated s per wall s")
-    print(f"(logs in {work})")
+    out = Path(os.environ.get(ENV_OUTDIR) or work) / "vcan_timing.txt"
+    out.write_text("\n".join(lines) + "\n")
+    print(f"(logs in {work}; table in {out})")
 
 
 if __name__ == "__main__":
