@@ -83,8 +83,8 @@ def vm_plan(command: list[str], outdir: Path, kernel: Path, env: dict[str, str],
         "modprobe vcan && ip link add dev vcan0 type vcan && ip link set up vcan0 || echo 'vcan setup failed'",
         *(f"export {k}={shlex.quote(v)}" for k, v in exports.items()),
         f"cd {shlex.quote(str(cwd))}",
-        " ".join(shlex.quote(c) for c in command),
-        f"echo $? > {shlex.quote(str(outdir / 'rc'))}",
+        f"( {' '.join(shlex.quote(c) for c in command)}; echo $? > {shlex.quote(str(outdir / 'rc'))} ) 2>&1"
+        f" | tee {shlex.quote(str(outdir / 'output.txt'))}",
     ])
     argv = [vng, "--disable-kvm", "--rwdir", str(outdir), "--run", str(kernel), "--memory", memory,
             "--cpus", str(cpus), "--exec", script]
@@ -103,3 +103,13 @@ def run_in_vm(plan: VmPlan, timeout: float) -> int:
     if not rc_file.exists():
         raise VcanError("the VM ended without the command's exit status (see its output above)")
     return int(rc_file.read_text().strip() or 1)
+
+
+def output_tail(outdir: Path, lines: int = 12) -> str:
+    """The end of the command's output inside the VM, without the console's control characters."""
+    path = outdir / "output.txt"
+    if not path.exists():
+        return ""
+    text = path.read_text(errors="replace")
+    clean = ["".join(ch for ch in line if ch.isprintable()).rstrip() for line in text.splitlines()]
+    return "\n".join([line for line in clean if line][-lines:])

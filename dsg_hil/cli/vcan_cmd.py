@@ -65,5 +65,8 @@ def _do_vcan(args: argparse.Namespace) -> int:
         kernel = vcan.find_kernel(args.kernel)
         progress(f"booting {kernel.name} under QEMU (software emulation) with vcan0; logs in {outdir}")
         rc = vcan.run_in_vm(vcan.vm_plan(command, outdir, kernel, env, Path.cwd()), args.timeout)
+        tail = vcan.output_tail(outdir)
+        if tail:  # the console interleaves and garbles; repeat the end cleanly (full: output.txt)
+            print(f"--- end of the command's output in the VM ({outdir / 'output.txt'}) ---\n{tail}", flush=True)
     progress(f"{'native' if native else 'VM'} vcan run finished with status {rc}; logs in {outdir}")
     return rc
