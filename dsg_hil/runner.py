@@ -93,18 +93,18 @@ class PlantRunner:
         self.command_valid = valid
 
     # ---- physics -------------------------------------------------------------------------------------------
-    def _inputs(self) -> PlantInputs:
-        t = self.plant.state.t
-        driver = self.scenario.driver_at(t)
+    def _inputs(self, now: float) -> PlantInputs:
+        """Plant inputs from the scenario and the TCU's frames; ``now`` is the time frames are judged on."""
+        driver = self.scenario.driver_at(self.plant.state.t)
         status = self.rx.states["TCU_STATUS"]
-        brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(t) else 0.0
+        brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
         engine = None if self.scenario.engine_speed_rpm is None else self.scenario.engine_speed_rpm / RAD_S_TO_RPM
         return PlantInputs(P_CL_cmd=P_CL, P_CH_cmd=P_CH, brake=max(driver.brake, brake_request),
                            grade=self.scenario.grade_rad, engine_speed_request=engine)
 
-    def _advance(self, steps: int) -> None:
-        inputs = self._inputs()
+    def _advance(self, steps: int, now: float) -> None:
+        inputs = self._inputs(now)
         driver = self.scenario.driver_at(self.plant.state.t)
         for _ in range(steps):
             self.out = self.plant.step(inputs)
@@ -140,7 +140,7 @@ class PlantRunner:
                 pump()
             self._await_command(t, reply_timeout)
             self._check_command(t)
-            self._advance(self.steps_per_period)
+            self._advance(self.steps_per_period, t)
             self._report()
         self.summary.wall_time_s = time.monotonic() - t0
         return self.summary
@@ -193,13 +193,14 @@ class PlantRunner:
                 on_bus = msg.timestamp  # until this step's deadline: take what arrives
                 if self._take(msg, clock() - start, stamp=start + t) == "TCU_CMD":
                     self._cmd_on_bus = on_bus
-            self._check_command(clock() - start)
+            now = clock() - start
+            self._check_command(now)
             if self._cmd_on_bus is not None:  # the newest command is used from this step on
                 latency = time.time() - self._cmd_on_bus
                 if 0.0 <= latency < 1.0:  # bus timestamps are wall-clock (socketcan, virtual)
                     self.summary.command_latency_s.append(latency)
                 self._cmd_on_bus = None
-            self._advance(1)
+            self._advance(1, now)
             if k % self.steps_per_period == 0:
                 self._report()
         wall = self.summary.wall_time_s = clock() - start

@@ -9,10 +9,13 @@ read-only, so the same venv and checkout run inside it; ``outdir`` is the one wr
 from __future__ import annotations
 
 import os
+import re
 import shlex
+import signal
 import shutil
 import subprocess
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -92,17 +95,35 @@ def vm_plan(command: list[str], outdir: Path, kernel: Path, env: dict[str, str],
 
 
 def run_in_vm(plan: VmPlan, timeout: float) -> int:
-    """Boot, run, and return the command's exit status (read back from the shared directory)."""
+    """Boot, run, and return the command's exit status (read back from the shared directory).
+
+    The VM's console is relayed line by line through a pipe (never handed our stdout, which QEMU could reopen
+    and write from offset 0 when it is a file), without its terminal control characters."""
     rc_file = plan.outdir / "rc"
     rc_file.unlink(missing_ok=True)
     env = {**os.environ, "PATH": f"{Path(plan.argv[0]).parent}:{os.environ.get('PATH', '')}"}
+    proc = subprocess.Popen(plan.argv, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT)
+    timer = threading.Timer(timeout, proc.kill)
+    timer.start()
     try:
-        subprocess.run(plan.argv, timeout=timeout, env=env, stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        raise VcanError(f"the VM did not finish within {timeout:g} s") from None
+        for raw in proc.stdout:
+            line = _printable(raw.decode(errors="replace"))
+            if line:
+                print(line, flush=True)
+        proc.wait()
+    finally:
+        timer.cancel()
+    if proc.returncode == -signal.SIGKILL and not rc_file.exists():
+        raise VcanError(f"the VM did not finish within {timeout:g} s")
     if not rc_file.exists():
         raise VcanError("the VM ended without the command's exit status (see its output above)")
     return int(rc_file.read_text().strip() or 1)
+
+
+def _printable(text: str) -> str:
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text)  # ANSI control sequences of the console
+    return "".join(ch for ch in text if ch.isprintable() or ch == "\t").rstrip()
 
 
 def output_tail(outdir: Path, lines: int = 12) -> str:
@@ -110,6 +131,5 @@ def output_tail(outdir: Path, lines: int = 12) -> str:
     path = outdir / "output.txt"
     if not path.exists():
         return ""
-    text = path.read_text(errors="replace")
-    clean = ["".join(ch for ch in line if ch.isprintable()).rstrip() for line in text.splitlines()]
+    clean = [_printable(line) for line in path.read_text(errors="replace").splitlines()]
     return "\n".join([line for line in clean if line][-lines:])

@@ -60,8 +60,8 @@ def test_command_timeout_falls_back_and_recovers():
     runner = PlantRunner(Plant(load_params()), parse_scenario(SCENARIO), codec, bus)
     original = runner._advance
 
-    def advance(steps):
-        original(steps)
+    def advance(steps, now):
+        original(steps, now)
         pressures.append((runner.plant.state.t, runner.plant.state.P_CL))
 
     runner._advance = advance

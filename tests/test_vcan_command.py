@@ -24,6 +24,7 @@ def test_output_tail_drops_console_garbage(tmp_path):
     (tmp_path / "output.txt").write_text("a\n\x1b[2K   \n" + "".join(f"line {i}\r\n" for i in range(20)))
     tail = vcan.output_tail(tmp_path, lines=3)
     assert tail.splitlines() == ["line 17", "line 18", "line 19"]
+    assert vcan._printable("\x1b[2K\x1b[1;32mPASSED\x1b[0m\r") == "PASSED"
     assert vcan.output_tail(tmp_path / "nothing") == ""
 
 
