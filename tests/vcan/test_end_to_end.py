@@ -166,3 +166,10 @@ def test_dsg_hil_run_starts_the_tcu_as_a_process(outdir, duration):
     data = json.loads(summary.read_text())
     assert data["interface"] == "socketcan:vcan0" and data["frames"]["received"] > 0
     assert log.read_text().splitlines()[0].split()[1] == "vcan0"
+
+
+def test_lockstep_over_vcan_is_bit_for_bit_reproducible(lockstep, outdir, duration):
+    """A second lockstep run with separate processes on vcan0 writes the same plant log, byte for byte."""
+    run_pair(outdir, "lockstep2", "lockstep", duration, extra=("--log", str(outdir / "lockstep2.plant.log")))
+    first = (outdir / "lockstep.plant.log").read_bytes()
+    assert len(first) > 10_000 and (outdir / "lockstep2.plant.log").read_bytes() == first
