@@ -15,13 +15,14 @@ Each step (inputs held over it, zero-order hold):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from .physics import engine, hydraulics
 from .physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_step, torque_per_mu
 from .physics.params import Params
-from .physics.powertrain import (IDX, N_DOF, N_SPRING, Discrete, Model, build_model, contact_velocities, road_load,
+from .physics.powertrain import (IDX, N_DOF, N_SPRING, N_STATE, Discrete, Model, build_model, contact_velocities, road_load,
                                  solve_contacts, vehicle_speed)
 from .physics.powertrain import discretize as discretize_powertrain
 from .physics.thermal import NODES, gearbox_network, heat_sources
@@ -55,9 +56,9 @@ class PlantState:
     slip_memory: np.ndarray = field(default_factory=lambda: np.zeros(2))  # |slip| seen by (6), rad/s
 
 
-@dataclass(frozen=True)
-class PlantOutputs:
-    """Sensors a TCU can have, and the plant's truth (marked)."""
+class PlantOutputs(NamedTuple):
+    """Sensors a TCU can have, and the plant's truth (marked). A named tuple: immutable and cheap to build
+    every step."""
 
     t: float  # s
     omega_e: float  # engine speed, rad/s
@@ -101,11 +102,19 @@ class Plant:
         self.network = gearbox_network(params)
         self.thermal = discretize_network(self.network, dt)
         self._k = (torque_per_mu(params.clutch.CL, 1.0), torque_per_mu(params.clutch.CH, 1.0))  # N m per Pa
-        d = self.disc  # step-invariant products, so a step costs few small matrix-vector products
-        self._V = d.V
-        self._V_Gamma_drive, self._V_Gamma_road = d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]
+        # Step-invariant products, so that a step costs a few small matrix-vector products. Rows of _Mx/_Mu:
+        # the next state (12), the contact velocities (3), the clutch slips integrated over the step (2).
+        d = self.disc
+        self._Mx = np.vstack([d.Phi, d.V @ d.Phi, d.V[:2] @ d.Phi_int])
+        self._Mu = np.vstack([d.Gamma, d.V @ d.Gamma, d.V[:2] @ d.Gamma_int])
+        self._VG_engine, self._VG_road = (d.V @ d.Gamma[:, 0]).tolist(), (d.V @ d.Gamma[:, 3]).tolist()
         self._W = d.W_rows
-        self._S_Phi_int, self._S_Gamma_int = d.V[:2] @ d.Phi_int, d.V[:2] @ d.Gamma_int
+        # heat_sources is affine in (Q_CL, Q_CH, P_CL, P_CH): its thermal step, evaluated once per basis input
+        zero = np.zeros(len(NODES))
+        self._T_const = self.thermal.step(zero, heat_sources(params, 0.0, 0.0, 0.0, 0.0))
+        basis = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        self._T_src = np.column_stack([self.thermal.step(zero, heat_sources(params, *b)) - self._T_const
+                                       for b in basis])
         self.state = self._initial_state(T_init, v_init)
         self._last = self.outputs()
 
@@ -132,7 +141,7 @@ class Plant:
         return state
 
     def step(self, inputs: PlantInputs) -> PlantOutputs:
-        p, s, d = self.params, self.state, self.disc
+        p, s = self.params, self.state
         x = s.x
         T_plate = (s.T[I_CL], s.T[I_CH])
         P = (s.P_CL, s.P_CH)
@@ -150,15 +159,16 @@ class Plant:
         cap = (mu[0] * self._k[0] * P[0], mu[1] * self._k[1] * P[1], M_resist)
 
         # free motion, then the friction torques of the three contacts, implicitly (stick/slip)
-        Phi_x = d.Phi @ x
-        v_free = self._V @ Phi_x + self._V_Gamma_drive * M_e + self._V_Gamma_road * M_fixed
-        f = solve_contacts(v_free.tolist(), self._W, cap, s.contact_torques)
-        u = np.array([M_e, f[0], f[1], M_fixed + f[2]])
-        x_new = Phi_x + d.Gamma @ u
-        slip_integral = (self._S_Phi_int @ x + self._S_Gamma_int @ u).tolist()  # rad, exact over the step
+        free = self._Mx @ x
+        v_free = [float(free[N_STATE + i]) + self._VG_engine[i] * M_e + self._VG_road[i] * M_fixed for i in range(3)]
+        f = solve_contacts(v_free, self._W, cap, s.contact_torques)
+        y = free + self._Mu @ np.array([M_e, f[0], f[1], M_fixed + f[2]])
+        x_new = y[:N_STATE]
+        slip_integral = y[N_STATE + 3:].tolist()  # rad, exact over the step
         Q = [max(f[i] * slip_integral[i], 0.0) / self.dt for i in (0, 1)]  # friction heat (4), W
 
-        T_new = self.thermal.step(s.T, heat_sources(p, Q[0], Q[1], s.P_CL, s.P_CH))
+        # thermal network: exact step with the sources of heat_sources(Q_CL, Q_CH, P_CL, P_CH)
+        T_new = self.thermal.Phi @ s.T + self._T_const + self._T_src @ np.array([Q[0], Q[1], s.P_CL, s.P_CH])
         s.x, s.T, s.contact_torques = x_new, T_new, f
         s.slip_memory = np.array([slip_memory_step(s.slip_memory[i], slip_integral[i] / self.dt, self.dt, p.friction)
                                   for i in (0, 1)])

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from dataclasses import astuple
 
 import numpy as np
 import pytest
@@ -80,7 +79,7 @@ def test_same_inputs_same_outputs_bit_for_bit(params):
         plant = Plant(params, T_init={"CL": 100.0, "CH": 100.0, "Fo": 80.0})
         rows = []
         for k in range(3000):
-            rows.append(astuple(plant.step(PlantInputs(P_CL_cmd=0.4e6 + 100.0 * k, P_CH_cmd=0.1e6, brake=0.0))))
+            rows.append(tuple(plant.step(PlantInputs(P_CL_cmd=0.4e6 + 100.0 * k, P_CH_cmd=0.1e6, brake=0.0))))
         return rows
     assert trace() == trace()
 
@@ -94,7 +93,7 @@ def test_no_nan_on_random_inputs(params):
                              engine_speed_request=float(rng.uniform(70, 260)))
         for _ in range(100):
             out = plant.step(inputs)
-        values = [v for v in astuple(out) if isinstance(v, float)]
+        values = [v for v in out if isinstance(v, float)]
         assert all(math.isfinite(v) for v in values)
         assert 0.0 <= out.P_CL <= params.hydraulics.P_max and 0.0 <= out.P_CH <= params.hydraulics.P_max
     assert np.all(np.isfinite(plant.state.T)) and plant.state.T.max() < 400.0
@@ -104,3 +103,17 @@ def test_unknown_initial_node_is_rejected(params):
     with pytest.raises(ValueError, match="unknown thermal node"):
         Plant(params, T_init={"XX": 1.0})
     assert len(NODES) == 14
+
+
+def test_fast_thermal_path_equals_the_network_step(params):
+    """The plant's precomputed thermal step is the network's exact step with heat_sources, for any sources."""
+    from dsg_hil.physics.thermal import heat_sources
+
+    plant = Plant(params)
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        T = rng.uniform(20.0, 250.0, len(NODES))
+        Q_CL, Q_CH, P_CL, P_CH = rng.uniform(0.0, 2e4), rng.uniform(0.0, 2e4), rng.uniform(0, 1.5e6), rng.uniform(0, 1.5e6)
+        fast = plant.thermal.Phi @ T + plant._T_const + plant._T_src @ np.array([Q_CL, Q_CH, P_CL, P_CH])
+        np.testing.assert_allclose(fast, plant.thermal.step(T, heat_sources(params, Q_CL, Q_CH, P_CL, P_CH)),
+                                   rtol=1e-12, atol=1e-9)
