@@ -116,7 +116,6 @@ class Plant:
         self._T_src = np.column_stack([self.thermal.step(zero, heat_sources(params, *b)) - self._T_const
                                        for b in basis])
         self.state = self._initial_state(T_init, v_init)
-        self._last = self.outputs()
 
     def _initial_state(self, T_init: float | dict[str, float], v_init: float) -> PlantState:
         pt, veh, e = self.params.powertrain, self.params.vehicle, self.params.engine
@@ -177,8 +176,7 @@ class Plant:
         s.P_CH = hydraulics.pressure_step(s.P_CH, inputs.P_CH_cmd, self.dt, p.hydraulics)
         s.t += self.dt
         stuck = [abs(f[i]) < cap[i] * (1.0 - 1e-9) for i in range(3)]
-        self._last = self.outputs(M_e, mu, f, Q, stuck)
-        return self._last
+        return self.outputs(M_e, mu, f, Q, stuck)
 
     def outputs(self, M_e: float = 0.0, mu=(0.0, 0.0), f=(0.0, 0.0, 0.0), Q=(0.0, 0.0),
                 stuck=(False, False, False)) -> PlantOutputs:
