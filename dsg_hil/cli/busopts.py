@@ -79,6 +79,16 @@ class LogListener:
         self.writer.stop()
 
 
+def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantRunner, dict, Scenario]:
+    """Logging, scenario, the plant's bus and log from the options, announced; all closed by ``stack``."""
+    setup_logging(args.verbose)
+    scenario = scenario_from(args)
+    runner, config = plant_runner(args, stack, scenario)
+    progress(f"{what}: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on "
+             f"{config['interface']}:{config['channel']}")
+    return runner, config, scenario
+
+
 def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario) -> tuple[PlantRunner, dict]:
     """Open the plant's bus (and log) from the options; everything is closed by ``stack``."""
     config = resolve_bus_config(args.interface, args.channel, args.config_context)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from contextlib import ExitStack
 
-from .busopts import add_bus_options, drive, finish, plant_runner, scenario_from, setup_logging
+from .busopts import add_bus_options, drive, finish, start
 from .common import add_params_option, progress
 
 
@@ -23,12 +23,8 @@ def add_subparser(sub) -> None:
 
 
 def _do_plant(args: argparse.Namespace) -> int:
-    setup_logging(args.verbose)
-    scenario = scenario_from(args)
     with ExitStack() as stack:
-        runner, config = plant_runner(args, stack, scenario)
-        progress(f"plant: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on "
-                 f"{config['interface']}:{config['channel']}")
+        runner, config, scenario = start(args, stack, "plant")
         drive(runner, args)
         summary = finish(args, runner, config, scenario)
     progress(f"done: stop {summary['stop_reason']}, frames {summary['frames']}")

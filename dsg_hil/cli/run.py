@@ -11,7 +11,7 @@ from contextlib import ExitStack
 
 from ..protocol import Codec
 from ..protocol.bus import open_bus
-from .busopts import add_bus_options, drive, finish, plant_runner, scenario_from, setup_logging
+from .busopts import add_bus_options, drive, finish, start
 from .common import add_params_option, progress
 
 
@@ -35,12 +35,8 @@ def _tcu_in_process(bus_config: dict, dbc):
 
 
 def _do_run(args: argparse.Namespace) -> int:
-    setup_logging(args.verbose)
-    scenario = scenario_from(args)
     with ExitStack() as stack:
-        runner, config = plant_runner(args, stack, scenario)
-        progress(f"{scenario.name}: {scenario.duration_s:g} s, {args.mode} on {config['interface']}:"
-                 f"{config['channel']}")
+        runner, config, scenario = start(args, stack, "run")
         t0 = time.monotonic()
         if config["interface"] == "virtual":
             tcu = _tcu_in_process(config, runner.codec.db)
