@@ -24,7 +24,7 @@ from .physics.friction import RAD_S_TO_RPM
 from .plant import Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
 from .protocol import Codec, RxMonitor, TxScheduler
-from .scenario import Scenario
+from .scenario import DriverInput, Scenario
 from .summary import RunSummary
 
 log = logging.getLogger(__name__)
@@ -64,8 +64,11 @@ class PlantRunner:
             listener(msg)
 
     def _publish_due(self, t: float, stamp: float) -> None:
+        names = self.tx.due(t)
+        if not names:  # real time: most 1-ms steps send nothing, so build no signal values for them
+            return
         values = plant_signals(self.out, self.scenario.driver_at(t))
-        for name in self.tx.due(t):
+        for name in names:
             self._emit(self.tx.frame(name, values[name], timestamp=stamp))
 
     def _take(self, msg: can.Message, now: float, stamp: float) -> str | None:
@@ -93,9 +96,8 @@ class PlantRunner:
         self.command_valid = valid
 
     # ---- physics -------------------------------------------------------------------------------------------
-    def _inputs(self, now: float) -> PlantInputs:
-        """Plant inputs from the scenario and the TCU's frames; ``now`` is the time frames are judged on."""
-        driver = self.scenario.driver_at(self.plant.state.t)
+    def _inputs(self, driver: DriverInput, now: float) -> PlantInputs:
+        """Plant inputs from the driver and the TCU's frames; ``now`` is the time frames are judged on."""
         status = self.rx.states["TCU_STATUS"]
         brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
@@ -104,8 +106,8 @@ class PlantRunner:
                            grade=self.scenario.grade_rad, engine_speed_request=engine)
 
     def _advance(self, steps: int, now: float) -> None:
-        inputs = self._inputs(now)
         driver = self.scenario.driver_at(self.plant.state.t)
+        inputs = self._inputs(driver, now)
         for _ in range(steps):
             self.out = self.plant.step(inputs)
             self.summary.on_step(self.out, driver.creep_request, not self.command_valid, driver.desired_speed_mps)

@@ -61,6 +61,7 @@ class TcuRunner:
         if missing or {"NONE", "CL", "CH"} - set(self.clutches):
             raise ValueError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
         self.lockstep = False
+        self._sim_now = 0.0  # lock-step: the time of the last tick answered [s]
         self.heard_plant_at: float | None = None
         self.last: TcuOutputs | None = None
 
@@ -146,8 +147,6 @@ class TcuRunner:
         """True once the plant has been heard for a while without a tick: a real-time plant."""
         return (not self.lockstep and self.heard_plant_at is not None
                 and now - self.heard_plant_at > SYNC_WAIT_S)
-
-    _sim_now = 0.0
 
     def pump(self) -> None:
         """Handle every frame already waiting (for an in-process peer on python-can's virtual bus)."""
