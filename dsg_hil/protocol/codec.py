@@ -100,7 +100,7 @@ class Codec:
         data[COUNTER] = counter & 0x0F
         data[CRC] = 0
         raw = bytearray(message.encode(data, strict=True, scaling=True))
-        raw[7] = self._crc(message.frame_id, raw)
+        raw[7] = self.crc(message.frame_id, raw)
         return bytes(raw)
 
     def decode(self, frame_id: int, data: bytes) -> DecodedFrame:
@@ -110,7 +110,7 @@ class Codec:
             raise FrameError("unknown", f"frame 0x{frame_id:03X} is not one this node reads")
         if len(data) != message.length:
             raise FrameError("dlc", f"{message.name}: DLC {len(data)}, expected {message.length}")
-        if data[7] != self._crc(frame_id, data):
+        if data[7] != self.crc(frame_id, data):
             raise FrameError("crc", f"{message.name}: CRC mismatch")
         try:
             values = message.decode(bytes(data), decode_choices=False, scaling=True)
@@ -126,5 +126,6 @@ class Codec:
         return DecodedFrame(message.name, {k: float(v) for k, v in values.items()}, counter)
 
     @staticmethod
-    def _crc(frame_id: int, data: bytes) -> int:
+    def crc(frame_id: int, data: bytes) -> int:
+        """The CRC of a frame: CRC-8 SAE J1850 over the ID (2 bytes, little endian) and data bytes 0-6."""
         return crc8_j1850(bytes((frame_id & 0xFF, (frame_id >> 8) & 0xFF)) + bytes(data[:7]))

@@ -1,0 +1,183 @@
+"""Fault injection between a node and its bus.
+
+:class:`FaultInjector` is the pure part: ``apply(msg, t)`` turns one frame a node sends at time ``t`` into the
+frames that reach the bus now (none, one changed, two ...), ``release(t)`` gives back delayed frames that are due.
+Signal faults decode the frame with the DBC, change the value and re-encode it with a valid counter and CRC, so
+they test plausibility, not protection. Draws are from a seeded generator: in lockstep the same faults hit the
+same frames on every run.
+
+:class:`FaultyBus` wraps a python-can bus with an injector on what the node sends, so it works for the plant's
+frames, the TCU's, or, between two buses (:func:`bridge_step`), a real ECU's.
+"""
+
+from __future__ import annotations
+
+import random
+import time
+from collections import Counter as Tally
+from typing import Callable, Iterable
+
+import can
+from cantools.database.can import Database, Message, Signal
+
+from ..protocol.codec import COUNTER, CRC, Codec
+from .spec import FaultSpec, check_against_dbc
+
+
+def outside_range(signal: Signal) -> float:
+    """A value the signal's bits can carry that lies just outside its DBC range [minimum, maximum]."""
+    length, scale, offset = signal.length, signal.scale, signal.offset
+    raw_lo, raw_hi = (-(1 << (length - 1)), (1 << (length - 1)) - 1) if signal.is_signed else (0, (1 << length) - 1)
+    top, bottom = raw_hi * scale + offset, raw_lo * scale + offset
+    if signal.maximum is not None and top > signal.maximum + abs(scale) / 2:
+        return min(signal.maximum + abs(scale), top)
+    if signal.minimum is not None and bottom < signal.minimum - abs(scale) / 2:
+        return max(signal.minimum - abs(scale), bottom)
+    raise ValueError(f"{signal.name}: its {length} bits cannot carry a value outside [{signal.minimum}, "
+                     f"{signal.maximum}]")
+
+
+class FaultInjector:
+    """Applies ``specs`` to the frames of one sender. ``counts[spec.describe()]`` counts the frames each hit."""
+
+    def __init__(self, db: Database, specs: Iterable[FaultSpec], seed: int = 0) -> None:
+        self.specs = tuple(specs)
+        for i, spec in enumerate(self.specs):
+            check_against_dbc(spec, db, f"fault {i} ({spec.describe()})")
+        self._messages = {m.frame_id: m for m in db.messages}
+        self._by_id: dict[int, list[int]] = {}
+        for i, spec in enumerate(self.specs):
+            if spec.kind == "flood":
+                continue
+            if spec.kind == "out_of_range":  # fail at start-up, not mid-run, if the bits cannot carry it
+                outside_range(db.get_message_by_name(spec.message).get_signal_by_name(spec.signal))
+            self._by_id.setdefault(db.get_message_by_name(spec.message).frame_id, []).append(i)
+        self._rng = random.Random(seed)
+        self._frozen: dict[int, int] = {}
+        self._held: list[tuple[float, int, can.Message]] = []
+        self._sequence = 0
+        self.counts: Tally[str] = Tally()
+
+    # ---- the frames a node sends -----------------------------------------------------------------------------
+    def apply(self, msg: can.Message, t: float) -> list[can.Message]:
+        """The frames that go on the bus at ``t`` for ``msg`` (in order)."""
+        out = [msg]
+        for i in self._by_id.get(msg.arbitration_id, ()):
+            spec = self.specs[i]
+            if not spec.active(t) or not out or not self._hit(spec):
+                if i in self._frozen and not spec.active(t):
+                    del self._frozen[i]
+                continue
+            self.counts[spec.describe()] += 1
+            out = [changed for frame in out for changed in self._change(i, spec, frame, t)]
+        for spec in self.specs:
+            if spec.kind == "flood" and spec.active(t) and self._hit(spec):
+                self.counts[spec.describe()] += spec.rate
+                out += [can.Message(arbitration_id=spec.frame_id, is_extended_id=False, timestamp=msg.timestamp,
+                                    data=bytes(self._rng.getrandbits(8) for _ in range(8))) for _ in range(spec.rate)]
+        return out
+
+    def release(self, t: float) -> list[can.Message]:
+        """Delayed frames whose time has come, oldest first."""
+        due = [entry for entry in self._held if entry[0] <= t]
+        if due:
+            self._held = [entry for entry in self._held if entry[0] > t]
+        return [msg for _, _, msg in sorted(due, key=lambda e: (e[0], e[1]))]
+
+    @property
+    def injected(self) -> int:
+        return sum(self.counts.values())
+
+    # ---- one fault on one frame ---------------------------------------------------------------------------------
+    def _hit(self, spec: FaultSpec) -> bool:
+        return spec.probability >= 1.0 or self._rng.random() < spec.probability
+
+    def _change(self, i: int, spec: FaultSpec, msg: can.Message, t: float) -> list[can.Message]:
+        kind = spec.kind
+        if kind == "drop":
+            return []
+        if kind == "duplicate":
+            return [msg, _copy(msg, bytes(msg.data))]
+        if kind == "delay":
+            self._sequence += 1
+            self._held.append((t + spec.delay_s, self._sequence, msg))
+            return []
+        if kind == "corrupt_crc":
+            data = bytearray(msg.data)
+            message = self._messages[msg.arbitration_id]
+            values = message.decode(bytes(data), decode_choices=False, scaling=False)
+            values[CRC] = int(values[CRC]) ^ 0xFF
+            return [_copy(msg, message.encode(values, scaling=False, strict=False))]
+        if kind == "wrong_dlc":
+            data = bytes(msg.data)[:spec.dlc].ljust(spec.dlc, b"\x00")
+            return [_copy(msg, data)]
+        message = self._messages[msg.arbitration_id]
+        values = message.decode(bytes(msg.data), decode_choices=False, scaling=True)
+        if kind == "freeze_counter":
+            values[COUNTER] = self._frozen.setdefault(i, int(values[COUNTER]))
+        elif kind == "stuck":
+            values[spec.signal] = spec.value
+        elif kind == "offset":
+            values[spec.signal] = float(values[spec.signal]) + spec.value
+        elif kind == "out_of_range":
+            values[spec.signal] = outside_range(message.get_signal_by_name(spec.signal))
+        return [_copy(msg, _sealed(message, values))]
+
+
+def _sealed(message: Message, values: dict) -> bytes:
+    """Encode without range checks (a fault may leave the range on purpose), then a valid CRC."""
+    raw = bytearray(message.encode({**values, CRC: 0}, scaling=True, strict=False))
+    values = message.decode(bytes(raw), decode_choices=False, scaling=False)
+    values[CRC] = Codec.crc(message.frame_id, bytes(raw))
+    return message.encode(values, scaling=False, strict=False)
+
+
+def _copy(msg: can.Message, data: bytes) -> can.Message:
+    return can.Message(arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id, data=data,
+                       dlc=len(data), timestamp=msg.timestamp, channel=msg.channel, is_rx=False)
+
+
+class FaultyBus(can.BusABC):
+    """A python-can bus that sends through a :class:`FaultInjector`; receiving is untouched.
+
+    ``clock()`` gives the sender's time for the fault windows (simulated time in lockstep)."""
+
+    def __init__(self, inner: can.BusABC, injector: FaultInjector,
+                 clock: Callable[[], float] | None = None) -> None:
+        self.inner, self.injector = inner, injector
+        if clock is None:
+            start = time.monotonic()
+            clock = lambda: time.monotonic() - start  # noqa: E731
+        self.clock = clock
+        self.channel_info = f"faults on {inner.channel_info}"
+        super().__init__(channel=getattr(inner, "channel", None))
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        now = self.clock()
+        for frame in (*self.injector.release(now), *self.injector.apply(msg, now)):
+            self.inner.send(frame, timeout)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        for frame in self.injector.release(self.clock()):
+            self.inner.send(frame)
+        return self.inner.recv(timeout), False
+
+    def shutdown(self) -> None:
+        super().shutdown()
+        self.inner.shutdown()
+
+
+def bridge_step(source: can.BusABC, sink: can.BusABC, injector: FaultInjector, t: float,
+                timeout: float = 0.0) -> int:
+    """Forward the frames waiting on ``source`` to ``sink`` through ``injector`` (e.g. a real ECU on can0 and
+    the plant on vcan0); returns how many frames went out."""
+    sent = 0
+    for frame in injector.release(t):
+        sink.send(frame)
+        sent += 1
+    while (msg := source.recv(timeout)) is not None:
+        for frame in injector.apply(msg, t):
+            sink.send(frame)
+            sent += 1
+        timeout = 0.0
+    return sent

@@ -1,0 +1,177 @@
+"""Declarative fault specifications: what to do to which DBC message or signal, and when.
+
+One fault is a :class:`FaultSpec`. It comes from a scenario TOML table, a command-line string or Python::
+
+    [[fault]]                                   # scenario TOML
+    kind = "drop"                               # see KINDS
+    target = "TCU_CMD"                          # MESSAGE or MESSAGE.Signal (signal faults); none for "flood"
+    start_s = 10.0                              # window [start_s, end_s) in the sender's time (simulated in lockstep)
+    end_s = 12.0
+    probability = 0.5                           # share of the frames in the window that are hit (default 1)
+
+    --fault 'drop:TCU_CMD@10-12,probability=0.5'           # the same on the command line
+    --fault 'stuck:PLANT_VEHICLE.VehicleSpeed@40-45,value=0'
+    --fault 'flood@5-15,rate=20,frame_id=0x5A5'
+
+Keys besides kind, target and the window: ``probability`` (all kinds), ``delay_s`` (delay), ``value`` (stuck: the
+value held; offset: what is added, in the signal's DBC unit), ``dlc`` (wrong_dlc, default 7), ``rate`` (flood:
+unknown-ID frames per frame the node sends, default 10), ``frame_id`` (flood, default 0x5A5; must not be in the DBC).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any, Mapping
+
+from cantools.database.can import Database
+
+KINDS = {
+    "drop": "the frame is not sent",
+    "delay": "the frame is held for delay_s, then sent",
+    "duplicate": "the frame is sent twice",
+    "corrupt_crc": "the CRC byte is inverted",
+    "freeze_counter": "the counter keeps the value it had when the window opened (CRC recomputed)",
+    "stuck": "the signal holds `value` (CRC and counter valid)",
+    "offset": "`value` is added to the signal (CRC and counter valid)",
+    "out_of_range": "the signal is set just outside its DBC range (CRC and counter valid)",
+    "wrong_dlc": "the frame is sent with `dlc` bytes",
+    "flood": "each frame the node sends is followed by `rate` frames of an unknown ID with random data",
+}
+SIGNAL_KINDS = {"stuck", "offset", "out_of_range"}
+_ALIASES = {"p": "probability", "delay": "delay_s", "id": "frame_id", "start": "start_s", "end": "end_s"}
+
+
+class FaultError(ValueError):
+    """A fault specification is malformed or names something the DBC does not have."""
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    kind: str
+    target: str | None = None  # MESSAGE or MESSAGE.Signal
+    start_s: float = 0.0
+    end_s: float = math.inf
+    probability: float = 1.0
+    delay_s: float = 0.0
+    value: float = 0.0
+    dlc: int = 7
+    rate: int = 10
+    frame_id: int = 0x5A5
+
+    @property
+    def message(self) -> str | None:
+        return None if self.target is None else self.target.split(".", 1)[0]
+
+    @property
+    def signal(self) -> str | None:
+        return self.target.split(".", 1)[1] if self.target and "." in self.target else None
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+    def describe(self) -> str:
+        where = f":{self.target}" if self.target else ""
+        end = "" if math.isinf(self.end_s) else f"{self.end_s:g}"
+        return f"{self.kind}{where}@{self.start_s:g}-{end}"
+
+
+def _number(key: str, raw: Any, where: str) -> float:
+    if isinstance(raw, bool):
+        raise FaultError(f"{where}: {key} must be a number, got {raw!r}")
+    try:
+        value = float(int(raw, 0)) if isinstance(raw, str) and raw.lower().startswith("0x") else float(raw)
+    except (TypeError, ValueError):
+        raise FaultError(f"{where}: {key} must be a number, got {raw!r}") from None
+    if math.isnan(value) or (math.isinf(value) and key != "end_s"):
+        raise FaultError(f"{where}: {key} must be finite, got {raw!r}")
+    return value
+
+
+def fault_from_mapping(table: Mapping[str, Any], where: str = "fault") -> FaultSpec:
+    """A :class:`FaultSpec` from a TOML table or parsed command-line keys; checks types and ranges."""
+    known = {f.name for f in fields(FaultSpec)}
+    items = {_ALIASES.get(k, k): v for k, v in table.items()}
+    unknown = sorted(set(items) - known)
+    if unknown:
+        raise FaultError(f"{where}: unknown key {unknown[0]!r} (known: {', '.join(sorted(known))})")
+    kind = items.get("kind")
+    if kind not in KINDS:
+        raise FaultError(f"{where}: kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    target = items.get("target")
+    if target is not None and (not isinstance(target, str) or not target):
+        raise FaultError(f"{where}: target must be MESSAGE or MESSAGE.Signal, got {target!r}")
+    values: dict[str, Any] = {"kind": kind, "target": target}
+    for key in ("start_s", "end_s", "probability", "delay_s", "value"):
+        if key in items:
+            values[key] = _number(key, items[key], where)
+    for key in ("dlc", "rate", "frame_id"):
+        if key in items:
+            number = _number(key, items[key], where)
+            if number != int(number):
+                raise FaultError(f"{where}: {key} must be a whole number, got {items[key]!r}")
+            values[key] = int(number)
+    spec = FaultSpec(**values)
+    if not 0.0 <= spec.probability <= 1.0:
+        raise FaultError(f"{where}: probability must be within [0, 1], got {spec.probability:g}")
+    if not 0.0 <= spec.start_s < spec.end_s:
+        raise FaultError(f"{where}: window must satisfy 0 <= start_s < end_s, got {spec.start_s:g}-{spec.end_s:g}")
+    if spec.delay_s < 0.0:
+        raise FaultError(f"{where}: delay_s must not be negative")
+    if not 0 <= spec.dlc <= 8:
+        raise FaultError(f"{where}: dlc must be within 0-8 (classic CAN), got {spec.dlc}")
+    if not 1 <= spec.rate <= 1000:
+        raise FaultError(f"{where}: rate must be within 1-1000, got {spec.rate}")
+    if not 0 <= spec.frame_id <= 0x7FF:
+        raise FaultError(f"{where}: frame_id must be an 11-bit ID, got {spec.frame_id:#x}")
+    if kind == "flood":
+        if target is not None:
+            raise FaultError(f"{where}: flood takes no target (it adds frames of frame_id)")
+    elif target is None:
+        raise FaultError(f"{where}: {kind} needs a target MESSAGE{'.Signal' if kind in SIGNAL_KINDS else ''}")
+    elif (kind in SIGNAL_KINDS) != ("." in target):
+        raise FaultError(f"{where}: {kind} takes a {'MESSAGE.Signal' if kind in SIGNAL_KINDS else 'MESSAGE'} "
+                         f"target, got {target!r}")
+    return spec
+
+
+def parse_fault(text: str) -> FaultSpec:
+    """Parse ``KIND[:TARGET][@START-[END]][,key=value ...]`` (the ``--fault`` syntax)."""
+    where = f"--fault {text!r}"
+    head, *options = [part.strip() for part in text.split(",")]
+    table: dict[str, Any] = {}
+    if "@" in head:
+        head, window = head.split("@", 1)
+        start, sep, end = window.partition("-")
+        if not sep:
+            raise FaultError(f"{where}: the window is START-END or START- (seconds), got {window!r}")
+        table["start_s"] = start or 0.0
+        if end:
+            table["end_s"] = end
+    kind, _, target = head.partition(":")
+    table["kind"] = kind.strip()
+    if target:
+        table["target"] = target.strip()
+    for option in options:
+        key, sep, value = option.partition("=")
+        if not sep:
+            raise FaultError(f"{where}: options are key=value, got {option!r}")
+        table[key.strip()] = value.strip()
+    return fault_from_mapping(table, where)
+
+
+def check_against_dbc(spec: FaultSpec, db: Database, where: str = "fault") -> None:
+    """The target must name a DBC message (and signal); a flood ID must not be one."""
+    if spec.kind == "flood":
+        if any(m.frame_id == spec.frame_id for m in db.messages):
+            raise FaultError(f"{where}: flood frame_id {spec.frame_id:#x} is a DBC message; pick an unknown ID")
+        return
+    try:
+        message = db.get_message_by_name(spec.message)
+    except KeyError:
+        raise FaultError(f"{where}: message {spec.message!r} is not in the DBC") from None
+    if spec.signal is not None:
+        try:
+            message.get_signal_by_name(spec.signal)
+        except KeyError:
+            raise FaultError(f"{where}: signal {spec.target!r} is not in the DBC") from None
