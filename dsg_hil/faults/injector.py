@@ -20,7 +20,7 @@ from typing import Callable, Iterable
 import can
 from cantools.database.can import Database, Message, Signal
 
-from ..protocol.codec import COUNTER, CRC, Codec
+from ..protocol.e2e import COUNTER, CRC, Protection
 from .spec import FaultSpec, check_against_dbc
 
 
@@ -126,10 +126,7 @@ class FaultInjector:
 
 def _sealed(message: Message, values: dict) -> bytes:
     """Encode without range checks (a fault may leave the range on purpose), then a valid CRC."""
-    raw = bytearray(message.encode({**values, CRC: 0}, scaling=True, strict=False))
-    values = message.decode(bytes(raw), decode_choices=False, scaling=False)
-    values[CRC] = Codec.crc(message.frame_id, bytes(raw))
-    return message.encode(values, scaling=False, strict=False)
+    return Protection.of(message).seal(message.encode({**values, CRC: 0}, scaling=True, strict=False))
 
 
 def _copy(msg: can.Message, data: bytes) -> can.Message:

@@ -1,8 +1,9 @@
-"""DBC codec with the frame protection of this contract: a 4-bit rolling ``Counter`` and a ``CRC`` (CRC-8 SAE
-J1850 over the frame ID, 2 bytes little endian, and bytes 0-6), both filled here, never by callers.
+"""DBC codec with the frame protection of this contract (:mod:`.e2e`): the ``Counter`` and ``CRC`` signals are
+filled here, never by callers, at the positions the DBC gives them.
 
 Every message and signal the code uses is resolved once, at start-up: a missing one raises :class:`ProtocolError`
-naming it. Encoding clamps each value to its signal's DBC range, then encodes with ``strict=True``.
+naming it. Encoding clamps each value to its signal's DBC range, then encodes with ``strict=True``; decoding
+rejects (never clamps) a frame with a wrong DLC, CRC or a value outside its range.
 """
 
 from __future__ import annotations
@@ -15,10 +16,9 @@ from typing import Mapping, Sequence
 import cantools
 from cantools.database.can import Database, Message
 
-from .crc import crc8_j1850
+from .e2e import COUNTER, CRC, Protection, ProtectionError
 
 DEFAULT_DBC = Path(__file__).resolve().parent.parent / "data" / "dsg_hil.dbc"
-COUNTER, CRC = "Counter", "CRC"
 
 
 class ProtocolError(ValueError):
@@ -57,6 +57,7 @@ class Codec:
         self.db = db
         self._by_name: dict[str, Message] = {}
         self._by_id: dict[int, Message] = {}
+        self._protection: dict[int, Protection] = {}
         for name, signals in uses.items():
             try:
                 message = db.get_message_by_name(name)
@@ -69,6 +70,10 @@ class Codec:
                     raise ProtocolError(f"signal {name}.{signal} is not in the DBC") from None
             if message.cycle_time is None or message.cycle_time <= 0:
                 raise ProtocolError(f"message {name} has no GenMsgCycleTime in the DBC")
+            try:
+                self._protection[message.frame_id] = Protection.of(message)
+            except ProtectionError as exc:
+                raise ProtocolError(str(exc)) from None
             self._by_name[name] = message
             self._by_id[message.frame_id] = message
 
@@ -78,6 +83,10 @@ class Codec:
 
     def frame_id(self, name: str) -> int:
         return self._by_name[name].frame_id
+
+    def protection(self, name: str) -> Protection:
+        """Where ``name`` carries its counter and CRC."""
+        return self._protection[self._by_name[name].frame_id]
 
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
@@ -97,11 +106,10 @@ class Codec:
             if value is None or not math.isfinite(value):
                 value = default
             data[signal.name] = min(max(float(value), signal.minimum), signal.maximum)
-        data[COUNTER] = counter & 0x0F
+        protection = self._protection[message.frame_id]
+        data[COUNTER] = counter % protection.counter_modulus
         data[CRC] = 0
-        raw = bytearray(message.encode(data, strict=True, scaling=True))
-        raw[7] = self.crc(message.frame_id, raw)
-        return bytes(raw)
+        return protection.seal(message.encode(data, strict=True, scaling=True))
 
     def decode(self, frame_id: int, data: bytes) -> DecodedFrame:
         """Check DLC, CRC and ranges, then decode. Raises :class:`FrameError` with a reason."""
@@ -110,7 +118,7 @@ class Codec:
             raise FrameError("unknown", f"frame 0x{frame_id:03X} is not one this node reads")
         if len(data) != message.length:
             raise FrameError("dlc", f"{message.name}: DLC {len(data)}, expected {message.length}")
-        if data[7] != self.crc(frame_id, data):
+        if not self._protection[frame_id].check(data):
             raise FrameError("crc", f"{message.name}: CRC mismatch")
         try:
             values = message.decode(bytes(data), decode_choices=False, scaling=True)
@@ -124,8 +132,3 @@ class Codec:
         counter = int(values.pop(COUNTER))
         values.pop(CRC)
         return DecodedFrame(message.name, {k: float(v) for k, v in values.items()}, counter)
-
-    @staticmethod
-    def crc(frame_id: int, data: bytes) -> int:
-        """The CRC of a frame: CRC-8 SAE J1850 over the ID (2 bytes, little endian) and data bytes 0-6."""
-        return crc8_j1850(bytes((frame_id & 0xFF, (frame_id >> 8) & 0xFF)) + bytes(data[:7]))

@@ -1,4 +1,5 @@
-"""CRC-8 SAE J1850 (poly 0x1D, init 0xFF, final XOR 0xFF), as in AUTOSAR E2E profile 1."""
+"""CRC-8 SAE J1850: width 8, poly 0x1D, init 0xFF, not reflected, final XOR 0xFF, check value 0x4B (the polynomial
+of AUTOSAR's Crc_CalculateCRC8; how this contract applies it is in :mod:`.e2e`)."""
 
 from __future__ import annotations
 

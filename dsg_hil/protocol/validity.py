@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import can
 
 from .codec import Codec, DecodedFrame, FrameError
+from .e2e import MAX_DELTA
 
 log = logging.getLogger(__name__)
 
@@ -20,33 +21,39 @@ TIMEOUT_CYCLES = 3.0
 
 @dataclass
 class RxState:
-    """Validity of one received message: fresh within ``TIMEOUT_CYCLES`` cycle times, counter moving."""
+    """Validity of one received message: fresh within ``TIMEOUT_CYCLES`` cycle times, counter moving by the
+    rules of :mod:`.e2e` (resynchronised by the first frame after a timeout)."""
 
     name: str
     cycle_time: float
+    counter_modulus: int = 16
     last_time: float | None = None
     last_counter: int | None = None
     values: dict[str, float] = field(default_factory=dict)
     received: int = 0
-    counter_jumps: int = 0  # lost frames (counter advanced by more than one)
+    counter_jumps: int = 0  # gaps: the counter advanced by more than one
+    lost: int = 0  # frames missing in those gaps
 
     @property
     def deadline(self) -> float:
         return TIMEOUT_CYCLES * self.cycle_time
 
-    def update(self, now: float, frame: DecodedFrame) -> bool:
-        """Take a decoded frame; False (and nothing taken) if its counter did not move (frozen sender)."""
-        if self.last_counter is not None:
-            step = (frame.counter - self.last_counter) % 16
+    def update(self, now: float, frame: DecodedFrame) -> str | None:
+        """Take a decoded frame; returns why it was not taken (repeated or out-of-order counter), else None."""
+        if self.last_counter is not None and self.valid(now):
+            step = (frame.counter - self.last_counter) % self.counter_modulus
             if step == 0:
-                return False
+                return f"counter {frame.counter} repeated"
+            if step > MAX_DELTA:
+                return f"counter {frame.counter} after {self.last_counter}: out of order (step {step})"
             if step != 1:
                 self.counter_jumps += 1
+                self.lost += step - 1
         self.last_counter = frame.counter
         self.last_time = now
         self.values = frame.values
         self.received += 1
-        return True
+        return None
 
     def valid(self, now: float) -> bool:
         return self.last_time is not None and now - self.last_time <= self.deadline + 1e-9
@@ -57,7 +64,8 @@ class RxMonitor:
 
     def __init__(self, codec: Codec, names: list[str]) -> None:
         self.codec = codec
-        self.states = {name: RxState(name, codec.cycle_time(name)) for name in names}
+        self.states = {name: RxState(name, codec.cycle_time(name), codec.protection(name).counter_modulus)
+                       for name in names}
         self._ids = {codec.frame_id(name): name for name in names}
         self.rejected: Tally[str] = Tally()
         self.received = 0
@@ -77,8 +85,9 @@ class RxMonitor:
         except FrameError as exc:
             self._reject(exc.reason, str(exc))
             return None
-        if not self.states[frame.name].update(now, frame):
-            self._reject("counter", f"{frame.name}: counter {frame.counter} repeated")
+        refused = self.states[frame.name].update(now, frame)
+        if refused is not None:
+            self._reject("counter", f"{frame.name}: {refused}")
             return None
         return frame
 
@@ -122,7 +131,7 @@ class TxScheduler:
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""
         data = self.codec.encode(name, values, self.counters[name])
-        self.counters[name] = (self.counters[name] + 1) & 0x0F
+        self.counters[name] = (self.counters[name] + 1) % self.codec.protection(name).counter_modulus
         self.sent += 1
         return can.Message(arbitration_id=self.codec.frame_id(name), data=data, is_extended_id=False,
                            dlc=len(data), timestamp=timestamp, is_rx=False)

@@ -52,13 +52,20 @@ def test_no_fault_outside_the_window(db, codec):
 
 def test_drop_in_window_is_seen_as_lost_frames(db, codec):
     stream = frames(codec, "TCU_CMD", 20, CMD)
-    inj = FaultInjector(db, [parse_fault("drop:TCU_CMD@0.05-0.1")])  # 5 frames: t = 0.05 ... 0.09
+    inj = FaultInjector(db, [parse_fault("drop:TCU_CMD@0.05-0.07")])  # 2 frames: t = 0.05, 0.06
     out = through(inj, stream)
-    assert len(out) == 15 and inj.counts["drop:TCU_CMD@0.05-0.1"] == 5
+    assert len(out) == 18 and inj.counts["drop:TCU_CMD@0.05-0.07"] == 2
     rx, accepted = receive_all(codec, ["TCU_CMD"], out)
-    assert len(accepted) == 15 and rx.states["TCU_CMD"].counter_jumps == 1  # detected: the counter jumped by 6
+    state = rx.states["TCU_CMD"]
+    assert len(accepted) == 18 and state.counter_jumps == 1 and state.lost == 2  # detected by the counter
+
+
+def test_longer_drop_times_the_message_out(db, codec):
+    out = through(FaultInjector(db, [parse_fault("drop:TCU_CMD@0.05-0.1")]), frames(codec, "TCU_CMD", 20, CMD))
     before, _ = receive_all(codec, ["TCU_CMD"], [m for m in out if m.timestamp < 0.05])
     assert before.valid("TCU_CMD", 0.07) and not before.valid("TCU_CMD", 0.08)  # 3 cycles without one: invalid
+    rx, accepted = receive_all(codec, ["TCU_CMD"], out)
+    assert len(accepted) == 15 and rx.rejected_total == 0  # the first frame after the timeout resynchronises
 
 
 def test_probability_is_deterministic_for_a_seed(db, codec):

@@ -52,7 +52,7 @@ def test_bad_frames_are_rejected_with_reason(codec, mutate, reason):
 def test_out_of_range_raw_value_is_rejected(codec):
     raw = bytearray(codec.encode("TCU_CMD", {}, 0))
     raw[0], raw[1] = 0xFF, 0xFF  # P_CL_Cmd raw 65535 = 6.55 MPa > 1.5
-    raw[7] = Codec._crc(codec.frame_id("TCU_CMD"), raw)
+    raw = codec.protection("TCU_CMD").seal(raw)
     with pytest.raises(FrameError) as err:
         codec.decode(codec.frame_id("TCU_CMD"), bytes(raw))
     assert err.value.reason == "range"

@@ -1,0 +1,88 @@
+"""The end-to-end protection as the contract states it: CRC parameters, coverage, positions read from the DBC,
+and the receiver's counter rules."""
+
+from __future__ import annotations
+
+import can
+import cantools
+import pytest
+
+from dsg_hil.protocol import MAX_DELTA, Codec, ProtocolError, RxMonitor, TxScheduler, crc8_j1850, load_dbc
+from dsg_hil.protocol.e2e import Protection
+
+
+def test_crc_parameters_check_value_and_a_worked_frame():
+    assert crc8_j1850(b"123456789") == 0x4B  # CRC-8 SAE J1850: poly 0x1D, init 0xFF, xorout 0xFF, not reflected
+    assert crc8_j1850(b"") == 0x00  # init 0xFF, nothing shifted, final XOR 0xFF
+    # TCU_CMD 0x200, P_CL_Cmd 0.5 MPa (raw 5000 = 0x1388), counter 3: CRC over 00 02 | 88 13 00 00 00 00 03
+    codec = Codec(load_dbc(), {"TCU_CMD": ("P_CL_Cmd",)})
+    data = codec.encode("TCU_CMD", {"P_CL_Cmd": 0.5, "P_CH_Cmd": 0.0, "SyncEcho": 0}, counter=3)
+    assert data[:7] == bytes.fromhex("88130000000003")
+    assert data[7] == crc8_j1850(bytes.fromhex("0002") + bytes.fromhex("88130000000003"))
+
+
+def _db_with(crc_sig: str, counter_sig: str = " SG_ Counter : 48|4@1+ (1,0) [0|15] \"-\" B") -> cantools.database.Database:
+    text = f"""VERSION ""
+NS_ :
+BS_:
+BU_: A B
+BO_ 256 MSG: 8 A
+ SG_ Value : 8|16@1+ (1,0) [0|1000] "-" B
+{counter_sig}
+{crc_sig}
+BA_DEF_ BO_ "GenMsgCycleTime" INT 0 10000;
+BA_ "GenMsgCycleTime" BO_ 256 10;
+"""
+    return cantools.database.load_string(text, "dbc", strict=False)
+
+
+def test_positions_come_from_the_dbc():
+    db = _db_with(' SG_ CRC : 0|8@1+ (1,0) [0|255] "-" B', ' SG_ Counter : 56|8@1+ (1,0) [0|255] "-" B')
+    codec = Codec(db, {"MSG": ("Value",)})
+    p = codec.protection("MSG")
+    assert p == Protection(0x100, 8, 0, 256)
+    data = codec.encode("MSG", {"Value": 300}, counter=200)
+    assert data[7] == 200 and data[0] == crc8_j1850(bytes((0x00, 0x01)) + data[1:])
+    assert codec.decode(0x100, data).counter == 200
+
+
+@pytest.mark.parametrize("crc_sig, words", [
+    (' SG_ CRC : 60|4@1+ (1,0) [0|15] "-" B', "8 unsigned bits"),
+    (' SG_ CRC : 52|8@1+ (1,0) [0|255] "-" B', "byte boundary"),
+])
+def test_a_crc_that_cannot_carry_the_scheme_fails_at_start_up(crc_sig, words):
+    with pytest.raises(ProtocolError, match=words):
+        Codec(_db_with(crc_sig), {"MSG": ("Value",)})
+
+
+def _frames(codec, counters, t0=0.0, period=0.01):
+    msgs = []
+    for k, c in enumerate(counters):
+        data = codec.encode("TCU_CMD", {"P_CL_Cmd": 0.1}, counter=c)
+        msgs.append(can.Message(arbitration_id=0x200, data=data, is_extended_id=False, timestamp=t0 + k * period))
+    return msgs
+
+
+def test_counter_rules():
+    codec = Codec(load_dbc(), {"TCU_CMD": ("P_CL_Cmd",)})
+    rx = RxMonitor(codec, ["TCU_CMD"])
+    counters = [9, 10, 10, 12, 12 + MAX_DELTA, 3]  # first any; repeat; gap of 1; largest gap; step 8: out of order
+    accepted = [rx.receive(m, m.timestamp) is not None for m in _frames(codec, [c % 16 for c in counters])]
+    assert accepted == [True, True, False, True, True, False]
+    state = rx.states["TCU_CMD"]
+    assert rx.rejected["counter"] == 2 and state.counter_jumps == 2 and state.lost == 1 + (MAX_DELTA - 1)
+
+
+def test_resynchronised_after_a_timeout():
+    codec = Codec(load_dbc(), {"TCU_CMD": ("P_CL_Cmd",)})
+    rx = RxMonitor(codec, ["TCU_CMD"])
+    first = _frames(codec, [5])[0]
+    later = _frames(codec, [13], t0=1.0)[0]  # step 8 would be out of order, but the message timed out meanwhile
+    assert rx.receive(first, 0.0) is not None and rx.receive(later, 1.0) is not None
+
+
+def test_sender_counter_wraps_at_the_dbc_width():
+    codec = Codec(load_dbc(), {"TCU_CMD": ("P_CL_Cmd",)})
+    tx = TxScheduler(codec, ["TCU_CMD"])
+    counters = [codec.decode(0x200, bytes(tx.frame("TCU_CMD", {}).data)).counter for _ in range(18)]
+    assert counters == list(range(16)) + [0, 1]
