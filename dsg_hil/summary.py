@@ -13,8 +13,8 @@ Definitions (constants below):
   ``slip_time_s.CL + slip_time_s.CH`` is the time during which some clutch slips, as in the paper
   (174 s = 43.5 s + 130.5 s).
 * **Phases** are the runs of the driving clutch; runs (and gaps) shorter than ``MIN_PHASE_S`` are dropped and
-  neighbours of the same clutch merged. Values "at the start" of a phase are taken ``SETTLE_S`` into it (after
-  the crossover), "at the end" at its last sample.
+  neighbours of the same clutch merged. A phase's values "at the start" and "at the end" are those of the first
+  and the last instant at which its clutch slips alone (outside the crossovers).
 * **Creep time**: the driver requests creep and the vehicle moves forward (``v > V_MOVING``): from the driver's
   request and the vehicle, whatever the TCU reports. **Standstill time**: creep requested, ``|v| <= V_MOVING``.
 * **Stop**: the vehicle came to rest (``v <= V_MOVING``) while creep was requested, after creep was under way, and did
@@ -40,7 +40,6 @@ P_ENGAGED = 0.05e6  # Pa: with no truth torque known, a clutch above this pressu
 V_MOVING = 0.01  # m/s: slower counts as standing still
 STOP_MIN_S = 2.0  # s at rest (creep requested) before the vehicle counts as stopped
 MIN_PHASE_S = 0.5  # s: shorter runs of the driving clutch are not phases
-SETTLE_S = 1.0  # s into a phase where its "start" values are taken
 ESTABLISHED = 0.5  # creep is under way once the vehicle has reached this fraction of the desired speed
 
 
@@ -66,10 +65,16 @@ def driving_clutch(s) -> tuple[str | None, bool]:
 class _Run:
     clutch: str | None
     start: float
-    first: object  # sample at the start
-    settled: object  # sample SETTLE_S into the run (or its last)
     end: float
-    last: object
+    first: object = None  # first sample at which the clutch slips alone (None: never)
+    last: object = None  # last such sample
+    tail: object = None  # last sample of the run
+
+    def take(self, s, dt: float, alone: bool) -> None:
+        self.end, self.tail = s.t + dt, s
+        if alone:
+            self.last = s
+            self.first = self.first or s
 
 
 def _r(x: float | None, nd: int) -> float | None:
@@ -78,7 +83,7 @@ def _r(x: float | None, nd: int) -> float | None:
 
 def _phase_json(run: _Run) -> dict:
     c = run.clutch
-    a, b = run.settled, run.last
+    a, b = run.first or run.tail, run.last or run.tail
     return {"clutch": c, "start_s": round(run.start, 3), "end_s": round(run.end, 3),
             "duration_s": round(run.end - run.start, 3),
             "T_CL_end_c": _r(b.T_CL, 2), "T_CH_end_c": _r(b.T_CH, 2),
@@ -93,7 +98,8 @@ def phases(runs: list[_Run]) -> list[_Run]:
         if run.end - run.start < MIN_PHASE_S:
             continue
         if kept and kept[-1].clutch == run.clutch:
-            kept[-1] = _Run(run.clutch, kept[-1].start, kept[-1].first, kept[-1].settled, run.end, run.last)
+            prev = kept[-1]
+            kept[-1] = _Run(run.clutch, prev.start, run.end, prev.first or run.first, run.last or prev.last, run.tail)
         else:
             kept.append(run)
     return [r for r in kept if r.clutch is not None]
@@ -120,7 +126,7 @@ class CreepMetrics:
     active_clutch: str | None = None
     tcu_stop_s: float | None = None
     max_pred: dict[str, float | None] = field(default_factory=lambda: {"CL": None, "CH": None})
-    pred_error: dict[str, float | None] = field(default_factory=lambda: {"CL": None, "CH": None})
+    pred_error: dict[str, tuple[float, float] | None] = field(default_factory=lambda: {"CL": None, "CH": None})
     runs: list[_Run] = field(default_factory=list)
     _sq_speed_error: float = 0.0
     _driven_time: float = 0.0
@@ -134,13 +140,9 @@ class CreepMetrics:
         if clutch is not None:
             self.slip_time[clutch] += dt
             self.slip_overlap += dt if both else 0.0
-        run = self.runs[-1] if self.runs else None
-        if run is None or run.clutch != clutch:
-            self.runs.append(_Run(clutch, s.t, s, s, s.t + dt, s))
-        else:
-            if run.settled.t < run.start + SETTLE_S:
-                run.settled = s
-            run.end, run.last = s.t + dt, s
+        if not self.runs or self.runs[-1].clutch != clutch:
+            self.runs.append(_Run(clutch, s.t, s.t))
+        self.runs[-1].take(s, dt, clutch is not None and not both)
         for name, T, Q in (("CL", s.T_CL, s.Q_CL), ("CH", s.T_CH, s.Q_CH)):
             if _known(T):
                 if self.max_T[name] is None or T > self.max_T[name]:
@@ -192,8 +194,8 @@ class CreepMetrics:
                 self.max_pred[name] = pred
             if _known(true):
                 err = pred - true
-                if self.pred_error[name] is None or abs(err) > abs(self.pred_error[name]):
-                    self.pred_error[name] = err
+                if self.pred_error[name] is None or abs(err) > abs(self.pred_error[name][0]):
+                    self.pred_error[name] = (err, t)
 
     def as_json(self) -> dict:
         self._end_rest()  # the record ends: a vehicle resting since long enough has stopped
@@ -223,11 +225,12 @@ class CreepMetrics:
             "stop_time_s": _r(stop_t, 3),
             "tcu_stop_time_s": self.tcu_stop_s,
             "T_CL_at_stop_c": None if stop_s is None else _r(stop_s.T_CL, 2),
-            "T_CL_at_first_CH_limit_c": None if first_ch is None else _r(first_ch.last.T_CL, 2),
+            "T_CL_at_first_CH_limit_c": None if first_ch is None else _r((first_ch.last or first_ch.tail).T_CL, 2),
             "mu_CH_first_slip": None if first_ch is None else _phase_json(first_ch)["mu"],
             "P_CH_first_slip_mpa": None if first_ch is None else _phase_json(first_ch)["P_mpa"],
             "max_predicted_temp_c": both(self.max_pred, 1),
-            "worst_prediction_error_c": both(self.pred_error, 2),
+            "worst_prediction_error_c": {k: None if e is None else {"error_c": round(e[0], 2), "t_s": round(e[1], 3)}
+                                         for k, e in self.pred_error.items()},
             "handovers": self.handovers,
         }
 
