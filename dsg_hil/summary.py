@@ -13,8 +13,9 @@ Definitions (constants below):
   ``slip_time_s.CL + slip_time_s.CH`` is the time during which some clutch slips, as in the paper
   (174 s = 43.5 s + 130.5 s).
 * **Phases** are the runs of the driving clutch; runs (and gaps) shorter than ``MIN_PHASE_S`` are dropped and
-  neighbours of the same clutch merged. A phase's values "at the start" and "at the end" are those of the first
-  and the last instant at which its clutch slips alone (outside the crossovers).
+  neighbours of the same clutch merged. A phase's mu and P "at the start" are taken ``SETTLE_S`` after the first
+  instant at which its clutch slips alone (the crossover over), "at the end" ``SETTLE_S`` before the last such
+  instant (before the next crossover's ramps begin); its temperatures "at the end" at that last instant.
 * **Creep time**: the driver requests creep and the vehicle moves forward (``v > V_MOVING``): from the driver's
   request and the vehicle, whatever the TCU reports. **Standstill time**: creep requested, ``|v| <= V_MOVING``.
 * **Stop**: the vehicle came to rest (``v <= V_MOVING``) while creep was requested, after creep was under way, and did
@@ -28,6 +29,7 @@ Definitions (constants below):
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 from .reference import SAFETY_TEMPERATURE_C
@@ -40,6 +42,7 @@ P_ENGAGED = 0.05e6  # Pa: with no truth torque known, a clutch above this pressu
 V_MOVING = 0.01  # m/s: slower counts as standing still
 STOP_MIN_S = 2.0  # s at rest (creep requested) before the vehicle counts as stopped
 MIN_PHASE_S = 0.5  # s: shorter runs of the driving clutch are not phases
+SETTLE_S = 0.5  # s after a crossover (before the next) where a phase's start (end) values of mu and P are taken
 ESTABLISHED = 0.5  # creep is under way once the vehicle has reached this fraction of the desired speed
 
 
@@ -63,30 +66,48 @@ def driving_clutch(s) -> tuple[str | None, bool]:
 
 @dataclass
 class _Run:
+    """A run of one driving clutch (None: none slips). Samples at which it slips alone: the first, the one
+    SETTLE_S later, the one SETTLE_S before the last, the last."""
+
     clutch: str | None
     start: float
     end: float
-    first: object = None  # first sample at which the clutch slips alone (None: never)
-    last: object = None  # last such sample
+    first: object = None
+    settled: object = None
+    lagged: object = None
+    last: object = None
     tail: object = None  # last sample of the run
+    window: deque = field(default_factory=deque)
 
     def take(self, s, dt: float, alone: bool) -> None:
         self.end, self.tail = s.t + dt, s
-        if alone:
-            self.last = s
-            self.first = self.first or s
+        if not alone:
+            return
+        if self.first is None:
+            self.first = s
+        if self.settled is None and s.t >= self.first.t + SETTLE_S - 1e-9:
+            self.settled = s
+        self.window.append(s)
+        while self.window[0].t <= s.t - SETTLE_S + 1e-9:
+            self.lagged = self.window.popleft()
+        self.last = s
+
+    def values(self) -> tuple[object, object, object]:
+        """(start, end, last) samples: the start and end values of mu and P, and the temperatures at the end."""
+        last = self.last or self.tail
+        return self.settled or self.first or self.tail, self.lagged or last, last
 
 
 def _r(x: float | None, nd: int) -> float | None:
-    return None if x is None or not math.isfinite(x) else round(x, nd)
+    return None if x is None or not math.isfinite(x) else round(x, nd) + 0.0  # no -0.0
 
 
 def _phase_json(run: _Run) -> dict:
     c = run.clutch
-    a, b = run.first or run.tail, run.last or run.tail
+    a, b, last = run.values()
     return {"clutch": c, "start_s": round(run.start, 3), "end_s": round(run.end, 3),
             "duration_s": round(run.end - run.start, 3),
-            "T_CL_end_c": _r(b.T_CL, 2), "T_CH_end_c": _r(b.T_CH, 2),
+            "T_CL_end_c": _r(last.T_CL, 2), "T_CH_end_c": _r(last.T_CH, 2),
             "mu": {"start": _r(getattr(a, f"mu_{c}"), 4), "end": _r(getattr(b, f"mu_{c}"), 4)},
             "P_mpa": {"start": _r(getattr(a, f"P_{c}") / 1e6, 3), "end": _r(getattr(b, f"P_{c}") / 1e6, 3)}}
 
@@ -99,7 +120,8 @@ def phases(runs: list[_Run]) -> list[_Run]:
             continue
         if kept and kept[-1].clutch == run.clutch:
             prev = kept[-1]
-            kept[-1] = _Run(run.clutch, prev.start, run.end, prev.first or run.first, run.last or prev.last, run.tail)
+            kept[-1] = _Run(run.clutch, prev.start, run.end, prev.first or run.first, prev.settled or run.settled,
+                            run.lagged or prev.lagged, run.last or prev.last, run.tail)
         else:
             kept.append(run)
     return [r for r in kept if r.clutch is not None]
@@ -225,7 +247,7 @@ class CreepMetrics:
             "stop_time_s": _r(stop_t, 3),
             "tcu_stop_time_s": self.tcu_stop_s,
             "T_CL_at_stop_c": None if stop_s is None else _r(stop_s.T_CL, 2),
-            "T_CL_at_first_CH_limit_c": None if first_ch is None else _r((first_ch.last or first_ch.tail).T_CL, 2),
+            "T_CL_at_first_CH_limit_c": None if first_ch is None else _r(first_ch.values()[2].T_CL, 2),
             "mu_CH_first_slip": None if first_ch is None else _phase_json(first_ch)["mu"],
             "P_CH_first_slip_mpa": None if first_ch is None else _phase_json(first_ch)["P_mpa"],
             "max_predicted_temp_c": both(self.max_pred, 1),
