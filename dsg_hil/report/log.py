@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Iterator, NamedTuple
 
 import can
 import numpy as np
@@ -107,6 +107,15 @@ def _codec(db: Database) -> Codec:
                       if {"Counter", "CRC"} <= {s.name for s in m.signals} and m.cycle_time})
 
 
+def _messages(path: Path) -> Iterator[can.Message]:
+    """The log's frames; whatever python-can's reader raises on a garbled file becomes one :class:`LogError`."""
+    try:
+        with can.LogReader(str(path)) as reader:
+            yield from reader
+    except Exception as exc:  # noqa: BLE001 - each reader raises its own types on garbage
+        raise LogError(f"{path}: cannot read the log ({type(exc).__name__}: {exc})") from None
+
+
 def read_log(path: str | Path, db: Database) -> CreepRecord:
     """Decode the log at ``path`` with ``db`` and compute its creep numbers (one pass, in time order)."""
     path = Path(path)
@@ -118,7 +127,8 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
     metrics = CreepMetrics()
     samples: list[LogSample] = []
     counts = {"decoded": 0, "rejected": 0, "unknown": 0}
-    t0 = t_next = None
+    t0 = None
+    k = 0  # grid instant t0 + k * period
 
     def emit(t: float) -> None:
         row[0] = t
@@ -126,40 +136,31 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
         samples.append(s)
         metrics.add(s, period, s.creep_request >= 0.5, 0.0 if math.isnan(s.desired_speed) else s.desired_speed)
 
-    try:
-        with can.LogReader(str(path)) as reader:
-            for msg in reader:
-                if msg.is_error_frame or msg.is_remote_frame:
-                    continue
-                if t0 is None:
-                    t0 = t_next = msg.timestamp
-                while msg.timestamp > t_next + 1e-6:  # the frames of the grid instant t_next are all in
-                    emit(t_next - t0)
-                    t_next += period
-                try:
-                    frame = codec.decode(msg.arbitration_id, bytes(msg.data))
-                except FrameError as exc:
-                    counts["unknown" if exc.reason == "unknown" else "rejected"] += 1
-                    continue
-                counts["decoded"] += 1
-                for signal, value in frame.values.items():
-                    if (frame.name, signal) in SIGNALS:
-                        field, factor = SIGNALS[frame.name, signal]
-                        row[INDEX[field]] = value * factor
-                if frame.name == STATUS:
-                    truth = LogSample(*row)
-                    v = frame.values
-                    metrics.status(msg.timestamp - t0, v["State"], v["ActiveClutch"], v["T_CL_Pred"],
-                                   v["T_CH_Pred"], truth)
-    except LogError:
-        raise
-    except (ValueError, OSError, EOFError, IndexError, KeyError, TypeError) as exc:
-        raise LogError(f"{path}: cannot read the log ({type(exc).__name__}: {exc})") from None
-    except Exception as exc:  # noqa: BLE001 - python-can's readers raise their own types on garbage
-        raise LogError(f"{path}: cannot read the log ({type(exc).__name__}: {exc})") from None
+    for msg in _messages(path):
+        if msg.is_error_frame or msg.is_remote_frame:
+            continue
+        if t0 is None:
+            t0 = msg.timestamp
+        while msg.timestamp - t0 > k * period + 1e-6:  # the frames of grid instant k are all in
+            emit(k * period)
+            k += 1
+        try:
+            frame = codec.decode(msg.arbitration_id, bytes(msg.data))
+        except FrameError as exc:
+            counts["unknown" if exc.reason == "unknown" else "rejected"] += 1
+            continue
+        counts["decoded"] += 1
+        for signal, value in frame.values.items():
+            if (frame.name, signal) in SIGNALS:
+                field, factor = SIGNALS[frame.name, signal]
+                row[INDEX[field]] = value * factor
+        if frame.name == STATUS:
+            v = frame.values
+            metrics.status(msg.timestamp - t0, v["State"], v["ActiveClutch"], v["T_CL_Pred"], v["T_CH_Pred"],
+                           LogSample(*row))
     if counts["decoded"] == 0:
         raise LogError(f"{path}: no frame of the DBC in the log ({counts['rejected']} rejected, "
                        f"{counts['unknown']} with unknown IDs)")
-    emit(t_next - t0)
+    emit(k * period)
     columns = {name: np.array([s[i] for s in samples]) for i, name in enumerate(LogSample._fields)}
     return CreepRecord(str(path), columns, metrics.as_json(), counts, metrics.tcu_state is not None)
