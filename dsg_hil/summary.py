@@ -50,14 +50,15 @@ def _known(x: float) -> bool:
     return x == x  # not NaN
 
 
-def _transmits(M: float, P: float) -> bool:
-    return abs(M) > TORQUE_MIN if _known(M) else P > P_ENGAGED
+def _slips(omega_in: float, omega: float, M: float, P: float) -> bool:
+    """Transmits torque (or, with no torque known, is pressurised) while slipping."""
+    return (abs(M) > TORQUE_MIN if M == M else P > P_ENGAGED) and abs(omega_in - omega) > SLIP_MIN
 
 
 def driving_clutch(s) -> tuple[str | None, bool]:
     """The slipping clutch that drives (the larger torque when both slip), and whether both slip."""
-    cl = _transmits(s.M_CL, s.P_CL) and abs(s.omega_in - s.omega_CL) > SLIP_MIN
-    ch = _transmits(s.M_CH, s.P_CH) and abs(s.omega_in - s.omega_CH) > SLIP_MIN
+    cl = _slips(s.omega_in, s.omega_CL, s.M_CL, s.P_CL)
+    ch = _slips(s.omega_in, s.omega_CH, s.M_CH, s.P_CH)
     if cl and ch:
         a, b = (abs(s.M_CL), abs(s.M_CH)) if _known(s.M_CL) and _known(s.M_CH) else (s.P_CL, s.P_CH)
         return ("CL" if a >= b else "CH"), True
@@ -165,14 +166,8 @@ class CreepMetrics:
         if not self.runs or self.runs[-1].clutch != clutch:
             self.runs.append(_Run(clutch, s.t, s.t))
         self.runs[-1].take(s, dt, clutch is not None and not both)
-        for name, T, Q in (("CL", s.T_CL, s.Q_CL), ("CH", s.T_CH, s.Q_CH)):
-            if _known(T):
-                if self.max_T[name] is None or T > self.max_T[name]:
-                    self.max_T[name] = T
-                if T > SAFETY_TEMPERATURE_C:
-                    self.above_limit[name] += dt
-            if _known(Q):
-                self.energy[name] += Q * dt
+        self._thermal("CL", s.T_CL, s.Q_CL, dt)
+        self._thermal("CH", s.T_CH, s.Q_CH, dt)
         v = s.v
         if v < 0.0:
             self.rollback_speed = min(self.rollback_speed, v)
@@ -194,6 +189,16 @@ class CreepMetrics:
             self._driven_time += dt
             self.speed_min_creeping = v if self.speed_min_creeping is None else min(self.speed_min_creeping, v)
         self._t_last = s.t + dt
+
+    def _thermal(self, name: str, T: float, Q: float, dt: float) -> None:
+        if T == T:
+            peak = self.max_T[name]
+            if peak is None or T > peak:
+                self.max_T[name] = T
+            if T > SAFETY_TEMPERATURE_C:
+                self.above_limit[name] += dt
+        if Q == Q:
+            self.energy[name] += Q * dt
 
     def _end_rest(self) -> None:
         if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:
