@@ -88,7 +88,7 @@ def main() -> None:
     say(f"command fallbacks (TCU_CMD missing 3 cycles): {summary['command_fallback']['events']}")
 
     summary, _ = run("lockstep", args.duration, work)
-    wall = summary["run_wall_time_s"]
+    wall = summary["wall_time_s"]
     say(f"lockstep closed loop over vcan0 ({where}), plant and ecu-stub as processes: {args.duration:g} simulated "
           f"s in {wall:.2f} s wall = {args.duration / wall:.2f} simulated s per wall s")
     out = Path(os.environ.get(ENV_OUTDIR) or work) / "vcan_timing.txt"

@@ -86,6 +86,8 @@ class PlantOutputs(NamedTuple):
     locked_CL: bool
     locked_CH: bool
     vehicle_held: bool
+    Q_diss_CL: float = 0.0  # heat leaving the plates (to their oil and E) over the step, W: Q - C dT/dt
+    Q_diss_CH: float = 0.0
 
 
 class Plant:
@@ -176,10 +178,12 @@ class Plant:
         s.P_CH = hydraulics.pressure_step(s.P_CH, inputs.P_CH_cmd, self.dt, p.hydraulics)
         s.t += self.dt
         stuck = [abs(f[i]) < cap[i] * (1.0 - 1e-9) for i in range(3)]
-        return self.outputs(M_e, mu, f, Q, stuck)
+        C = self.network.C
+        Q_diss = [Q[k] - C[i] * (T_new[i] - T_plate[k]) / self.dt for k, i in enumerate((I_CL, I_CH))]
+        return self.outputs(M_e, mu, f, Q, stuck, Q_diss)
 
     def outputs(self, M_e: float = 0.0, mu=(0.0, 0.0), f=(0.0, 0.0, 0.0), Q=(0.0, 0.0),
-                stuck=(False, False, False)) -> PlantOutputs:
+                stuck=(False, False, False), Q_diss=(0.0, 0.0)) -> PlantOutputs:
         p, s = self.params, self.state
         x, T = s.x, s.T
         return PlantOutputs(
@@ -191,4 +195,4 @@ class Plant:
             T_CL=float(T[I_CL]), T_CH=float(T[I_CH]), mu_CL=float(mu[0]), mu_CH=float(mu[1]),
             M_CL=float(f[0]), M_CH=float(f[1]), Q_CL=float(Q[0]), Q_CH=float(Q[1]),
             locked_CL=bool(stuck[0] and s.P_CL > 0.0), locked_CH=bool(stuck[1] and s.P_CH > 0.0),
-            vehicle_held=bool(stuck[2]))
+            vehicle_held=bool(stuck[2]), Q_diss_CL=float(Q_diss[0]), Q_diss_CH=float(Q_diss[1]))

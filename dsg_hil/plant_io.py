@@ -16,6 +16,7 @@ PLANT_TX = {
     "DRIVER": ("CreepRequest", "BrakePedal", "DesiredCreepSpeed"),
     "SIM_TRUTH_CL": ("T_Plate", "Mu", "Torque", "HeatFlux"),
     "SIM_TRUTH_CH": ("T_Plate", "Mu", "Torque", "HeatFlux"),
+    "SIM_HEAT": ("HeatDissCL", "HeatDissCH"),
 }
 SYNC = "SIM_SYNC"
 SYNC_PROBE = 0xFFFFFFFF  # Tick value of the lockstep presence probe (DBC comment of SIM_SYNC.Tick)
@@ -40,4 +41,5 @@ def plant_signals(out: PlantOutputs, driver: DriverInput) -> dict[str, dict[str,
                    "DesiredCreepSpeed": driver.desired_speed_mps},
         "SIM_TRUTH_CL": {"T_Plate": out.T_CL, "Mu": out.mu_CL, "Torque": out.M_CL, "HeatFlux": out.Q_CL},
         "SIM_TRUTH_CH": {"T_Plate": out.T_CH, "Mu": out.mu_CH, "Torque": out.M_CH, "HeatFlux": out.Q_CH},
+        "SIM_HEAT": {"HeatDissCL": out.Q_diss_CL, "HeatDissCH": out.Q_diss_CH},
     }

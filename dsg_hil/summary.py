@@ -1,85 +1,305 @@
-"""What a run did, from the plant's truth and the TCU's status frames: the JSON of ``dsg-hil run --summary``."""
+"""What a run did: the JSON of ``dsg-hil run --summary`` and the creep numbers of ``dsg-hil report``.
+
+One definition for both. :class:`CreepMetrics` takes samples one by one, each with the attributes of
+:class:`dsg_hil.plant.PlantOutputs` it needs (SI units; NaN where a quantity is unknown): the plant's outputs
+every step for the summary, the frames decoded from a bus log for the report (:mod:`dsg_hil.report.log`).
+
+Definitions (constants below):
+
+* A clutch **slips** when it transmits torque (``|M| > TORQUE_MIN``; without the truth torque on the bus:
+  pressure above ``P_ENGAGED``) at a slip speed above ``SLIP_MIN``.
+* **Slip time** counts each instant once. During a crossover, when both clutches slip, the instant goes to the
+  clutch transmitting the larger torque (the driving one); the crossover itself is ``slip_overlap_s``. So
+  ``slip_time_s.CL + slip_time_s.CH`` is the time during which some clutch slips, as in the paper
+  (174 s = 43.5 s + 130.5 s).
+* **Phases** are the runs of the driving clutch; runs (and gaps) shorter than ``MIN_PHASE_S`` are dropped and
+  neighbours of the same clutch merged. A phase's mu and P "at the start" are taken ``SETTLE_S`` after the first
+  instant at which its clutch slips alone (the crossover over), "at the end" ``SETTLE_S`` before the last such
+  instant (before the next crossover's ramps begin); its temperatures "at the end" at that last instant.
+* **Creep time**: the driver requests creep and the vehicle moves forward (``v > V_MOVING``): from the driver's
+  request and the vehicle, whatever the TCU reports. **Standstill time**: creep requested, ``|v| <= V_MOVING``.
+* **Stop**: the vehicle came to rest (``v <= V_MOVING``) while creep was requested, after creep was under way, and did
+  not move again before the request ended or the record ended, resting at least ``STOP_MIN_S``.
+* **Roll-back**: the most negative speed, and the distance rolled backwards. The lowest speed and the speed error
+  while creeping count from the moment creep is under way (``ESTABLISHED`` of the desired speed reached) while
+  a clutch slips.
+* **Prediction error**: TCU_STATUS predicted plate temperature minus the truth at that time (worst by magnitude).
+"""
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from dataclasses import dataclass, field
 
-from .plant import PlantOutputs
+from .reference import SAFETY_TEMPERATURE_C
 
 CLUTCHES = {1: "CL", 2: "CH"}
 STATES = {0: "IDLE", 1: "ENGAGE", 2: "CREEP", 3: "HANDOVER", 4: "STOPPED_OVERHEAT", 5: "FAULT"}
 SLIP_MIN = 0.5  # rad/s: below this a clutch counts as not slipping
 TORQUE_MIN = 5.0  # N m: a clutch transmitting less is open
+P_ENGAGED = 0.05e6  # Pa: with no truth torque known, a clutch above this pressure transmits
+V_MOVING = 0.01  # m/s: slower counts as standing still
+STOP_MIN_S = 2.0  # s at rest (creep requested) before the vehicle counts as stopped
+MIN_PHASE_S = 0.5  # s: shorter runs of the driving clutch are not phases
+SETTLE_S = 0.5  # s after a crossover (before the next) where a phase's start (end) values of mu and P are taken
+ESTABLISHED = 0.5  # creep is under way once the vehicle has reached this fraction of the desired speed
+
+
+def _known(x: float) -> bool:
+    return x == x  # not NaN
+
+
+def _slips(omega_in: float, omega: float, M: float, P: float) -> bool:
+    """Transmits torque (or, with no torque known, is pressurised) while slipping."""
+    return (abs(M) > TORQUE_MIN if M == M else P > P_ENGAGED) and abs(omega_in - omega) > SLIP_MIN
+
+
+def driving_clutch(s) -> tuple[str | None, bool]:
+    """The slipping clutch that drives (the larger torque when both slip), and whether both slip."""
+    cl = _slips(s.omega_in, s.omega_CL, s.M_CL, s.P_CL)
+    ch = _slips(s.omega_in, s.omega_CH, s.M_CH, s.P_CH)
+    if cl and ch:
+        a, b = (abs(s.M_CL), abs(s.M_CH)) if _known(s.M_CL) and _known(s.M_CH) else (s.P_CL, s.P_CH)
+        return ("CL" if a >= b else "CH"), True
+    return ("CL" if cl else "CH" if ch else None), False
+
+
+@dataclass
+class _Run:
+    """A run of one driving clutch (None: none slips). Samples at which it slips alone: the first, the one
+    SETTLE_S later, the one SETTLE_S before the last, the last."""
+
+    clutch: str | None
+    start: float
+    end: float
+    first: object = None
+    settled: object = None
+    lagged: object = None
+    last: object = None
+    tail: object = None  # last sample of the run
+    window: deque = field(default_factory=deque)
+
+    def take(self, s, dt: float, alone: bool) -> None:
+        self.end, self.tail = s.t + dt, s
+        if not alone:
+            return
+        if self.first is None:
+            self.first = s
+        if self.settled is None and s.t >= self.first.t + SETTLE_S - 1e-9:
+            self.settled = s
+        self.window.append(s)
+        while self.window[0].t <= s.t - SETTLE_S + 1e-9:
+            self.lagged = self.window.popleft()
+        self.last = s
+
+    def values(self) -> tuple[object, object, object]:
+        """(start, end, last) samples: the start and end values of mu and P, and the temperatures at the end."""
+        last = self.last or self.tail
+        return self.settled or self.first or self.tail, self.lagged or last, last
+
+
+def _r(x: float | None, nd: int) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(x, nd) + 0.0  # no -0.0
+
+
+def _phase_json(run: _Run) -> dict:
+    c = run.clutch
+    a, b, last = run.values()
+    return {"clutch": c, "start_s": round(run.start, 3), "end_s": round(run.end, 3),
+            "duration_s": round(run.end - run.start, 3),
+            "T_CL_end_c": _r(last.T_CL, 2), "T_CH_end_c": _r(last.T_CH, 2),
+            "mu": {"start": _r(getattr(a, f"mu_{c}"), 4), "end": _r(getattr(b, f"mu_{c}"), 4)},
+            "P_mpa": {"start": _r(getattr(a, f"P_{c}") / 1e6, 3), "end": _r(getattr(b, f"P_{c}") / 1e6, 3)}}
+
+
+def phases(runs: list[_Run]) -> list[_Run]:
+    """Runs of the driving clutch without the short ones, neighbours of the same clutch merged."""
+    kept: list[_Run] = []
+    for run in runs:
+        if run.end - run.start < MIN_PHASE_S:
+            continue
+        if kept and kept[-1].clutch == run.clutch:
+            prev = kept[-1]
+            kept[-1] = _Run(run.clutch, prev.start, run.end, prev.first or run.first, prev.settled or run.settled,
+                            run.lagged or prev.lagged, run.last or prev.last, run.tail)
+        else:
+            kept.append(run)
+    return [r for r in kept if r.clutch is not None]
+
+
+@dataclass
+class CreepMetrics:
+    """Accumulates a creep run sample by sample (see the module docstring for the definitions)."""
+
+    slip_time: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
+    slip_overlap: float = 0.0
+    creep_time: float = 0.0
+    standstill_time: float = 0.0
+    above_limit: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
+    energy: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})  # J
+    max_T: dict[str, float | None] = field(default_factory=lambda: {"CL": None, "CH": None})
+    speed_min_creeping: float | None = None
+    rollback_speed: float = 0.0
+    rollback_distance: float = 0.0
+    stop: tuple[float, object] | None = None
+    # from TCU_STATUS, when a TCU sends it
+    handovers: list[dict] = field(default_factory=list)
+    tcu_state: str | None = None
+    active_clutch: str | None = None
+    tcu_stop_s: float | None = None
+    max_pred: dict[str, float | None] = field(default_factory=lambda: {"CL": None, "CH": None})
+    pred_error: dict[str, tuple[float, float] | None] = field(default_factory=lambda: {"CL": None, "CH": None})
+    runs: list[_Run] = field(default_factory=list)
+    _sq_speed_error: float = 0.0
+    _driven_time: float = 0.0
+    _moved: bool = False
+    _rest: tuple[float, object] | None = None
+    _t_last: float = 0.0
+
+    def add(self, s, dt: float, creep_request: bool, desired_speed: float) -> None:
+        """One sample ``s`` standing for the interval [s.t, s.t + dt)."""
+        clutch, both = driving_clutch(s)
+        if clutch is not None:
+            self.slip_time[clutch] += dt
+            self.slip_overlap += dt if both else 0.0
+        if not self.runs or self.runs[-1].clutch != clutch:
+            self.runs.append(_Run(clutch, s.t, s.t))
+        self.runs[-1].take(s, dt, clutch is not None and not both)
+        self._thermal("CL", s.T_CL, s.Q_CL, dt)
+        self._thermal("CH", s.T_CH, s.Q_CH, dt)
+        v = s.v
+        if v < 0.0:
+            self.rollback_speed = min(self.rollback_speed, v)
+            self.rollback_distance -= v * dt
+        if not creep_request:
+            self._end_rest()
+            return
+        if v > V_MOVING:
+            self.creep_time += dt
+            self._rest = None
+            self._moved = self._moved or v >= ESTABLISHED * desired_speed
+        else:
+            if abs(v) <= V_MOVING:
+                self.standstill_time += dt
+            if self._moved and self._rest is None:
+                self._rest = (s.t, s)
+        if self._moved and clutch is not None:
+            self._sq_speed_error += (v - desired_speed) ** 2 * dt
+            self._driven_time += dt
+            self.speed_min_creeping = v if self.speed_min_creeping is None else min(self.speed_min_creeping, v)
+        self._t_last = s.t + dt
+
+    def _thermal(self, name: str, T: float, Q: float, dt: float) -> None:
+        if T == T:
+            peak = self.max_T[name]
+            if peak is None or T > peak:
+                self.max_T[name] = T
+            if T > SAFETY_TEMPERATURE_C:
+                self.above_limit[name] += dt
+        if Q == Q:
+            self.energy[name] += Q * dt
+
+    def _end_rest(self) -> None:
+        if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:
+            self.stop = self._rest
+        self._rest = None
+
+    def status(self, t: float, state: int, active: int, T_CL_pred: float, T_CH_pred: float, truth) -> None:
+        """A TCU_STATUS frame at ``t`` (raw State/ActiveClutch values), with the truth at that time."""
+        state_name = STATES.get(int(state), f"UNKNOWN_{int(state)}")
+        clutch = CLUTCHES.get(int(active), "NONE")
+        if clutch in ("CL", "CH") and self.active_clutch in ("CL", "CH") and clutch != self.active_clutch:
+            self.handovers.append({"t_s": round(t, 3), "from": self.active_clutch, "to": clutch,
+                                   "T_CL_c": _r(truth.T_CL, 2), "T_CH_c": _r(truth.T_CH, 2),
+                                   "T_CL_pred_c": round(T_CL_pred, 1), "T_CH_pred_c": round(T_CH_pred, 1)})
+        if state_name == "STOPPED_OVERHEAT" and self.tcu_stop_s is None:
+            self.tcu_stop_s = round(t, 3)
+        self.tcu_state, self.active_clutch = state_name, clutch
+        for name, pred, true in (("CL", T_CL_pred, truth.T_CL), ("CH", T_CH_pred, truth.T_CH)):
+            if self.max_pred[name] is None or pred > self.max_pred[name]:
+                self.max_pred[name] = pred
+            if _known(true):
+                err = pred - true
+                if self.pred_error[name] is None or abs(err) > abs(self.pred_error[name][0]):
+                    self.pred_error[name] = (err, t)
+
+    def as_json(self) -> dict:
+        self._end_rest()  # the record ends: a vehicle resting since long enough has stopped
+        ph = phases(self.runs)
+        first_ch = next((p for p in ph if p.clutch == "CH"), None)
+        stop_t, stop_s = self.stop if self.stop is not None else (None, None)
+        both = lambda d, nd: {k: _r(v, nd) for k, v in d.items()}  # noqa: E731
+        if self.tcu_stop_s is not None:
+            reason = "STOPPED_OVERHEAT"
+        else:
+            reason = "vehicle_stopped" if stop_t is not None else "end_of_record"
+        return {
+            "creep_time_s": round(self.creep_time, 3),
+            "standstill_time_s": round(self.standstill_time, 3),
+            "slip_time_s": both(self.slip_time, 3),
+            "slip_overlap_s": round(self.slip_overlap, 3),
+            "phases": [_phase_json(p) for p in ph],
+            "max_plate_temp_c": both(self.max_T, 2),
+            "time_above_limit_s": both(self.above_limit, 3),
+            "friction_energy_kj": {k: round(v / 1e3, 1) for k, v in self.energy.items()},
+            "speed_min_creeping_mps": _r(self.speed_min_creeping, 4),
+            "rollback_mps": round(self.rollback_speed, 4),
+            "rollback_m": round(self.rollback_distance, 4),
+            "speed_error_rms_mps": _r(math.sqrt(self._sq_speed_error / self._driven_time), 4)
+            if self._driven_time > 0 else None,
+            "stop_reason": reason,
+            "stop_time_s": _r(stop_t, 3),
+            "tcu_stop_time_s": self.tcu_stop_s,
+            "T_CL_at_stop_c": None if stop_s is None else _r(stop_s.T_CL, 2),
+            "T_CL_at_first_CH_limit_c": None if first_ch is None else _r(first_ch.values()[2].T_CL, 2),
+            "mu_CH_first_slip": None if first_ch is None else _phase_json(first_ch)["mu"],
+            "P_CH_first_slip_mpa": None if first_ch is None else _phase_json(first_ch)["P_mpa"],
+            "max_predicted_temp_c": both(self.max_pred, 1),
+            "worst_prediction_error_c": {k: None if e is None else {"error_c": round(e[0], 2), "t_s": round(e[1], 3)}
+                                         for k, e in self.pred_error.items()},
+            "handovers": self.handovers,
+        }
 
 
 @dataclass
 class RunSummary:
-    """Accumulates the run, step by step and status frame by status frame."""
+    """A run of the plant: the creep metrics of its steps and TCU_STATUS frames, and the run's bookkeeping."""
 
     dt: float
-    creep_time_s: float = 0.0
-    slip_time_s: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
-    max_plate_temp_c: dict[str, float] = field(default_factory=lambda: {"CL": -1e9, "CH": -1e9})
-    handovers: list[dict] = field(default_factory=list)
-    stop_reason: str = "scenario_end"
-    stop_time_s: float | None = None
-    tcu_state: str = "IDLE"
-    active_clutch: str = "NONE"
+    creep: CreepMetrics = field(default_factory=CreepMetrics)
     fallback_events: int = 0
     fallback_time_s: float = 0.0
-    max_predicted_temp_c: dict[str, float] = field(default_factory=lambda: {"CL": -1e9, "CH": -1e9})
     realtime_factor: float | None = None  # simulated s per wall s of a real-time run
     wall_time_s: float | None = None  # of the run itself (after the lockstep handshake)
     command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
-    _sq_speed_error: float = 0.0
-    _creep_samples: int = 0
 
-    def on_step(self, out: PlantOutputs, creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
-        slipping = {"CL": abs(out.omega_in - out.omega_CL) > SLIP_MIN and abs(out.M_CL) > TORQUE_MIN,
-                    "CH": abs(out.omega_in - out.omega_CH) > SLIP_MIN and abs(out.M_CH) > TORQUE_MIN}
-        for name, slips in slipping.items():
-            if slips:
-                self.slip_time_s[name] += self.dt
-        self.max_plate_temp_c["CL"] = max(self.max_plate_temp_c["CL"], out.T_CL)
-        self.max_plate_temp_c["CH"] = max(self.max_plate_temp_c["CH"], out.T_CH)
-        if creeping and self.tcu_state in ("ENGAGE", "CREEP", "HANDOVER"):
-            self.creep_time_s += self.dt
-        if creeping and self.tcu_state == "CREEP":
-            self._sq_speed_error += (out.v - desired_speed) ** 2
-            self._creep_samples += 1
+    @property
+    def tcu_state(self) -> str:
+        return self.creep.tcu_state or "IDLE"
+
+    @property
+    def active_clutch(self) -> str:
+        return self.creep.active_clutch or "NONE"
+
+    def on_step(self, out, creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
+        """One plant step: ``out`` holds the outputs at its end, and stands for the step just taken."""
+        self.creep.add(out, self.dt, creeping, desired_speed)
         if fallback:
             self.fallback_time_s += self.dt
 
-    def on_status(self, t: float, values: dict[str, float], truth: PlantOutputs) -> None:
-        state = STATES.get(int(values["State"]), f"UNKNOWN_{int(values['State'])}")
-        active = CLUTCHES.get(int(values["ActiveClutch"]), "NONE")
-        if active != self.active_clutch and self.active_clutch in ("CL", "CH") and active in ("CL", "CH"):
-            self.handovers.append({"t_s": round(t, 3), "from": self.active_clutch, "to": active,
-                                   "T_CL_c": round(truth.T_CL, 2), "T_CH_c": round(truth.T_CH, 2),
-                                   "T_CL_pred_c": round(values["T_CL_Pred"], 1),
-                                   "T_CH_pred_c": round(values["T_CH_Pred"], 1)})
-        if state == "STOPPED_OVERHEAT" and self.stop_time_s is None:
-            self.stop_reason, self.stop_time_s = "STOPPED_OVERHEAT", round(t, 3)
-        self.tcu_state, self.active_clutch = state, active
-        for name, key in (("CL", "T_CL_Pred"), ("CH", "T_CH_Pred")):
-            self.max_predicted_temp_c[name] = max(self.max_predicted_temp_c[name], values[key])
+    def on_status(self, t: float, values: dict[str, float], truth) -> None:
+        self.creep.status(t, values["State"], values["ActiveClutch"], values["T_CL_Pred"], values["T_CH_Pred"],
+                          truth)
 
     def as_json(self, frames: dict[str, int], scenario: str, mode: str, interface: str, duration_s: float) -> dict:
         return {
             "scenario": scenario, "mode": mode, "interface": interface, "duration_s": round(duration_s, 3),
-            "creep_time_s": round(self.creep_time_s, 3),
-            "slip_time_s": {k: round(v, 3) for k, v in self.slip_time_s.items()},
-            "max_plate_temp_c": {k: round(v, 2) for k, v in self.max_plate_temp_c.items()},
-            "max_predicted_temp_c": {k: round(v, 1) for k, v in self.max_predicted_temp_c.items()},
-            "speed_error_rms_mps": round((self._sq_speed_error / self._creep_samples) ** 0.5, 4)
-            if self._creep_samples else None,
-            "handovers": self.handovers,
-            "stop_reason": self.stop_reason,
-            "stop_time_s": self.stop_time_s,
+            **self.creep.as_json(),
             "command_fallback": {"events": self.fallback_events, "time_s": round(self.fallback_time_s, 3)},
             "frames": frames,
             "realtime_factor": None if self.realtime_factor is None else round(self.realtime_factor, 3),
-            "run_wall_time_s": None if self.wall_time_s is None else round(self.wall_time_s, 3),
+            "wall_time_s": None if self.wall_time_s is None else round(self.wall_time_s, 3),
             "command_latency_ms": _percentiles(self.command_latency_s),
         }
 

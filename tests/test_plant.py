@@ -117,3 +117,17 @@ def test_fast_thermal_path_equals_the_network_step(params):
         fast = plant.thermal.Phi @ T + plant._T_const + plant._T_src @ np.array([Q_CL, Q_CH, P_CL, P_CH])
         np.testing.assert_allclose(fast, plant.thermal.step(T, heat_sources(params, Q_CL, Q_CH, P_CL, P_CH)),
                                    rtol=1e-12, atol=1e-9)
+
+
+def test_heat_dissipated_is_the_heat_leaving_the_plate_nodes(params):
+    """Q_diss (SIM_HEAT, Fig. 8) = the network's flow out of each plate node, -(L T)_i + g_E,i T_E reversed,
+    averaged over the step (trapezoid of the node temperatures at both ends of a 1-ms step)."""
+    plant = Plant(params, T_init=100.0)
+    run(plant, PlantInputs(P_CL_cmd=0.5e6, brake=1.0), 3.0)  # CL slips against the held vehicle
+    net = plant.network
+    T0 = plant.state.T.copy()
+    out = plant.step(PlantInputs(P_CL_cmd=0.5e6, brake=1.0))
+    leaving = 0.5 * (net.L @ T0 + net.L @ plant.state.T) - net.g_E * net.T_E
+    assert out.Q_CL > 1000.0 and 0.0 < out.Q_diss_CL < out.Q_CL  # heats: not all generated heat leaves
+    assert out.Q_diss_CL == pytest.approx(leaving[NODES.index("CL")], rel=1e-4)
+    assert out.Q_diss_CH == pytest.approx(leaving[NODES.index("CH")], rel=1e-4, abs=1e-3)

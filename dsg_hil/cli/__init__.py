@@ -9,9 +9,9 @@ import argparse
 import sys
 
 from .. import __version__
-from . import calibrate, dbc_cmd, params_cmd, plant_cmd, run, validate, vcan_cmd
+from . import calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
 
-COMMANDS = (run, plant_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd)
+COMMANDS = (run, plant_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)
 EXIT_ERROR = 1
 
 

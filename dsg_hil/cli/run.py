@@ -72,7 +72,7 @@ def _do_run(args: argparse.Namespace) -> int:
                 raise RuntimeError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
             drive(runner, args)
         wall = time.monotonic() - t0
-        summary = finish(args, runner, config, scenario, wall_time_s=round(wall, 3))
+        summary = finish(args, runner, config, scenario)
     progress(f"done: {scenario.duration_s:g} simulated s in {wall:.1f} s wall; stop: {summary['stop_reason']}; "
              f"handovers: {len(summary['handovers'])}; frames sent {summary['frames']['sent']}, received "
              f"{summary['frames']['received']}, rejected {summary['frames']['rejected']}")
