@@ -14,7 +14,7 @@ def params():
     return load_params()
 
 
-@pytest.hookimpl(trylast=True)  # after tests/vcan/conftest.py has marked its tests
+@pytest.hookimpl(trylast=True)  # after dsg_hil/e2e/conftest.py has marked its tests
 def pytest_collection_modifyitems(config, items):
     """Deselect the vcan tests (not skip: they never count as run) unless asked for: ``DSG_HIL_REQUIRE_VCAN``
     set (``dsg-hil vcan`` sets it) or a ``-m`` expression that names ``vcan``. Any other ``-m`` (``"not slow"``)

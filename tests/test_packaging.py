@@ -46,14 +46,16 @@ def test_version_is_single_sourced():
 
 
 def test_marker_expressions_do_not_bring_back_the_vcan_tests():
-    vcan = Path(__file__).parent / "vcan"
-    if not vcan.is_dir():
-        pytest.skip("the vcan tests are not beside this file")
-    for expr in ("not slow", "slow or not slow"):
-        proc = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
-                               "-m", expr, str(vcan)], capture_output=True, text=True, cwd=ROOT,
-                              env={k: v for k, v in os.environ.items() if k != ENV_REQUIRE})
-        assert "no tests collected" in proc.stdout and "deselected" in proc.stdout, proc.stdout + proc.stderr
+    """tests/conftest.py deselects the vcan tests for any -m that does not name vcan (not a configured -m)."""
+    e2e = str(resources.files("dsg_hil.e2e"))
+    args = [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
+            str(Path(__file__).with_name("test_scenario.py")), e2e]
+    env = {k: v for k, v in os.environ.items() if k != ENV_REQUIRE}
+    for expr in ("not slow", "slow or not slow", "vcan"):
+        out = subprocess.run([*args, "-m", expr], capture_output=True, text=True, env=env).stdout
+        e2e_ids = [line for line in out.splitlines() if "test_end_to_end.py::" in line]
+        assert bool(e2e_ids) == (expr == "vcan"), out
+        assert (expr == "vcan") or "deselected" in out, out
 
 
 @pytest.mark.slow
@@ -70,7 +72,7 @@ def test_wheel_ships_the_dbc_typing_license_and_extras(tmp_path):
         info = f"dsg_hil-{dsg_hil.__version__}.dist-info"
         meta = zf.read(f"{info}/METADATA").decode()
     assert {"dsg_hil/py.typed", "ecu_stub/py.typed", "dsg_hil/data/params.toml", "dsg_hil/data/creep.toml",
-            f"{info}/licenses/LICENSE"} <= names
+            "dsg_hil/e2e/conftest.py", "dsg_hil/e2e/test_end_to_end.py", f"{info}/licenses/LICENSE"} <= names
     assert not any(name.startswith("tests/") for name in names)
     assert "License-Expression: MIT" in meta and f"Version: {dsg_hil.__version__}" in meta
     requires = [line for line in meta.splitlines() if line.startswith("Requires-Dist: matplotlib")]

@@ -37,5 +37,6 @@ def _do_params(args: argparse.Namespace) -> int:
             continue
         value, unit = _value_and_unit(params, key)
         print(f"{key:<34} {value:>12.6g} {unit:<9} {source:<10} {reason}")
-    print(f"# {len(params.provenance)} values: " + ", ".join(f"{counts[s]} {s}" for s in ("paper", "assumed", "calibrated")))
+    print(f"# {len(params.provenance)} values: "
+          + ", ".join(f"{counts[s]} {s}" for s in ("paper", "assumed", "calibrated")))
     return 0
