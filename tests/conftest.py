@@ -12,8 +12,9 @@ from dsg_hil.vcan import ENV_REQUIRE
 def pytest_configure(config):
     config.addinivalue_line("markers", "slow: a minute or so: the 100-s cases against solve_ivp; building a wheel "
                                        "(needs the package index for setuptools)")
-    config.addinivalue_line("markers", "vcan: end-to-end on a real SocketCAN vcan0 with separate processes (run with "
-                                       "'dsg-hil vcan'); deselected unless DSG_HIL_REQUIRE_VCAN is set or -m names vcan")
+    config.addinivalue_line("markers", "vcan: end-to-end on a real SocketCAN vcan0 with separate processes (run "
+                                       "with 'dsg-hil vcan'); deselected unless DSG_HIL_REQUIRE_VCAN is set or -m "
+                                       "names vcan")
 
 
 @pytest.fixture(scope="session")
