@@ -15,7 +15,7 @@ def require_matplotlib():
     try:
         import matplotlib
     except ImportError:
-        raise RuntimeError("--plots needs matplotlib: pip install matplotlib") from None
+        raise RuntimeError("--plots needs matplotlib: pip install 'dsg-hil[plots]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt

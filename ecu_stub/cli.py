@@ -5,11 +5,20 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from importlib import metadata
 
 from dsg_hil.protocol import Codec, load_dbc
-from dsg_hil.protocol.bus import open_bus, resolve_bus_config
+from dsg_hil.protocol.bus import add_bus_arguments, bus_config, bus_name, open_bus, per_process_warning
 
 from .runner import TCU_USES, TcuRunner
+
+
+def _version() -> str:
+    """The version of the dsg-hil distribution that ships ecu-stub (dsg_hil.__version__, through its metadata)."""
+    try:
+        return metadata.version("dsg-hil")
+    except metadata.PackageNotFoundError:
+        return "(dsg-hil not installed)"
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -20,10 +29,8 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                     "250 degC and stops the vehicle when neither clutch can take over. Knows the plant only "
                     "through the DBC. Answers SIM_SYNC ticks when the plant runs in lockstep, else runs on its "
                     "own clock at the TCU_CMD cycle time.")
-    parser.add_argument("--interface", "-i", metavar="I", help="python-can interface (default: python-can config, "
-                        "else socketcan on vcan0 where it exists, else virtual)")
-    parser.add_argument("--channel", "-c", metavar="C", help="python-can channel")
-    parser.add_argument("--config-context", metavar="SECTION", help="section of the python-can config file")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    add_bus_arguments(parser)
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: never)")
     parser.add_argument("--idle-exit", type=float, metavar="S",
@@ -38,10 +45,12 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
-        config = resolve_bus_config(args.interface, args.channel, args.config_context)
+        config = bus_config(args)
         codec = Codec(load_dbc(args.dbc), TCU_USES)
         bus = open_bus(config)
-        print(f"ecu-stub: listening on {config['interface']}:{config['channel']}", file=sys.stderr, flush=True)
+        print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
+        if warning := per_process_warning(config):
+            print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
         try:
             TcuRunner(codec, bus).run(duration=args.duration, idle_timeout=args.idle_exit)
         finally:

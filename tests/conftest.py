@@ -1,10 +1,35 @@
 from __future__ import annotations
 
+import os
+import re
+
 import pytest
 
 from dsg_hil.physics.params import load_params
+from dsg_hil.vcan import ENV_REQUIRE
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: a minute or so: the 100-s cases against solve_ivp; building a wheel "
+                                       "(needs the package index for setuptools)")
+    config.addinivalue_line("markers", "vcan: end-to-end on a real SocketCAN vcan0 with separate processes (run "
+                                       "with 'dsg-hil vcan'); deselected unless DSG_HIL_REQUIRE_VCAN is set or -m "
+                                       "names vcan")
 
 
 @pytest.fixture(scope="session")
 def params():
     return load_params()
+
+
+@pytest.hookimpl(trylast=True)  # after dsg_hil/e2e/conftest.py has marked its tests
+def pytest_collection_modifyitems(config, items):
+    """Deselect the vcan tests (not skip: they never count as run) unless asked for: ``DSG_HIL_REQUIRE_VCAN``
+    set (``dsg-hil vcan`` sets it) or a ``-m`` expression that names ``vcan``. Any other ``-m`` (``"not slow"``)
+    leaves them out too, so a marker expression cannot bring them back by replacing a configured one."""
+    if os.environ.get(ENV_REQUIRE) or re.search(r"\bvcan\b", config.option.markexpr or ""):
+        return
+    vcan = [item for item in items if item.get_closest_marker("vcan")]
+    if vcan:
+        config.hook.pytest_deselected(items=vcan)
+        items[:] = [item for item in items if not item.get_closest_marker("vcan")]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -28,6 +29,33 @@ def test_params_lists_sources(capsys):
     assert "friction.A_stribeck" in out and "thermal.clutch.h_plate_oil" in out and "2 calibrated" in out
 
 
+def test_params_show_units(capsys):
+    assert main(["params"]) == 0
+    lines = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines() if line[0] != "#"}
+    assert lines["friction.P_floor"][1:4] == ["50000", "Pa", "assumed"]
+    assert lines["friction.A_stribeck"][2] == "1" and lines["clutch.test.A_f"][2] == "m^2"
+
+
+@pytest.mark.parametrize("argv", [["--debug", "params", "--params", "/nonexistent.toml"],
+                                  ["params", "--params", "/nonexistent.toml", "--debug"]])
+def test_debug_before_or_after_the_command_shows_the_traceback(argv):
+    proc = subprocess.run([sys.executable, "-m", "dsg_hil", *argv], capture_output=True, text=True)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def test_versions_agree():
+    from dsg_hil import __version__
+    for module in ("dsg_hil", "ecu_stub"):
+        proc = subprocess.run([sys.executable, "-m", module, "--version"], capture_output=True, text=True)
+        assert proc.returncode == 0 and proc.stdout.split()[-1] == __version__, proc.stdout + proc.stderr
+
+
+def test_plots_without_matplotlib_is_one_clear_error(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib raises ImportError
+    assert main(["validate", "--plots", str(tmp_path)]) == 1
+    assert "error: --plots needs matplotlib: pip install 'dsg-hil[plots]'" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("argv, message", [
     (["params", "--params", "/nonexistent/params.toml"], "cannot read parameter file"),
     (["validate", "--dt", "0"], "dt must be positive"),
@@ -49,7 +77,7 @@ def test_garbled_parameter_file(tmp_path):
 
 
 def test_help_explains_every_command():
-    for cmd in ([], ["validate"], ["params"], ["calibrate"], ["run"], ["plant"], ["dbc"]):
+    for cmd in ([], ["validate"], ["params"], ["calibrate"], ["run"], ["plant"], ["dbc"], ["vcan"]):
         proc = subprocess.run([sys.executable, "-m", "dsg_hil", *cmd, "--help"], capture_output=True, text=True)
         assert proc.returncode == 0 and "usage:" in proc.stdout and len(proc.stdout) > 200
 
@@ -65,6 +93,7 @@ def test_run_on_virtual_writes_log_and_summary(tmp_path):
     assert set(data["slip_time_s"]) == {"CL", "CH"} and data["frames"]["sent"] > 1000
     lines = log.read_text().splitlines()
     assert lines[0].startswith("(0.000000) ") and "#" in lines[0]  # candump -L
+    assert {line.split()[1] for line in lines} == {"vcan0"}  # canplayer -I run.log replays onto vcan0
     ids = {line.split()[2].split("#")[0] for line in lines}
     assert {"100", "200", "210", "7F0"} <= ids
     assert "done:" in proc.stderr
@@ -80,8 +109,29 @@ def test_ecu_stub_help_and_bad_interface():
     proc = subprocess.run([sys.executable, "-m", "ecu_stub", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "creep strategy" in proc.stdout
     proc = subprocess.run([sys.executable, "-m", "ecu_stub", "--interface", "nosuchbus", "--duration", "0.1"],
+                          capture_output=True, text=True)  # python-can's options: a usage error, status 2
+    assert proc.returncode == 2 and "invalid choice: 'nosuchbus'" in proc.stderr and "Traceback" not in proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "ecu_stub", "-i", "socketcan", "-c", "nosuchcan0", "--duration",
+                           "0.1"], capture_output=True, text=True)
+    assert proc.returncode == 1 and proc.stderr.startswith("error: ") and "nosuchcan0" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_plant_alone_on_virtual_warns_and_prints_counts(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", "-i", "virtual", "--duration", "0.2"],
                           capture_output=True, text=True)
-    assert proc.returncode == 1 and proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
+    assert proc.returncode == 0, proc.stderr
+    assert "warning: python-can's 'virtual' interface lives inside one process" in proc.stderr
+    done = proc.stderr.strip().splitlines()[-1]
+    assert re.fullmatch(r"done: stop \w+; frames sent \d+, received 0, rejected 0", done), done
+
+
+def test_plant_prints_the_tcu_command_for_its_bus():
+    proc = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", "-i", "udp_multicast", "--duration", "0.2"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert re.search(r"^TCU: ecu-stub -i udp_multicast -c 239\.255\.\d+\.\d+ --bus-kwargs port=\d+$",
+                     proc.stderr, re.MULTILINE), proc.stderr
 
 
 def test_run_with_bad_scenario_is_one_line(tmp_path):

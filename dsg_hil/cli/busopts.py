@@ -15,18 +15,14 @@ from ..physics.thermal import NODES
 from ..plant import Plant
 from ..plant_io import PLANT_USES
 from ..protocol import Codec, load_dbc
-from ..protocol.bus import open_bus, resolve_bus_config
+from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
 from ..runner import PlantRunner
 from ..scenario import Scenario, load_scenario
 from .common import params_from, progress
 
 
 def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
-    parser.add_argument("--interface", "-i", metavar="I",
-                        help="python-can interface (socketcan, virtual, ...); default: can.rc / CAN_INTERFACE / "
-                             "~/.canrc, else socketcan on vcan0 where it exists, else virtual")
-    parser.add_argument("--channel", "-c", metavar="C", help="python-can channel (vcan0, can0, ...)")
-    parser.add_argument("--config-context", metavar="SECTION", help="section of the python-can config file")
+    add_bus_arguments(parser)
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default=default_mode,
                         help=f"lockstep: the plant is the time master, as fast as both sides go, bit-for-bit "
                              f"reproducible; realtime: paced by the clock, for a real ECU (default: {default_mode})")
@@ -35,7 +31,10 @@ def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: dbc/dsg_hil.dbc shipped with dsg-hil)")
     parser.add_argument("--log", metavar="FILE",
                         help="write the bus traffic: .log = candump -L (canplayer, cantools), .asc, .blf, ... "
-                             "by extension through python-can's writers")
+                             "by extension through python-can's writers. Timestamps in lockstep are simulated "
+                             "seconds from 0 (so the 'Begin Triggerblock' line of an .asc log reads 1970); in "
+                             f"real time, wall-clock time. Runs not on socketcan are logged on channel {LOG_CHANNEL}, "
+                             "so 'canplayer -I FILE' replays them onto vcan0 with no mapping")
     parser.add_argument("--reply-timeout", type=float, default=5.0, metavar="S",
                         help="lockstep: wall-clock seconds to wait for the TCU's answer to a tick (default 5)")
     parser.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
@@ -84,20 +83,19 @@ def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantR
     setup_logging(args.verbose)
     scenario = scenario_from(args)
     runner, config = plant_runner(args, stack, scenario)
-    progress(f"{what}: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on "
-             f"{config['interface']}:{config['channel']}")
+    progress(f"{what}: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on {bus_name(config)}")
     return runner, config, scenario
 
 
 def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario) -> tuple[PlantRunner, dict]:
     """Open the plant's bus (and log) from the options; everything is closed by ``stack``."""
-    config = resolve_bus_config(args.interface, args.channel, args.config_context)
+    config = bus_config(args, fresh_udp=True)
     db = load_dbc(args.dbc)
     bus = open_bus(config)
     stack.callback(bus.shutdown)
     listeners = ()
     if args.log:
-        listener = LogListener(args.log, str(config["channel"]))
+        listener = LogListener(args.log, log_channel(config))
         stack.callback(listener.stop)
         listeners = (listener,)
     runner = PlantRunner(make_plant(args, scenario), scenario, Codec(db, PLANT_USES), bus, listeners, progress)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter
+from dataclasses import fields
 
 from .common import add_params_option, params_from
 
@@ -18,11 +19,14 @@ def add_subparser(sub) -> None:
     parser.set_defaults(func=_do_params)
 
 
-def _value(params, key: str) -> float:
+def _value_and_unit(params, key: str) -> tuple[float, str]:
+    """The value at a dotted key and the unit its dataclass field declares."""
+    *path, name = key.split(".")
     obj = params
-    for part in key.split("."):
+    for part in path:
         obj = getattr(obj, part)
-    return obj
+    unit = next(f.metadata.get("unit", "") for f in fields(obj) if f.name == name)
+    return getattr(obj, name), unit
 
 
 def _do_params(args: argparse.Namespace) -> int:
@@ -31,6 +35,8 @@ def _do_params(args: argparse.Namespace) -> int:
     for key, (source, reason) in params.provenance.items():
         if args.source and source != args.source:
             continue
-        print(f"{key:<34} {_value(params, key):>12.6g}  {source:<10} {reason}")
-    print(f"# {len(params.provenance)} values: " + ", ".join(f"{counts[s]} {s}" for s in ("paper", "assumed", "calibrated")))
+        value, unit = _value_and_unit(params, key)
+        print(f"{key:<34} {value:>12.6g} {unit:<9} {source:<10} {reason}")
+    print(f"# {len(params.provenance)} values: "
+          + ", ".join(f"{counts[s]} {s}" for s in ("paper", "assumed", "calibrated")))
     return 0

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 from contextlib import ExitStack
 
+from ..protocol.bus import bus_args, per_process_warning
+from ..runner import PeerTimeout
 from .busopts import add_bus_options, drive, finish, start
 from .common import add_params_option, progress
 
@@ -15,7 +18,9 @@ def add_subparser(sub) -> None:
         description="Run the plant on a CAN bus against a TCU started separately (ecu-stub, or a real ECU on "
                     "can0). Real time by default: frames at their DBC cycle times, commands used as they "
                     "arrive, unpowered hydraulics when TCU_CMD is missing for 3 cycle times. Lockstep: the "
-                    "plant waits for the TCU's answer to each SIM_SYNC tick.")
+                    "plant waits for the TCU's answer to each SIM_SYNC tick. Two processes on one machine "
+                    "without vcan: -i udp_multicast (the plant picks a group and port for the run and prints "
+                    "the ecu-stub command that joins it).")
     add_bus_options(parser, default_mode="realtime")
     parser.add_argument("--summary", metavar="FILE", help="write the JSON summary at the end")
     add_params_option(parser)
@@ -25,7 +30,14 @@ def add_subparser(sub) -> None:
 def _do_plant(args: argparse.Namespace) -> int:
     with ExitStack() as stack:
         runner, config, scenario = start(args, stack, "plant")
-        drive(runner, args)
+        warning = per_process_warning(config)
+        progress(f"warning: {warning}" if warning else f"TCU: ecu-stub {shlex.join(bus_args(config))}")
+        try:
+            drive(runner, args)
+        except PeerTimeout as exc:
+            raise PeerTimeout(f"{exc} ({warning})" if warning else str(exc)) from None
         summary = finish(args, runner, config, scenario)
-    progress(f"done: stop {summary['stop_reason']}, frames {summary['frames']}")
+    frames = summary["frames"]
+    progress(f"done: stop {summary['stop_reason']}; frames sent {frames['sent']}, received {frames['received']}, "
+             f"rejected {frames['rejected']}")
     return 0

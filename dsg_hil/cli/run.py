@@ -10,7 +10,7 @@ import time
 from contextlib import ExitStack
 
 from ..protocol import Codec
-from ..protocol.bus import open_bus
+from ..protocol.bus import bus_args, open_bus
 from .busopts import add_bus_options, drive, finish, start
 from .common import add_params_option, progress
 
@@ -19,9 +19,9 @@ def add_subparser(sub) -> None:
     parser = sub.add_parser(
         "run", help="run the plant and the TCU (ecu-stub) together on a bus",
         description="Run a scenario with the plant and the TCU: as two processes on a real bus (socketcan, "
-                    "...: the TCU is started as 'ecu-stub'), or in one process on python-can's 'virtual' "
-                    "interface. With no interface configured and no vcan0 present, runs on 'virtual' in "
-                    "lockstep, so it works on any machine.")
+                    "udp_multicast, ...: the TCU is started as 'ecu-stub' with the same bus options), or in one "
+                    "process on python-can's 'virtual' interface. With no interface configured and no vcan0 "
+                    "present, runs on 'virtual' in lockstep, so it works on any machine.")
     add_bus_options(parser, default_mode="lockstep")
     parser.add_argument("--summary", metavar="FILE", help="write a JSON summary (creep and slip times, "
                         "peak temperatures, handovers, stop reason, frame counts)")
@@ -63,8 +63,7 @@ def _do_run(args: argparse.Namespace) -> int:
                 if errors:
                     raise errors[0]
         else:
-            cmd = [sys.executable, "-m", "ecu_stub", "--interface", str(config["interface"]),
-                   "--channel", str(config["channel"]), "--idle-exit", "2"]
+            cmd = [sys.executable, "-m", "ecu_stub", *bus_args(config), "--idle-exit", "2"]
             tcu_proc = subprocess.Popen(cmd)
             stack.callback(_stop_process, tcu_proc)
             time.sleep(0.5)

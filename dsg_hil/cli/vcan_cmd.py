@@ -12,17 +12,19 @@ from pathlib import Path
 from .. import vcan
 from .common import progress
 
-DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "tests/vcan"]
+# The end-to-end tests ship inside the package (dsg_hil/e2e), so this runs from a checkout and from a wheel alike.
+DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "--pyargs", "dsg_hil.e2e"]
 
 
 def add_subparser(sub) -> None:
     parser = sub.add_parser(
         "vcan", help="run the vcan end-to-end tests (or a command) natively or in a throw-away VM",
-        description="Run COMMAND (default: the vcan end-to-end tests, 'pytest -m vcan tests/vcan') where a real "
-                    "SocketCAN vcan0 exists: natively if vcan0 is there or can be created (modprobe vcan, ip "
-                    "link), else inside a throw-away VM with a stock kernel (virtme-ng + QEMU software emulation; "
-                    "needs qemu-system-x86, busybox-static, linux-image-amd64 and pip virtme-ng). The same "
-                    "command on a laptop with vcan and on a CI runner without it. Exit status: COMMAND's.")
+        description="Run COMMAND (default: the vcan end-to-end tests shipped with the package, 'pytest -m vcan "
+                    "--pyargs dsg_hil.e2e') where a real SocketCAN vcan0 exists: natively if vcan0 is there or "
+                    "can be created (modprobe vcan, ip link), else inside a throw-away VM with a stock kernel "
+                    "(virtme-ng + QEMU software emulation; needs qemu-system-x86, busybox-static, "
+                    "linux-image-amd64 and pip virtme-ng). The same command on a laptop with vcan and on a CI "
+                    "runner without it. Exit status: COMMAND's.")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--native", action="store_true", help="never use the VM")
     where.add_argument("--vm", action="store_true", help="always use the VM")

@@ -1,43 +1,138 @@
-"""Opening the bus the python-can way: ``interface``/``channel`` from the flags, else ``can.rc``, else the
-environment (``CAN_INTERFACE``, ``CAN_CHANNEL``), else the config files (``~/.canrc``, ``~/.can``,
-``/etc/can.conf``), with ``context`` selecting a ``[section]``. Nothing of our own invented on top, except the
-fallback when nothing is configured at all: ``socketcan``/``vcan0`` where vcan0 exists, else ``virtual``."""
+"""Opening the bus the python-can way, for the plant and the TCU alike.
+
+Options: python-can's own (``can.cli.add_bus_arguments``: ``-i``, ``-c``, ``-b``, ``--fd``, ``--data-bitrate``,
+``--timing``, ``--bus-kwargs``, as in ``can.logger`` and ``cantools monitor``) plus ``--config-context``.
+Configuration: the flags, else ``can.rc``, else the environment (``CAN_INTERFACE``, ``CAN_CHANNEL``), else the
+config files (``~/.canrc``, ``~/.can``, ``/etc/can.conf``), ``--config-context`` selecting a ``[section]``.
+Nothing of our own on top, except
+
+* the fallback when no interface is configured at all: ``socketcan``/``vcan0`` where vcan0 exists, else
+  ``virtual`` (which lives inside one process: :func:`per_process_warning`);
+* ``udp_multicast`` with no channel: the plant picks a multicast group and port of its own
+  (:func:`fresh_udp_group`, so two runs on one host never hear each other) and prints the options that reach
+  it (:func:`bus_args`); the TCU must be given them.
+"""
 
 from __future__ import annotations
 
+import argparse
 import os
+import random
+import socket
 from pathlib import Path
+from typing import Any
 
 import can
+import can.cli
 
 VIRTUAL_CHANNEL = "dsg_hil"
+UDP_MULTICAST = "udp_multicast"
+LOG_CHANNEL = "vcan0"  # the channel name written to logs of runs that are not on socketcan (canplayer -I)
+_FROM_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """python-can's bus options and ``--config-context``: the one definition for dsg-hil and ecu-stub."""
+    can.cli.add_bus_arguments(parser)
+    parser.add_argument(
+        "--config-context", metavar="SECTION",
+        help="section of the python-can config file. With no interface from the flags, can.rc, CAN_INTERFACE "
+             "or the config file: socketcan on vcan0 where it exists, else virtual (one process only). "
+             f"-i {UDP_MULTICAST} without -c: the plant picks a multicast group and port for this run and "
+             "prints the options that reach it")
+
+
+def bus_config(args: argparse.Namespace, fresh_udp: bool = False) -> dict[str, Any]:
+    """The python-can configuration from the options of :func:`add_bus_arguments`.
+
+    ``fresh_udp``: give ``udp_multicast`` without a channel a group of its own (the plant); else (the TCU) that
+    is an error naming what to pass."""
+    given = {key: getattr(args, key) for key in _FROM_FLAGS if getattr(args, key, None) is not None}
+    given.update(getattr(args, "bus_kwargs", None) or {})
+    config = resolve_bus_config(context=getattr(args, "config_context", None), **given)
+    if config["interface"] == UDP_MULTICAST and config.get("channel") is None:
+        if not fresh_udp:
+            raise ValueError(f"-i {UDP_MULTICAST} needs the channel (multicast group) and port of the plant: "
+                             f"start it with the options 'dsg-hil plant' prints, e.g. -i {UDP_MULTICAST} "
+                             "-c 239.255.12.34 --bus-kwargs port=40000")
+        config.update(fresh_udp_group())
+    return config
+
+
+def resolve_bus_config(interface: str | None = None, channel: str | None = None,
+                       context: str | None = None, **extra: Any) -> dict[str, Any]:
+    """The python-can configuration to open, with the given values overriding every other source."""
+    given = {k: v for k, v in (("interface", interface), ("channel", channel)) if v is not None} | extra
+    try:
+        config = dict(can.util.load_config(config=given, context=context))
+    except can.CanInterfaceNotImplementedError as exc:
+        if "interface" in given or "None" not in str(exc):
+            raise ValueError(f"interface: {exc}") from None
+        config = {**extra, "interface": None, "channel": given.get("channel", os.environ.get("CAN_CHANNEL"))}
+    if not config.get("interface"):
+        if vcan0_present():
+            config.update(interface="socketcan", channel=config.get("channel") or "vcan0")
+        else:
+            config.update(interface="virtual", channel=config.get("channel") or VIRTUAL_CHANNEL)
+    if config.get("channel") is None and config["interface"] != UDP_MULTICAST:
+        config["channel"] = VIRTUAL_CHANNEL if config["interface"] == "virtual" else "vcan0"
+    return config
+
+
+def fresh_udp_group() -> dict[str, Any]:
+    """A multicast group in 239.255.0.0/16 (IPv4 local scope) and a UDP port free on this host, for one run.
+
+    Both are needed: python-can binds the port on every address, and Linux delivers a datagram to every socket
+    bound to its port that joined *any* group on the host, so only the port separates two runs."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("", 0))
+        port = sock.getsockname()[1]
+    rng = random.SystemRandom()
+    return {"channel": f"239.255.{rng.randrange(256)}.{rng.randrange(1, 255)}", "port": port}
+
+
+def bus_args(config: dict[str, Any]) -> list[str]:
+    """Command-line options of :func:`add_bus_arguments` that open the bus of ``config`` (for ecu-stub)."""
+    argv = ["-i", str(config["interface"]), "-c", str(config["channel"])]
+    kwargs = []
+    for key, value in config.items():
+        if key in ("interface", "channel") or value is None:
+            continue
+        if isinstance(value, (can.BitTiming, can.BitTimingFd)):
+            argv += ["--timing", *(f"{k}={v}" for k, v in value.items() if type(v) is int)]
+        elif isinstance(value, (bool, int, float, str)) and str(value) and not any(c.isspace() for c in str(value)):
+            kwargs.append(f"{key}={value}")
+        else:
+            raise ValueError(f"bus option {key}={value!r} cannot be passed on the command line")
+    return argv + (["--bus-kwargs", *kwargs] if kwargs else [])
+
+
+def bus_name(config: dict[str, Any]) -> str:
+    """``interface:channel`` (and the port of a udp_multicast bus) for messages."""
+    port = f" port {config['port']}" if config["interface"] == UDP_MULTICAST and "port" in config else ""
+    return f"{config['interface']}:{config['channel']}{port}"
+
+
+def per_process_warning(config: dict[str, Any]) -> str | None:
+    """Why a process alone on python-can's ``virtual`` interface will not meet one in another process."""
+    if config["interface"] != "virtual":
+        return None
+    return (f"python-can's 'virtual' interface lives inside one process: a plant or TCU started as another "
+            f"process does not hear this one. For two processes use -i {UDP_MULTICAST} (no setup; the plant "
+            "prints the options for the TCU) or -i socketcan -c vcan0")
+
+
+def log_channel(config: dict[str, Any]) -> str:
+    """The channel written to logs: the socketcan interface's own, else ``vcan0`` (so ``canplayer -I`` replays
+    a log of a virtual or udp_multicast run onto vcan0 with no mapping)."""
+    return str(config["channel"]) if config["interface"] == "socketcan" else LOG_CHANNEL
 
 
 def vcan0_present() -> bool:
     return Path("/sys/class/net/vcan0").exists()
 
 
-def resolve_bus_config(interface: str | None = None, channel: str | None = None,
-                       context: str | None = None) -> dict:
-    """The python-can configuration to open, with the flags overriding every other source."""
-    given = {k: v for k, v in (("interface", interface), ("channel", channel)) if v is not None}
-    try:
-        config = dict(can.util.load_config(config=given, context=context))
-    except can.CanInterfaceNotImplementedError as exc:
-        if "interface" in given or "None" not in str(exc):
-            raise ValueError(f"interface: {exc}") from None
-        config = {"interface": None, "channel": given.get("channel", os.environ.get("CAN_CHANNEL"))}
-    if not config.get("interface"):
-        if vcan0_present():
-            config.update(interface="socketcan", channel=config.get("channel") or "vcan0")
-        else:
-            config.update(interface="virtual", channel=config.get("channel") or VIRTUAL_CHANNEL)
-    if config.get("channel") is None:
-        config["channel"] = VIRTUAL_CHANNEL if config["interface"] == "virtual" else "vcan0"
-    return config
-
-
-def open_bus(config: dict) -> can.BusABC:
+def open_bus(config: dict[str, Any]) -> can.BusABC:
     """Open a bus from a resolved configuration; a failure is one readable ValueError."""
     try:
         return can.Bus(**{**config, "receive_own_messages": False})

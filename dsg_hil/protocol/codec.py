@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -18,7 +19,7 @@ from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
 
-DEFAULT_DBC = Path(__file__).resolve().parent.parent / "data" / "dsg_hil.dbc"
+DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
 
 class ProtocolError(ValueError):
@@ -41,13 +42,15 @@ class DecodedFrame:
 
 
 def load_dbc(path: str | Path | None = None) -> Database:
-    path = Path(path) if path is not None else DEFAULT_DBC
+    """Load a DBC file strictly; ``None``: the one shipped inside the package (read as a package resource)."""
     try:
+        if path is None:
+            return cantools.database.load_string(DEFAULT_DBC.read_text(encoding="utf-8"), "dbc", strict=True)
         return cantools.database.load_file(str(path), strict=True)
     except FileNotFoundError:
-        raise ProtocolError(f"{path}: DBC file not found") from None
+        raise ProtocolError(f"{path or DEFAULT_DBC}: DBC file not found") from None
     except Exception as exc:  # cantools raises several types for a bad file
-        raise ProtocolError(f"{path}: cannot load DBC ({exc})") from None
+        raise ProtocolError(f"{path or DEFAULT_DBC}: cannot load DBC ({exc})") from None
 
 
 class Codec:

@@ -7,7 +7,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-ECU_STUB = Path(__file__).resolve().parents[2] / "ecu_stub"
+import ecu_stub
+
+ECU_STUB = Path(ecu_stub.__file__).resolve().parent  # the sources under test, in a checkout or installed
 
 
 def imported_modules(path: Path) -> set[str]:

@@ -16,10 +16,14 @@ from pathlib import Path
 import pytest
 
 from dsg_hil.protocol import load_dbc
+from dsg_hil.protocol.codec import DEFAULT_DBC
 from dsg_hil.vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
 
-ROOT = Path(__file__).resolve().parents[2]
-DBC = ROOT / "dbc" / "dsg_hil.dbc"
+DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "vcan: end-to-end on a real SocketCAN vcan0 (run with 'dsg-hil vcan')")
 
 
 def pytest_collection_modifyitems(items):
