@@ -68,16 +68,17 @@ def test_uniform_temperature_at_environment_is_a_steady_state(params):
 
 
 def test_clutch_conductance_from_geometry(params):
-    g = params.clutch.test
-    e = clutch_element(params, g)
-    assert e.K_io == pytest.approx(params.thermal.clutch.h_plate_oil * 2 * math.pi * (0.125**2 - 0.086**2))
+    e = clutch_element(params.clutch.test, params.thermal.clutch.test)
+    assert e.K_io == pytest.approx(params.thermal.clutch.test.h_plate_oil * 2 * math.pi * (0.125**2 - 0.086**2))
+    assert e.C == params.clutch.test.C_plate and e.V_o == params.thermal.clutch.test.V_o
 
 
 def test_hydraulic_sources_turn_all_pump_power_into_heat(params):
     c = params.circuit
     q = heat_sources(params, 1000.0, 2000.0, 0.5e6, 0.7e6)
     assert q[NODES.index("CL")] == 1000.0 and q[NODES.index("CH")] == 2000.0
-    assert q[NODES.index("CLo")] == pytest.approx(c.Q_cool_CL * 0.5e6)
+    assert q[NODES.index("CLo")] == pytest.approx(params.thermal.clutch.CL.Q_cool * 0.5e6)
+    assert q[NODES.index("CHo")] == pytest.approx(params.thermal.clutch.CH.Q_cool * 0.7e6)
     assert q.sum() - 3000.0 == pytest.approx(c.Q_pump * c.p_line / c.eta_pump)
 
 
