@@ -24,9 +24,10 @@ from scipy.optimize import least_squares, minimize_scalar
 from .creep_model import CreepResult, creep_speed_for_slip, operating_point, simulate_creep
 from .physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
 from .physics.params import Params
-from .reference import (CREEP_MU_CH, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C, CREEP_T_ONCOMING_AT_STOP_C,
+from .reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C, CREEP_T_ONCOMING_AT_STOP_C,
                         CREEP_T_START_C, CREEP_TIME_S, RIG_CASES, RIG_DURATION_S, RIG_T_START_C,
-                        SAFETY_TEMPERATURE_C, TOL_CREEP_T_C, TOL_CREEP_TIME_REL, TOL_SLIP_TIME_REL)
+                        SAFETY_TEMPERATURE_C, TOL_CREEP_MU, TOL_CREEP_P_MPA, TOL_CREEP_T_C, TOL_CREEP_TIME_REL,
+                        TOL_SLIP_TIME_REL)
 from .rig import RigCase, run_rig
 from .scenario import Scenario, load_scenario
 
@@ -139,6 +140,16 @@ def timeline_checks(r: CreepResult) -> list[Check]:
 
 
 TAKEOVER_MARGIN_C = 4.0  # the fit keeps CH this far below the take-over limit when CL's second slip ends
+
+
+def friction_checks(r: CreepResult) -> list[Check]:
+    """Section V.B's first CH slip: mu_CH and P_CH at its start and end beside the published values."""
+    return [
+        Check("mu_CH_start", r.mu_CH_first[0], CREEP_MU_CH[0], TOL_CREEP_MU),
+        Check("mu_CH_end", r.mu_CH_first[1], CREEP_MU_CH[1], TOL_CREEP_MU),
+        Check("P_CH_start_mpa", r.P_CH_first[0] / 1e6, CREEP_P_CH_MPA[0], TOL_CREEP_P_MPA),
+        Check("P_CH_end_mpa", r.P_CH_first[1] / 1e6, CREEP_P_CH_MPA[1], TOL_CREEP_P_MPA),
+    ]
 
 
 def _timeline_residuals(r: CreepResult, T_takeover: float) -> np.ndarray:

@@ -157,3 +157,65 @@ def simulate_creep(params: Params, op: OperatingPoint, T_clutch: dict[str, float
     first_P = (P_CH[0], P_CH[-1]) if P_CH else (math.nan, math.nan)
     trace = {"t": np.array(ts), "T_CL": np.array(T_CL), "T_CH": np.array(T_CH)}
     return CreepResult(phases, t, stopped, slip_time, T_max, first, first_P, trace)
+
+
+def run_plant_creep(params: Params, scenario, T_handover: float = 250.0, T_takeover: float = 240.0,
+                    dt: float = 1e-3, kp: float = 1.5e6, ki: float = 1.5e6, ramp_s: float = 0.5,
+                    settle_s: float = 3.0) -> CreepResult:
+    """The idealised strategy closed around the full plant on its truth (no bus, no TCU): a PI controller on vehicle
+    speed [Pa per m/s, Pa per m] sets the slipping clutch's pressure, feed-forward from the quasi-static load; at
+    ``T_handover`` the on-coming clutch takes over (the off-going one ramps out over ``ramp_s``) if it is below
+    ``T_takeover``, otherwise both open and the brake holds the vehicle. Creep starts when the brake is released.
+    mu_CH and P_CH of the first CH slip are taken from ``settle_s`` after the takeover (the handover transient
+    over) to its end. A cross-check of the reduced model, not a TCU."""
+    from .plant import Plant, PlantInputs  # the plant depends on the physics only; keep this module importable alone
+
+    s = scenario
+    omega_e = params.engine.omega_idle if s.engine_speed_rpm is None else s.engine_speed_rpm / RAD_S_TO_RPM
+    v_des = max(d.desired_speed_mps for d in s.driver if d.creep_request)
+    t_start = min(d.t_s for d in s.driver if d.creep_request)
+    op = operating_point(params, omega_e, v_des, s.grade_rad)
+    feed_forward = {k: pressure_for_torque(params, k, op.torque[k], op.slip[k] * RAD_S_TO_RPM, 150.0)[0]
+                    for k in CLUTCHES}
+    plant = Plant(params, dt, T_init=s.initial_temperatures(NODES), v_init=s.v_mps)
+    inputs = PlantInputs(brake=1.0, grade=s.grade_rad, engine_speed_request=omega_e)
+    out = plant.step(inputs)
+    while out.t < t_start - 1e-9:
+        out = plant.step(inputs)
+    active, integral, ramp_from, P_off = "CL", 0.0, None, 0.0
+    phases = [Phase("CL", 0.0)]
+    mu_CH: list[float] = []
+    P_CH: list[float] = []
+    T_max = {"CL": out.T_CL, "CH": out.T_CH}
+    stopped = False
+    for _ in range(int(round((s.duration_s - t_start) / dt))):
+        t = out.t - t_start
+        error = v_des - out.v
+        integral += error * dt
+        P = max(0.0, feed_forward[active] + kp * error + ki * integral)
+        cmd = {active: P, "CH" if active == "CL" else "CL": 0.0}
+        if ramp_from is not None:
+            share = min(1.0, (t - ramp_from) / ramp_s)
+            cmd["CH" if active == "CL" else "CL"] = P_off * (1.0 - share)
+            ramp_from = None if share >= 1.0 else ramp_from
+        out = plant.step(PlantInputs(cmd["CL"], cmd["CH"], 0.0, s.grade_rad, omega_e))
+        T = {"CL": out.T_CL, "CH": out.T_CH}
+        for k in CLUTCHES:
+            T_max[k] = max(T_max[k], T[k])
+        if active == "CH" and len(phases) == 2 and t - phases[1].t_start >= settle_s:
+            mu_CH.append(out.mu_CH)
+            P_CH.append(out.P_CH)
+        if ramp_from is None and T[active] >= T_handover:
+            other = "CH" if active == "CL" else "CL"
+            phases[-1].t_end, phases[-1].T_other_end = out.t - t_start, T[other]
+            if T[other] >= T_takeover:
+                stopped = True
+                break
+            active, integral, ramp_from, P_off = other, 0.0, out.t - t_start, P
+            phases.append(Phase(active, out.t - t_start))
+    if not stopped:
+        phases[-1].t_end = out.t - t_start
+    slip_time = {k: sum(p.t_end - p.t_start for p in phases if p.clutch == k) for k in CLUTCHES}
+    first = (mu_CH[0], mu_CH[-1]) if mu_CH else (math.nan, math.nan)
+    first_P = (P_CH[0], P_CH[-1]) if P_CH else (math.nan, math.nan)
+    return CreepResult(phases, phases[-1].t_end, stopped, slip_time, T_max, first, first_P)

@@ -47,10 +47,13 @@ class RigTrace:
 
 
 def rig_configuration(params: Params, T_start: float) -> Params:
-    """The parameters of the Section III.C rig: the test clutch and its lubrication in slot CL, E at T_start."""
+    """The parameters of the Section III.C rig: the test clutch and its lubrication in slot CL, E at T_start.
+    The rig has no second clutch: slot CH keeps the vehicle's pack but no cooling flow, so it stays at T_start
+    and nothing of the vehicle's CH reaches the rig's results."""
+    cool = params.thermal.clutch
     clutch = replace(params.clutch, CL=params.clutch.test)
-    thermal = replace(params.thermal, T_E=T_start, clutch=replace(params.thermal.clutch, CL=params.thermal.clutch.test))
-    return replace(params, clutch=clutch, thermal=thermal)
+    cool = replace(cool, CL=cool.test, CH=replace(cool.CH, Q_cool=0.0))
+    return replace(params, clutch=clutch, thermal=replace(params.thermal, T_E=T_start, clutch=cool))
 
 
 def run_rig(params: Params, case: RigCase, duration: float = 100.0, dt: float = 1e-3,
