@@ -106,7 +106,9 @@ class CreepResult:
 def simulate_creep(params: Params, op: OperatingPoint, T_clutch: dict[str, float], T_oil: float,
                    T_handover: float = 250.0, T_takeover: float = 240.0, horizon: float = 600.0,
                    dt: float = 0.05) -> CreepResult:
-    """The idealised strategy on the thermal network (exact step dt), from plates at T_clutch and oil at T_oil."""
+    """The idealised strategy on the thermal network (exact step dt), from plates at T_clutch and oil at T_oil.
+    A handover falls where the slipping plate crosses T_handover, linearly within its step; the next step starts
+    there. Pressure and mu are evaluated at each step's start temperature."""
     net = gearbox_network(params)
     disc = discretize(net, dt)
     T = np.full(len(NODES), float(T_oil))
@@ -120,8 +122,7 @@ def simulate_creep(params: Params, op: OperatingPoint, T_clutch: dict[str, float
     P_CH: list[float] = []
     ts, T_CL, T_CH = [0.0], [T[idx["CL"]]], [T[idx["CH"]]]
     t, stopped = 0.0, False
-    n_steps = int(round(horizon / dt))
-    for _ in range(n_steps):
+    while t < horizon - 1e-9:
         slip_rpm = op.slip[active] * RAD_S_TO_RPM
         P, mu = pressure_for_torque(params, active, op.torque[active], slip_rpm, T[idx[active]])
         if active == "CH" and sum(p.clutch == "CH" for p in phases) == 1:
@@ -143,8 +144,9 @@ def simulate_creep(params: Params, op: OperatingPoint, T_clutch: dict[str, float
                 break
             active = other
             phases.append(Phase(active, t_cross))
-        t += dt
-        T = T_new
+            t, T = t_cross, T_cross  # the next step starts at the handover
+        else:
+            t, T = t + dt, T_new
         for k in CLUTCHES:
             T_max[k] = max(T_max[k], float(T[idx[k]]))
         ts.append(t)
