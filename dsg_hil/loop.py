@@ -27,13 +27,8 @@ _channels = itertools.count()
 
 
 def plant_for(scenario: Scenario, params: Params, dt: float = 1e-3) -> Plant:
-    """A plant in the scenario's initial state: clutch plates at their start temperature, every other thermal
-    node at the oil temperature, the vehicle at its start speed."""
-    T_init = {node: scenario.T_oil_c for node in NODES}
-    T_init.update(CL=scenario.T_clutch_c, CH=scenario.T_clutch_c)
-    for node in ("CL", "CH"):  # per-clutch start temperatures, where the scenario gives them
-        T_init[node] = getattr(scenario, f"T_{node}_c", None) or T_init[node]
-    return Plant(params, dt=dt, T_init=T_init, v_init=scenario.v_mps)
+    """A plant in the scenario's initial state (plate and oil temperatures, vehicle speed)."""
+    return Plant(params, dt=dt, T_init=scenario.initial_temperatures(NODES), v_init=scenario.v_mps)
 
 
 @dataclass

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import can
 
-from ..physics.thermal import NODES
+from ..loop import plant_for
 from ..plant import Plant
 from ..plant_io import PLANT_USES
 from ..protocol import Codec, load_dbc
@@ -54,7 +54,7 @@ def scenario_from(args: argparse.Namespace) -> Scenario:
 
 
 def make_plant(args: argparse.Namespace, scenario: Scenario) -> Plant:
-    return Plant(params_from(args), T_init=scenario.initial_temperatures(NODES), v_init=scenario.v_mps)
+    return plant_for(scenario, params_from(args))
 
 
 class LogListener:
