@@ -2,8 +2,10 @@
 
 * Lock-step (``run_lockstep``): the plant is the time master. Each control period (the TCU_CMD cycle time of the
   DBC) it sends the frames that are due and a SIM_SYNC tick, waits for the TCU_CMD whose SyncEcho answers that
-  tick (wall-clock timeout, then a clear error), and advances. Frame timestamps are simulated time, so the same
-  scenario gives the same frames, bit for bit.
+  tick, and advances. A late answer makes it re-send the period's frames, byte for byte (the TCU answers a
+  repeated tick with the frames it already sent); retransmissions and duplicates are counted, never logged, so
+  a run that needed them logs the same frames as one that did not. Frame timestamps are simulated time, so the
+  same scenario gives the same frames, bit for bit. A TCU silent for the reply timeout ends the run (PeerLost).
 * Real time (``run_realtime``): the plant steps at its fixed step paced by a monotonic clock against absolute
   deadlines, sends each frame at its DBC cycle time, and uses commands as they arrive.
 
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter as Tally
 from typing import Callable
 
 import can
@@ -23,15 +26,25 @@ import can
 from .physics.friction import RAD_S_TO_RPM
 from .plant import Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
-from .protocol import Codec, RxMonitor, TxScheduler
+from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
+from .protocol.validity import DUPLICATE, IGNORED, NEW, REJECTED
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
 
 log = logging.getLogger(__name__)
 
 
+RETRY_FIRST_S = 0.1  # lock-step: wall-clock wait for a tick's answer before the first re-send [s]
+RETRY_MAX_S = 1.0  # ... the wait doubles after each re-send up to this [s]
+RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.8+1+1+1 = 4.5 s in all)
+
+
 class PeerTimeout(RuntimeError):
-    """The TCU did not answer a lock-step tick in time."""
+    """The TCU did not answer the lock-step presence probe in time."""
+
+
+class PeerLost(PeerTimeout):
+    """The TCU fell silent during a lock-step run (stop reason ``peer_lost``; the summary is valid so far)."""
 
 
 class PlantRunner:
@@ -54,12 +67,20 @@ class PlantRunner:
         self.P_cmd = (0.0, 0.0)
         self.tick = 0
         self.sent = 0
+        self.sent_by: Tally[str] = Tally()  # frames sent (first transmissions, the ones logged)
+        self.retries: Tally[str] = Tally()  # lock-step re-sends (not logged)
+        self.unanswered_ticks = 0
+        self._names = {codec.frame_id(name): name for name in PLANT_USES}
+        self._period: list[can.Message] = []  # lock-step: this period's frames, for re-sending
+        self._last_heard = 0.0
         self._cmd_on_bus: float | None = None
 
     # ---- frames --------------------------------------------------------------------------------------------
     def _emit(self, msg: can.Message) -> None:
         self.bus.send(msg)
         self.sent += 1
+        self.sent_by[self._names[msg.arbitration_id]] += 1
+        self._period.append(msg)
         for listener in self.listeners:
             listener(msg)
 
@@ -71,11 +92,12 @@ class PlantRunner:
         for name in names:
             self._emit(self.tx.frame(name, values[name], timestamp=stamp))
 
-    def _take(self, msg: can.Message, now: float, stamp: float) -> str | None:
-        """Handle one received frame; returns the message name if accepted."""
-        frame = self.rx.receive(msg, now)
-        if frame is None:
-            return None
+    def _take(self, msg: can.Message, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
+        """Handle one received frame: (status, frame) as :meth:`RxMonitor.take`; only new frames are used and
+        logged."""
+        status, frame = self.rx.take(msg, now)
+        if status != NEW:
+            return status, frame
         msg.timestamp = stamp
         for listener in self.listeners:
             listener(msg)
@@ -83,7 +105,7 @@ class PlantRunner:
             self.P_cmd = (frame.values["P_CL_Cmd"] * 1e6, frame.values["P_CH_Cmd"] * 1e6)
         elif frame.name == "TCU_STATUS":
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
-        return frame.name
+        return status, frame
 
     def _check_command(self, now: float) -> None:
         valid = self.rx.valid("TCU_CMD", now)
@@ -131,20 +153,30 @@ class PlantRunner:
 
         First a presence handshake (not logged): a SIM_SYNC probe every 0.2 s until the TCU answers, which
         resets it; so the run starts from the same state whenever the TCU came up, and no tick is lost to a TCU
-        still starting."""
+        still starting. Then each tick is re-sent while its answer is late (see ``_await_answer``); a TCU silent
+        for ``reply_timeout`` wall-clock seconds ends the run with :class:`PeerLost` (stop reason
+        ``peer_lost``), the summary being valid up to that point."""
         self._handshake(startup_timeout, pump)
         t0 = time.monotonic()
-        for self.tick in range(self.n_periods):
-            t = self.tick * self.period
-            self._publish_due(t, stamp=t)
-            self._emit(self.sync.frame(SYNC, {"Tick": self.tick}, timestamp=t))
-            if pump is not None:
-                pump()
-            self._await_command(t, reply_timeout)
-            self._check_command(t)
-            self._advance(self.steps_per_period, t)
-            self._report()
-        self.summary.wall_time_s = time.monotonic() - t0
+        self._last_heard = t0
+        try:
+            for self.tick in range(self.n_periods):
+                t = self.tick * self.period
+                self._period.clear()
+                self._publish_due(t, stamp=t)
+                self._emit(self.sync.frame(SYNC, {"Tick": self.tick}, timestamp=t))
+                if pump is not None:
+                    pump()
+                if not self._await_answer(t, reply_timeout, pump):
+                    self.unanswered_ticks += 1
+                    log.warning("t=%.2f s: lock-step tick %d unanswered after %d re-sends: the period runs on the "
+                                "last command while it is valid (DBC: 3 cycle times), then unpowered",
+                                t, self.tick, RETRIES_PER_TICK)
+                self._check_command(t)
+                self._advance(self.steps_per_period, t)
+                self._report()
+        finally:
+            self.summary.wall_time_s = time.monotonic() - t0
         return self.summary
 
     def _handshake(self, timeout: float, pump: Callable[[], None] | None) -> None:
@@ -158,25 +190,55 @@ class PlantRunner:
                 msg = self.bus.recv(timeout=remaining)
                 frame = None if msg is None else self.rx.receive(msg, 0.0)
                 if frame is not None and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == SYNC_PROBE & 0xFF:
-                    self.rx = RxMonitor(self.codec, list(PLANT_RX))  # the run starts from clean counters
+                    self.rx = RxMonitor(self.codec, list(PLANT_RX))  # the run starts from clean counts,
+                    self.rx.prime(msg)  # its counters following the answer (a repeat of it is a duplicate)
                     self.sync = TxScheduler(self.codec, [SYNC])
                     return
         raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
                           f"(ecu-stub) running on the same bus?")
 
-    def _await_command(self, t: float, timeout: float) -> None:
-        deadline = time.monotonic() + timeout
+    def _await_answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
+        """Wait for the TCU_CMD answering this tick; True when it came.
+
+        While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
+        ``RETRY_FIRST_S`` and then at doubling intervals up to ``RETRY_MAX_S``, at once when a TCU_CMD is
+        rejected; the TCU answers a repeated tick with the frames it already sent. After ``RETRIES_PER_TICK``
+        re-sends the tick is given up (False). Nothing at all from the TCU for ``reply_timeout``: PeerLost."""
+        cmd_id = self.codec.frame_id("TCU_CMD")
         echo = self.tick & 0xFF
+        retries, interval = 0, RETRY_FIRST_S
+        next_retry = time.monotonic() + interval
         while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise PeerTimeout(f"no TCU_CMD answered lock-step tick {self.tick} (t={t:.2f} s) within "
-                                  f"{timeout:g} s: is the TCU (ecu-stub) running on the same bus?")
-            msg = self.bus.recv(timeout=remaining)
+            now = time.monotonic()
+            if now - self._last_heard > reply_timeout:
+                self.summary.stop_reason = "peer_lost"
+                raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} s): "
+                               f"peer lost; the run ends here")
+            if now >= next_retry:
+                if retries == RETRIES_PER_TICK:
+                    return False
+                self._resend_period()
+                retries += 1
+                interval = min(2.0 * interval, RETRY_MAX_S)
+                next_retry = now + interval
+                if pump is not None:
+                    pump()
+                continue
+            msg = self.bus.recv(timeout=min(next_retry, self._last_heard + reply_timeout) - now)
             if msg is None:
                 continue
-            if self._take(msg, t, stamp=t) == "TCU_CMD" and int(self.rx.values("TCU_CMD")["SyncEcho"]) == echo:
-                return
+            status, frame = self._take(msg, t, stamp=t)
+            if status != IGNORED:
+                self._last_heard = time.monotonic()
+            if status == REJECTED and msg.arbitration_id == cmd_id:
+                next_retry = time.monotonic()  # a command that failed its checks: ask again at once
+            elif status == NEW and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == echo:
+                return True
+
+    def _resend_period(self) -> None:
+        for msg in self._period:
+            self.bus.send(msg)
+            self.retries[self._names[msg.arbitration_id]] += 1
 
     # ---- real time ------------------------------------------------------------------------------------------
     def run_realtime(self, clock: Callable[[], float] = time.monotonic) -> RunSummary:
@@ -193,7 +255,8 @@ class PlantRunner:
             deadline = start + (k + 1) * dt
             while (msg := self.bus.recv(timeout=max(deadline - clock(), 0.0))) is not None:
                 on_bus = msg.timestamp  # until this step's deadline: take what arrives
-                if self._take(msg, clock() - start, stamp=start + t) == "TCU_CMD":
+                status, frame = self._take(msg, clock() - start, stamp=start + t)
+                if status == NEW and frame.name == "TCU_CMD":
                     self._cmd_on_bus = on_bus
             now = clock() - start
             self._check_command(now)
@@ -203,6 +266,7 @@ class PlantRunner:
                     self.summary.command_latency_s.append(latency)
                 self._cmd_on_bus = None
             self._advance(1, now)
+            self._period.clear()  # (re-sent in lock-step only)
             if k % self.steps_per_period == 0:
                 self._report()
         wall = self.summary.wall_time_s = clock() - start
@@ -212,5 +276,17 @@ class PlantRunner:
                         self.scenario.duration_s, wall, 100 * self.summary.realtime_factor)
         return self.summary
 
-    def frames(self) -> dict[str, int]:
-        return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total}
+    def frames(self) -> dict:
+        """Frame counts for the summary: totals (``sent`` counts first transmissions, the frames logged) and per
+        message: sent, retries (lock-step re-sends), received (every frame of it heard), taken, rejected by
+        cause, lost (counter gaps), duplicates (repeats ignored); ``unanswered_ticks``: lock-step periods run
+        without their answer."""
+        rx = self.rx.counts()
+        by_message = {}
+        for name in PLANT_USES:
+            got = rx.get(name, {"received": 0, "taken": 0, "rejected": {}, "lost": 0, "duplicates": 0})
+            by_message[name] = {"sent": self.sent_by[name], "retries": self.retries[name], **got}
+        return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total,
+                "retries": sum(self.retries.values()), "lost": sum(m["lost"] for m in rx.values()),
+                "duplicates": sum(m["duplicates"] for m in rx.values()), "unanswered_ticks": self.unanswered_ticks,
+                "by_message": by_message}

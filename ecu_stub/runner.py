@@ -5,6 +5,10 @@ Lock-step or real time is decided by the plant: once a SIM_SYNC tick has been se
 plant, and free-runs on its monotonic clock at the TCU_CMD cycle time only when no tick has come within
 ``SYNC_WAIT_S`` of the plant's first frame (a real-time plant sends no ticks). A lock-step plant first probes for
 the TCU (SIM_SYNC with Tick 0xFFFFFFFF): the TCU resets itself and answers, and the run starts from there.
+
+Lost frames cost a retry, not the run: a plant that hears no answer re-sends the tick; the TCU answers a repeated
+tick (or probe) with the very frames it already sent for it, byte for byte (same counters), without stepping
+again. Repeats of frames it already has are duplicates: counted and ignored, not errors.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from typing import Callable
 import can
 
 from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
+from dsg_hil.protocol.validity import DUPLICATE, NEW
 
 from .controller import CreepController, TcuInputs, TcuOutputs
 
@@ -64,6 +69,11 @@ class TcuRunner:
         self._sim_now = 0.0  # lock-step: the time of the last tick answered [s]
         self.heard_plant_at: float | None = None
         self.last: TcuOutputs | None = None
+        self._answered: int | None = None  # lock-step: the tick last answered (SYNC_PROBE: the probe) ...
+        self._answer: list[can.Message] = []  # ... the frames sent for it, re-sent when it is repeated ...
+        self._answer_sends = 0  # ... and how often they were sent
+        self.sent = 0
+        self.answers_resent = 0
 
     def inputs(self, now: float) -> TcuInputs:
         valid = all(self.rx.valid(name, now) for name in REQUIRED)
@@ -91,8 +101,9 @@ class TcuRunner:
             fault_bits=faults,
         )
 
-    def control(self, now: float, echo: int = 0) -> None:
-        """One controller cycle at ``now``: compute, then send TCU_CMD (and TCU_STATUS when due)."""
+    def control(self, now: float, echo: int = 0) -> list[can.Message]:
+        """One controller cycle at ``now``: compute, then send TCU_CMD (and TCU_STATUS when due); returns the
+        frames sent."""
         out = self.controller.update(self.inputs(now), now)
         self.last = out
         values = {
@@ -101,8 +112,14 @@ class TcuRunner:
                            "BrakeRequest": float(out.brake_request), "T_CL_Pred": out.T_CL_pred_c,
                            "T_CH_Pred": out.T_CH_pred_c, "FaultBits": out.fault_bits},
         }
-        for name in self.tx.due(now):
-            self.bus.send(self.tx.frame(name, values[name]))
+        frames = [self.tx.frame(name, values[name]) for name in self.tx.due(now)]
+        self._send(frames)
+        return frames
+
+    def _send(self, frames: list[can.Message]) -> None:
+        for msg in frames:
+            self.bus.send(msg)
+            self.sent += 1
 
     def handle(self, msg: can.Message, now: float) -> None:
         """Take one frame; a SIM_SYNC tick is answered at once (lock-step).
@@ -110,8 +127,8 @@ class TcuRunner:
         In lock-step, time is the plant's: frames arriving before a tick belong to it (tick time = the previous
         tick's + one cycle), so validity and controller time never depend on the wall clock."""
         stamp = self._sim_now + self.cycle if self.lockstep else now
-        frame = self.rx.receive(msg, stamp)
-        if frame is None:
+        status, frame = self.rx.take(msg, stamp)
+        if status not in (NEW, DUPLICATE):
             return
         if self.heard_plant_at is None:
             self.heard_plant_at = now
@@ -119,8 +136,16 @@ class TcuRunner:
             return
         tick = int(frame.values["Tick"])
         if tick == SYNC_PROBE:
-            self._reset_for_lockstep()
+            if self._answered != SYNC_PROBE:
+                self._reset_for_lockstep()
+            self.rx.states["SIM_SYNC"].forget()  # the plant's ticks restart their counter after the handshake
+        if tick == self._answered:  # a repeated tick (its answer was lost or late): the same frames again
+            self.answers_resent += self._answer_sends > 0
+            self._answer_sends += 1
+            self._send(self._answer)
             return
+        if status == DUPLICATE or (self._answered not in (None, SYNC_PROBE) and tick < self._answered):
+            return  # a repeat of an older tick: answered long ago
         self._sim_now = tick * self.cycle
         if not self.lockstep:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
@@ -130,18 +155,29 @@ class TcuRunner:
             for state in self.rx.states.values():
                 if state.last_time is not None:
                     state.last_time = self._sim_now
-        self.control(self._sim_now, echo=tick & 0xFF)
+        self._answer = self.control(self._sim_now, echo=tick & 0xFF)
+        self._answered, self._answer_sends = tick, 1
 
     def _reset_for_lockstep(self) -> None:
-        """Answer the plant's presence probe from a clean state, so every run starts alike."""
+        """Prepare the answer to the plant's presence probe from a clean state, so every run starts alike.
+        Repeated probes (the plant probes every 0.2 s until it hears the answer) get the same answer, byte for
+        byte: the counters restart once, and the tick-0 answer follows the probe answer's counter."""
         log.info("lock-step presence probe: reset and answer")
         self.lockstep = True
         self.controller = type(self.controller)(self.controller.cal)
         self.rx = RxMonitor(self.codec, list(TCU_RX))
         self.tx = TxScheduler(self.codec, list(TCU_TX))
-        self.bus.send(self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF}))
-        self.tx = TxScheduler(self.codec, list(TCU_TX))
+        self._answer = [self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF})]
+        self._answered, self._answer_sends = SYNC_PROBE, 0
         self._sim_now = -self.cycle  # the next tick is tick 0
+
+    def frame_counts(self) -> dict:
+        """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost
+        (counter gaps) and duplicates."""
+        rx = self.rx.counts()
+        return {"sent": self.sent, "answers_resent": self.answers_resent, "received": self.rx.received,
+                "rejected": self.rx.rejected_total, "lost": sum(m["lost"] for m in rx.values()),
+                "duplicates": sum(m["duplicates"] for m in rx.values()), "by_message": rx}
 
     def free_running(self, now: float) -> bool:
         """True once the plant has been heard for a while without a tick: a real-time plant."""
