@@ -70,6 +70,8 @@ class PlantRunner:
         self.sent_by: Tally[str] = Tally()  # frames sent (first transmissions, the ones logged)
         self.retries: Tally[str] = Tally()  # lock-step re-sends (not logged)
         self.unanswered_ticks = 0
+        self.probes = 0  # lock-step presence probes sent before tick 0 (not logged)
+        self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._period: list[can.Message] = []  # lock-step: this period's frames, for re-sending
         self._last_heard = 0.0
@@ -171,7 +173,7 @@ class PlantRunner:
                     self.unanswered_ticks += 1
                     log.warning("t=%.2f s: lock-step tick %d unanswered after %d re-sends: the period runs on the "
                                 "last command while it is valid (DBC: 3 cycle times), then unpowered",
-                                t, self.tick, RETRIES_PER_TICK)
+                                t, self.tick, self.retries_per_tick)
                 self._check_command(t)
                 self._advance(self.steps_per_period, t)
                 self._report()
@@ -183,6 +185,7 @@ class PlantRunner:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             self.bus.send(self.sync.frame(SYNC, {"Tick": SYNC_PROBE}))
+            self.probes += 1
             if pump is not None:
                 pump()
             probe_end = min(deadline, time.monotonic() + 0.2)
@@ -201,12 +204,12 @@ class PlantRunner:
         """Wait for the TCU_CMD answering this tick; True when it came.
 
         While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
-        ``RETRY_FIRST_S`` and then at doubling intervals up to ``RETRY_MAX_S``, at once when a TCU_CMD is
-        rejected; the TCU answers a repeated tick with the frames it already sent. After ``RETRIES_PER_TICK``
+        ``retry_first_s`` and then at doubling intervals up to ``retry_max_s``, at once when a TCU_CMD is
+        rejected; the TCU answers a repeated tick with the frames it already sent. After ``retries_per_tick``
         re-sends the tick is given up (False). Nothing at all from the TCU for ``reply_timeout``: PeerLost."""
         cmd_id = self.codec.frame_id("TCU_CMD")
         echo = self.tick & 0xFF
-        retries, interval = 0, RETRY_FIRST_S
+        retries, interval = 0, self.retry_first_s
         next_retry = time.monotonic() + interval
         while True:
             now = time.monotonic()
@@ -215,11 +218,11 @@ class PlantRunner:
                 raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} s): "
                                f"peer lost; the run ends here")
             if now >= next_retry:
-                if retries == RETRIES_PER_TICK:
+                if retries == self.retries_per_tick:
                     return False
                 self._resend_period()
                 retries += 1
-                interval = min(2.0 * interval, RETRY_MAX_S)
+                interval = min(2.0 * interval, self.retry_max_s)
                 next_retry = now + interval
                 if pump is not None:
                     pump()
@@ -280,7 +283,7 @@ class PlantRunner:
         """Frame counts for the summary: totals (``sent`` counts first transmissions, the frames logged) and per
         message: sent, retries (lock-step re-sends), received (every frame of it heard), taken, rejected by
         cause, lost (counter gaps), duplicates (repeats ignored); ``unanswered_ticks``: lock-step periods run
-        without their answer."""
+        without their answer; ``probes``: lock-step presence probes it took to find the TCU."""
         rx = self.rx.counts()
         by_message = {}
         for name in PLANT_USES:
@@ -289,4 +292,4 @@ class PlantRunner:
         return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total,
                 "retries": sum(self.retries.values()), "lost": sum(m["lost"] for m in rx.values()),
                 "duplicates": sum(m["duplicates"] for m in rx.values()), "unanswered_ticks": self.unanswered_ticks,
-                "by_message": by_message}
+                "probes": self.probes, "by_message": by_message}

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 
 from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.bus import open_bus, resolve_bus_config
@@ -42,10 +44,17 @@ def main(argv: list[str] | None = None) -> int:
         codec = Codec(load_dbc(args.dbc), TCU_USES)
         bus = open_bus(config)
         print(f"ecu-stub: listening on {config['interface']}:{config['channel']}", file=sys.stderr, flush=True)
+        tcu = TcuRunner(codec, bus)
+        stop = threading.Event()  # SIGTERM: stop serving, report, exit 0 (like Ctrl-C)
+        signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
         try:
-            TcuRunner(codec, bus).run(duration=args.duration, idle_timeout=args.idle_exit)
+            tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
         finally:
             bus.shutdown()
+            c = tcu.frame_counts()
+            print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent); received "
+                  f"{c['received']}, rejected {c['rejected']}, lost {c['lost']}, duplicates {c['duplicates']}",
+                  file=sys.stderr, flush=True)
     except KeyboardInterrupt:
         return 0
     except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors

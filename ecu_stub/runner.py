@@ -102,8 +102,8 @@ class TcuRunner:
         )
 
     def control(self, now: float, echo: int = 0) -> list[can.Message]:
-        """One controller cycle at ``now``: compute, then send TCU_CMD (and TCU_STATUS when due); returns the
-        frames sent."""
+        """One controller cycle at ``now``: compute, then send TCU_STATUS when due and TCU_CMD, last (in lock-step
+        it completes the answer to the tick); returns the frames sent."""
         out = self.controller.update(self.inputs(now), now)
         self.last = out
         values = {
@@ -112,7 +112,8 @@ class TcuRunner:
                            "BrakeRequest": float(out.brake_request), "T_CL_Pred": out.T_CL_pred_c,
                            "T_CH_Pred": out.T_CH_pred_c, "FaultBits": out.fault_bits},
         }
-        frames = [self.tx.frame(name, values[name]) for name in self.tx.due(now)]
+        due = sorted(self.tx.due(now), key=lambda name: name == "TCU_CMD")
+        frames = [self.tx.frame(name, values[name]) for name in due]
         self._send(frames)
         return frames
 

@@ -74,8 +74,10 @@ def _do_run(args: argparse.Namespace) -> int:
         wall = time.monotonic() - t0
         summary = finish(args, runner, config, scenario, wall_time_s=round(wall, 3))
     progress(f"done: {scenario.duration_s:g} simulated s in {wall:.1f} s wall; stop: {summary['stop_reason']}; "
-             f"handovers: {len(summary['handovers'])}; frames sent {summary['frames']['sent']}, received "
-             f"{summary['frames']['received']}, rejected {summary['frames']['rejected']}")
+             f"handovers: {len(summary['handovers'])}; frames sent {summary['frames']['sent']} (re-sent "
+             f"{summary['frames']['retries']}), received {summary['frames']['received']}, rejected "
+             f"{summary['frames']['rejected']}, lost {summary['frames']['lost']}, duplicates "
+             f"{summary['frames']['duplicates']}")
     return 0
 
 
