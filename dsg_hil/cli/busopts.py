@@ -107,7 +107,7 @@ def check_output_path(option: str, path: str | None) -> None:
     while not parent.exists():
         parent = parent.parent
     if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{option} {path}: cannot write in {parent}")
+        raise ValueError(f"{option} {path}: {parent} is not a writable directory")
     if target.exists() and not os.access(target, os.W_OK):
         raise ValueError(f"{option} {path}: file not writable")
 
