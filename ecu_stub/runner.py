@@ -20,7 +20,7 @@ from typing import Callable
 import can
 
 from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
-from dsg_hil.protocol.validity import DUPLICATE, NEW
+from dsg_hil.protocol.validity import DUPLICATE, IGNORED, NEW
 
 from .controller import CreepController, TcuInputs, TcuOutputs
 
@@ -122,19 +122,20 @@ class TcuRunner:
             self.bus.send(msg)
             self.sent += 1
 
-    def handle(self, msg: can.Message, now: float) -> None:
-        """Take one frame; a SIM_SYNC tick is answered at once (lock-step).
+    def handle(self, msg: can.Message, now: float) -> bool:
+        """Take one frame; a SIM_SYNC tick is answered at once (lock-step). True if the frame was the plant's
+        (even a duplicate or a rejected one: the plant is alive), False for others (e.g. our own, looped back).
 
         In lock-step, time is the plant's: frames arriving before a tick belong to it (tick time = the previous
         tick's + one cycle), so validity and controller time never depend on the wall clock."""
         stamp = self._sim_now + self.cycle if self.lockstep else now
         status, frame = self.rx.take(msg, stamp)
         if status not in (NEW, DUPLICATE):
-            return
+            return status != IGNORED
         if self.heard_plant_at is None:
             self.heard_plant_at = now
         if frame.name != "SIM_SYNC":
-            return
+            return True
         tick = int(frame.values["Tick"])
         if tick == SYNC_PROBE:
             if self._answered != SYNC_PROBE:
@@ -144,9 +145,9 @@ class TcuRunner:
             self.answers_resent += self._answer_sends > 0
             self._answer_sends += 1
             self._send(self._answer)
-            return
+            return True
         if status == DUPLICATE or (self._answered not in (None, SYNC_PROBE) and tick < self._answered):
-            return  # a repeat of an older tick: answered long ago
+            return True  # a repeat of an older tick: answered long ago
         self._sim_now = tick * self.cycle
         if not self.lockstep:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
@@ -158,6 +159,7 @@ class TcuRunner:
                     state.last_time = self._sim_now
         self._answer = self.control(self._sim_now, echo=tick & 0xFF)
         self._answered, self._answer_sends = tick, 1
+        return True
 
     def _reset_for_lockstep(self) -> None:
         """Prepare the answer to the plant's presence probe from a clean state, so every run starts alike.
@@ -202,10 +204,9 @@ class TcuRunner:
             free = self.free_running(now - start)
             msg = self.bus.recv(timeout=max(0.0, next_cycle - now) if free else 0.05)
             now = clock()
-            if msg is not None:
+            if msg is not None and self.handle(msg, now - start):
                 last_heard = now
-                self.handle(msg, now - start)
-            elif idle_timeout is not None and self.heard_plant_at is not None and now - last_heard > idle_timeout:
+            if idle_timeout is not None and self.heard_plant_at is not None and now - last_heard > idle_timeout:
                 log.info("plant silent for %.1f s: stopping", idle_timeout)
                 return
             if not self.free_running(now - start):

@@ -147,6 +147,13 @@ def drive(runner: PlantRunner, args: argparse.Namespace, pump=None) -> None:
         runner.run_realtime()
 
 
+def frames_line(frames: dict) -> str:
+    """The frame totals of a summary, in one line."""
+    return (f"frames sent {frames['sent']} (re-sent {frames['retries']}), received {frames['received']}, rejected "
+            f"{frames['rejected']}, lost {frames['lost']}, duplicates {frames['duplicates']}, unanswered ticks "
+            f"{frames['unanswered_ticks']}")
+
+
 def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario, **extra) -> dict:
     """The run's summary (written to --summary if given)."""
     summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from contextlib import ExitStack
 
-from .busopts import add_bus_options, drive, finish, start
+from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
 
@@ -27,5 +27,5 @@ def _do_plant(args: argparse.Namespace) -> int:
         runner, config, scenario = start(args, stack, "plant")
         drive(runner, args)
         summary = finish(args, runner, config, scenario)
-    progress(f"done: stop {summary['stop_reason']}, frames {summary['frames']}")
+    progress(f"done: stop {summary['stop_reason']}; {frames_line(summary['frames'])}")
     return 0

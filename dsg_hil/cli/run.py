@@ -11,7 +11,7 @@ from contextlib import ExitStack
 
 from ..protocol import Codec
 from ..protocol.bus import open_bus
-from .busopts import add_bus_options, drive, finish, start
+from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
 
@@ -74,10 +74,7 @@ def _do_run(args: argparse.Namespace) -> int:
         wall = time.monotonic() - t0
         summary = finish(args, runner, config, scenario, wall_time_s=round(wall, 3))
     progress(f"done: {scenario.duration_s:g} simulated s in {wall:.1f} s wall; stop: {summary['stop_reason']}; "
-             f"handovers: {len(summary['handovers'])}; frames sent {summary['frames']['sent']} (re-sent "
-             f"{summary['frames']['retries']}), received {summary['frames']['received']}, rejected "
-             f"{summary['frames']['rejected']}, lost {summary['frames']['lost']}, duplicates "
-             f"{summary['frames']['duplicates']}")
+             f"handovers: {len(summary['handovers'])}; {frames_line(summary['frames'])}")
     return 0
 
 
