@@ -92,28 +92,65 @@ def log_frames(path: Path) -> list[tuple[str, str]]:
     return [(line.split()[0], line.split()[2]) for line in path.read_text().splitlines()]
 
 
-def test_lockstep_across_two_processes_over_udp_multicast(tmp_path):
-    """ecu-stub and dsg-hil plant as separate processes: the plant's log is that of the in-process run."""
-    group, duration = multicast_group(), "3"
-    ref = subprocess.run([*DSG_HIL, "run", "--interface", "virtual", "--duration", duration, "--log",
-                          str(tmp_path / "ref.log")], capture_output=True, text=True, timeout=300)
+UDP_DURATION = "20"
+
+
+@pytest.fixture(scope="module")
+def reference_log(tmp_path_factory) -> Path:
+    """The plant log of the in-process lockstep run on virtual."""
+    path = tmp_path_factory.mktemp("ref") / "ref.log"
+    ref = subprocess.run([*DSG_HIL, "run", "--interface", "virtual", "--duration", UDP_DURATION, "--log", str(path)],
+                         capture_output=True, text=True, timeout=600)
     assert ref.returncode == 0, ref.stderr
-    bus = ["--interface", "udp_multicast", "--channel", group]
+    return path
+
+
+def udp_lockstep(tmp_path: Path, during=None) -> tuple[dict, str]:
+    """ecu-stub and dsg-hil plant (lockstep) as processes on a multicast group of their own; ``during(tcu,
+    plant)`` runs while both are up. Returns the plant's summary and the TCU's stderr."""
+    bus = ["--interface", "udp_multicast", "--channel", multicast_group()]
     tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2"], stderr=subprocess.PIPE, text=True)
     try:
         assert "listening on udp_multicast" in tcu.stderr.readline()
-        plant = subprocess.run([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", duration,
-                                "--log", str(tmp_path / "plant.log"), "--summary", str(tmp_path / "s.json")],
-                               capture_output=True, text=True, timeout=300)
+        plant = subprocess.Popen([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", UDP_DURATION,
+                                  "--log", str(tmp_path / "plant.log"), "--summary", str(tmp_path / "s.json")],
+                                 stderr=subprocess.PIPE, text=True)
+        if during is not None:
+            during(tcu, plant)
+        plant_err = plant.communicate(timeout=600)[1]
         tcu_err = tcu.communicate(timeout=60)[1]
     finally:
-        if tcu.poll() is None:
-            tcu.kill()
-    assert plant.returncode == 0, plant.stderr
+        for proc in (tcu, plant):
+            if proc.poll() is None:
+                proc.kill()
+    assert plant.returncode == 0, plant_err
     assert tcu.returncode == 0 and "ecu-stub: sent" in tcu_err, tcu_err
-    frames = json.loads((tmp_path / "s.json").read_text())["frames"]
-    assert frames["rejected"] == 0 and frames["unanswered_ticks"] == 0
-    assert log_frames(tmp_path / "plant.log") == log_frames(tmp_path / "ref.log")
+    return json.loads((tmp_path / "s.json").read_text()), tcu_err
+
+
+def test_lockstep_across_two_processes_over_udp_multicast(tmp_path, reference_log):
+    """ecu-stub and dsg-hil plant as separate processes: the plant's log is that of the in-process run."""
+    summary, _ = udp_lockstep(tmp_path)
+    assert summary["frames"]["rejected"] == 0 and summary["frames"]["unanswered_ticks"] == 0
+    assert log_frames(tmp_path / "plant.log") == log_frames(reference_log)
+
+
+def test_a_stalled_tcu_costs_retries_not_the_log(tmp_path, reference_log):
+    """The TCU process stopped for a second mid-run (a starved process): the plant re-sends the tick, the TCU,
+    woken, answers the tick and its repeats; the plant counts the repeats as duplicates, and logs the frames of
+    a clean run."""
+    def stall(tcu, plant):
+        wait_for(plant, "t=   10.0/20 s")
+        tcu.send_signal(signal.SIGSTOP)
+        time.sleep(1.0)
+        tcu.send_signal(signal.SIGCONT)
+
+    summary, tcu_err = udp_lockstep(tmp_path, during=stall)
+    frames = summary["frames"]
+    assert frames["by_message"]["SIM_SYNC"]["retries"] >= 2 and frames["by_message"]["TCU_CMD"]["duplicates"] >= 1
+    assert frames["rejected"] == 0 and frames["unanswered_ticks"] == 0 and frames["lost"] == 0
+    assert "answers re-sent" in tcu_err and "(0 lock-step answers re-sent)" not in tcu_err
+    assert log_frames(tmp_path / "plant.log") == log_frames(reference_log)
 
 
 def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
