@@ -9,9 +9,9 @@
 * Real time (``run_realtime``): the plant steps at its fixed step paced by a monotonic clock against absolute
   deadlines, sends each frame at its DBC cycle time, and uses commands as they arrive.
 
-In both, a command that is missing for 3 cycle times (or fails its counter or CRC check) puts the hydraulics in
-their unpowered default (commanded pressure 0: the pressures decay, return springs open the clutches); the event
-is counted and logged, and control resumes with the next valid command.
+In both, a command that is missing for 3 cycle times (frames failing their counter or CRC check count as missing)
+puts the hydraulics in their unpowered default (commanded pressure 0: the pressures decay, return springs open
+the clutches); the event is counted and logged, and control resumes with the next valid command.
 """
 
 from __future__ import annotations
