@@ -74,7 +74,7 @@ class PlantRunner:
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._period: list[can.Message] = []  # lock-step: this period's frames, for re-sending
-        self._last_heard = 0.0
+        self._silent_s = 0.0  # lock-step: wall time waited in vain on ticks given up since the TCU was last heard
         self._cmd_on_bus: float | None = None
 
     # ---- frames --------------------------------------------------------------------------------------------
@@ -160,7 +160,6 @@ class PlantRunner:
         ``peer_lost``), the summary being valid up to that point."""
         self._handshake(startup_timeout, pump)
         t0 = time.monotonic()
-        self._last_heard = t0
         try:
             for self.tick in range(self.n_periods):
                 t = self.tick * self.period
@@ -206,19 +205,35 @@ class PlantRunner:
         While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
         ``retry_first_s`` and then at doubling intervals up to ``retry_max_s``, at once when a TCU_CMD is
         rejected; the TCU answers a repeated tick with the frames it already sent. After ``retries_per_tick``
-        re-sends the tick is given up (False). Nothing at all from the TCU for ``reply_timeout``: PeerLost."""
+        re-sends the tick is given up (False). Nothing at all from the TCU for ``reply_timeout`` seconds of
+        waiting (summed over ticks given up; the plant's own time between waits does not count, nor does a
+        stall of the plant: what arrived meanwhile is read first): PeerLost."""
         cmd_id = self.codec.frame_id("TCU_CMD")
         echo = self.tick & 0xFF
         retries, interval = 0, self.retry_first_s
-        next_retry = time.monotonic() + interval
+        since = time.monotonic()  # silence is counted from here, plus ``_silent_s`` of ticks given up
+        next_retry = since + interval
         while True:
+            lost_at = since + reply_timeout - self._silent_s
+            msg = self.bus.recv(timeout=max(0.0, min(next_retry, lost_at) - time.monotonic()))
+            if msg is not None:
+                status, frame = self._take(msg, t, stamp=t)
+                if status != IGNORED:
+                    since, self._silent_s = time.monotonic(), 0.0
+                if status == REJECTED and msg.arbitration_id == cmd_id:
+                    next_retry = time.monotonic()  # a command that failed its checks: ask again at once
+                elif status == NEW and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == echo:
+                    self._silent_s = 0.0
+                    return True
+                continue
             now = time.monotonic()
-            if now - self._last_heard > reply_timeout:
+            if now >= lost_at:
                 self.summary.stop_reason = "peer_lost"
                 raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} s): "
                                f"peer lost; the run ends here")
             if now >= next_retry:
                 if retries == self.retries_per_tick:
+                    self._silent_s += now - since
                     return False
                 self._resend_period()
                 retries += 1
@@ -226,17 +241,6 @@ class PlantRunner:
                 next_retry = now + interval
                 if pump is not None:
                     pump()
-                continue
-            msg = self.bus.recv(timeout=min(next_retry, self._last_heard + reply_timeout) - now)
-            if msg is None:
-                continue
-            status, frame = self._take(msg, t, stamp=t)
-            if status != IGNORED:
-                self._last_heard = time.monotonic()
-            if status == REJECTED and msg.arbitration_id == cmd_id:
-                next_retry = time.monotonic()  # a command that failed its checks: ask again at once
-            elif status == NEW and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == echo:
-                return True
 
     def _resend_period(self) -> None:
         for msg in self._period:

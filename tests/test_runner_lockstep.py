@@ -5,6 +5,7 @@ presence probes; a TCU that falls silent (peer lost); ticks given up run on the 
 from __future__ import annotations
 
 import itertools
+import time
 
 import can
 import pytest
@@ -203,3 +204,30 @@ def test_ticks_given_up_run_on_the_dbc_fallback():
         assert f["rejected"] == 0
     assert results[2][1].fallback_events == 0
     assert results[4][1].fallback_events == 1 and results[4][1].fallback_time_s > 0
+
+
+def test_silence_summed_over_ticks_given_up_ends_the_run():
+    """Ticks given up sooner than the reply timeout: the TCU's silence adds up over them, so a dead TCU still
+    ends the run."""
+    pair = LockstepPair(duration=5.0)
+    pair.runner.retries_per_tick = 2  # a tick given up after 0.02 + 0.04 + 0.05 s
+    pair.silent_after_tick = 30
+    with pytest.raises(PeerLost):
+        pair.run(reply_timeout=0.4)
+    assert pair.runner.frames()["unanswered_ticks"] >= 2 and pair.runner.summary.stop_reason == "peer_lost"
+
+
+def test_a_stalled_plant_is_no_lost_peer(clean):
+    """The plant itself stalled longer than the reply timeout between two ticks (a busy machine): the answer
+    waiting for it is read first, not mistaken for silence."""
+    pair = LockstepPair()
+    advance = pair.runner._advance
+
+    def slow_advance(steps, now):
+        if pair.runner.tick == 20:
+            time.sleep(0.5)
+        advance(steps, now)
+
+    pair.runner._advance = slow_advance
+    pair.run(reply_timeout=0.3)
+    assert pair.runner.frames()["retries"] == 0 and pair.frames == clean.frames
