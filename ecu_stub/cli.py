@@ -46,7 +46,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ecu-stub: listening on {config['interface']}:{config['channel']}", file=sys.stderr, flush=True)
         tcu = TcuRunner(codec, bus)
         stop = threading.Event()  # SIGTERM: stop serving, report, exit 0 (like Ctrl-C)
-        signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
         try:
             tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
         finally:
