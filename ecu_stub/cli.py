@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             bus.shutdown()
             c = tcu.frame_counts()
-            print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent); received "
+            print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
+                  f"{c['incomplete_answers']} on incomplete plant frames); received "
                   f"{c['received']}, rejected {c['rejected']}, lost {c['lost']}, duplicates {c['duplicates']}",
                   file=sys.stderr, flush=True)
     except KeyboardInterrupt:

@@ -6,9 +6,12 @@ plant, and free-runs on its monotonic clock at the TCU_CMD cycle time only when 
 ``SYNC_WAIT_S`` of the plant's first frame (a real-time plant sends no ticks). A lock-step plant first probes for
 the TCU (SIM_SYNC with Tick 0xFFFFFFFF): the TCU resets itself and answers, and the run starts from there.
 
-Lost frames cost a retry, not the run: a plant that hears no answer re-sends the tick; the TCU answers a repeated
-tick (or probe) with the very frames it already sent for it, byte for byte (same counters), without stepping
-again. Repeats of frames it already has are duplicates: counted and ignored, not errors.
+Lost frames cost a retry, not the run: a plant that hears no answer re-sends the period's frames and its tick;
+the TCU answers a repeated tick (or probe) with the very frames it already sent for it, byte for byte (same
+counters), without stepping again. Repeats of frames it already has are duplicates: counted and ignored, not
+errors. A tick whose plant frames are incomplete (the lock-step plant sends every message due at the tick's time,
+each on its DBC cycle from t = 0) is left unanswered, so the plant re-sends the period; only the third sight of
+the same tick is answered with what the TCU has (counted as ``incomplete_answers``).
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
 SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
 SYNC_PROBE = 0xFFFFFFFF  # SIM_SYNC Tick of the lockstep presence probe (see the DBC comment)
+SIGHTS_BEFORE_INCOMPLETE = 3  # lock-step: a tick seen this often is answered even with plant frames missing
 
 
 def _choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
@@ -72,8 +76,14 @@ class TcuRunner:
         self._answered: int | None = None  # lock-step: the tick last answered (SYNC_PROBE: the probe) ...
         self._answer: list[can.Message] = []  # ... the frames sent for it, re-sent when it is repeated ...
         self._answer_sends = 0  # ... and how often they were sent
+        self._pending: int | None = None  # lock-step: a tick not answered for want of plant frames ...
+        self._pending_sights = 0  # ... and how often it was seen
+        self._due_every = {name: round(codec.cycle_time(name) / self.cycle) for name in REQUIRED
+                           if abs(codec.cycle_time(name) / self.cycle - round(codec.cycle_time(name) / self.cycle))
+                           < 1e-9}  # lock-step: message due at every n-th tick
         self.sent = 0
         self.answers_resent = 0
+        self.incomplete_answers = 0
 
     def inputs(self, now: float) -> TcuInputs:
         valid = all(self.rx.valid(name, now) for name in REQUIRED)
@@ -146,8 +156,12 @@ class TcuRunner:
             self._answer_sends += 1
             self._send(self._answer)
             return True
-        if status == DUPLICATE or (self._answered not in (None, SYNC_PROBE) and tick < self._answered):
+        if self._answered not in (None, SYNC_PROBE) and tick < self._answered:
             return True  # a repeat of an older tick: answered long ago
+        if status == DUPLICATE and tick != self._pending:
+            return True
+        if self._answered is not None and not self._complete(tick):
+            return True  # the plant re-sends the period: answered then
         self._sim_now = tick * self.cycle
         if not self.lockstep:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
@@ -161,6 +175,26 @@ class TcuRunner:
         self._answered, self._answer_sends = tick, 1
         return True
 
+    def _complete(self, tick: int) -> bool:
+        """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen
+        ``SIGHTS_BEFORE_INCOMPLETE`` times (then it is answered anyway, and counted)."""
+        self._pending_sights = self._pending_sights + 1 if tick == self._pending else 1
+        self._pending = tick
+        t = tick * self.cycle
+        missing = [name for name, every in self._due_every.items() if tick % every == 0
+                   and (self.rx.states[name].last_time is None or abs(self.rx.states[name].last_time - t) > 1e-9)]
+        if not missing:
+            self._pending = None
+            return True
+        if self._pending_sights < SIGHTS_BEFORE_INCOMPLETE:
+            log.info("tick %d: %s missing, waiting for the plant to re-send", tick, ", ".join(missing))
+            return False
+        log.warning("tick %d seen %d times without %s: answered with the last values", tick, self._pending_sights,
+                    ", ".join(missing))
+        self.incomplete_answers += 1
+        self._pending = None
+        return True
+
     def _reset_for_lockstep(self) -> None:
         """Prepare the answer to the plant's presence probe from a clean state, so every run starts alike.
         Repeated probes (the plant probes every 0.2 s until it hears the answer) get the same answer, byte for
@@ -172,13 +206,15 @@ class TcuRunner:
         self.tx = TxScheduler(self.codec, list(TCU_TX))
         self._answer = [self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF})]
         self._answered, self._answer_sends = SYNC_PROBE, 0
+        self._pending, self._pending_sights = None, 0
         self._sim_now = -self.cycle  # the next tick is tick 0
 
     def frame_counts(self) -> dict:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost
         (counter gaps) and duplicates."""
         rx = self.rx.counts()
-        return {"sent": self.sent, "answers_resent": self.answers_resent, "received": self.rx.received,
+        return {"sent": self.sent, "answers_resent": self.answers_resent,
+                "incomplete_answers": self.incomplete_answers, "received": self.rx.received,
                 "rejected": self.rx.rejected_total, "lost": sum(m["lost"] for m in rx.values()),
                 "duplicates": sum(m["duplicates"] for m in rx.values()), "by_message": rx}
 

@@ -90,6 +90,8 @@ def test_a_repeated_tick_with_a_new_counter_is_answered_without_stepping(setup):
     tcu.handle(plant.frame("SIM_SYNC", {"Tick": 0}), 0.0)
     assert [bytes(m.data) for _, m in bus.sent[n:]] == [bytes(m.data) for _, m in bus.sent[n - 2:n]]
     assert len(steps) == 1
+    for name in ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE"):  # due at tick 1 (10 ms)
+        tcu.handle(plant.frame(name, {}), 0.0)
     tcu.handle(plant.frame("SIM_SYNC", {"Tick": 1}), 0.0)
     assert len(steps) == 2 and bus.sent[-1][1].data[4] == 1  # SyncEcho of tick 1
 
@@ -146,3 +148,37 @@ def test_realtime_tcu_reports_fault_within_three_cycles_of_the_plants_death():
     assert cmd and all(m.data[0:4] == bytes(4) for _, m in cmd)  # both clutches unpowered from then on
     status = next(m for t, m in bus.sent if m.arbitration_id == 0x210 and t >= fault_at)
     assert status.data[0] & 0x0F == 5 and status.data[4] & 0x01  # State FAULT, FaultBits: plant missing
+
+
+def test_a_tick_with_plant_frames_missing_waits_for_the_re_sent_period(setup):
+    """Lock-step: PLANT_SPEEDS of tick 1 lost; the TCU does not answer tick 1 until the re-sent period brings it,
+    and answers a tick seen three times anyway, with the last values, counted."""
+    plant_codec, bus, tcu, steps = setup
+    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
+    tcu.handle(plant.frame("SIM_SYNC", {"Tick": SYNC_PROBE}), 0.0)
+    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
+    counting(tcu, steps)
+    period = []
+
+    def resend(lose: set[str] = frozenset()) -> None:
+        for msg in period:
+            if msg.arbitration_id not in {plant_codec.frame_id(name) for name in lose}:
+                tcu.handle(msg, 0.0)
+
+    def send_period(tick: int, lose: set[str] = frozenset()) -> None:
+        period[:] = [plant.frame(name, {}) for name in plant.due(tick * tcu.cycle) if name != "SIM_SYNC"]
+        period.append(plant.frame("SIM_SYNC", {"Tick": tick}))
+        resend(lose)
+
+    send_period(0)
+    assert len(steps) == 1
+    send_period(1, lose={"PLANT_SPEEDS"})
+    assert len(steps) == 1  # tick 1 unanswered: PLANT_SPEEDS of its period missing
+    resend()
+    assert len(steps) == 2 and tcu.frame_counts()["lost"] == 0 and tcu.incomplete_answers == 0
+    assert bus.sent[-1][1].data[4] == 1  # SyncEcho of tick 1
+    send_period(2, lose={"PLANT_SPEEDS"})
+    resend(lose={"PLANT_SPEEDS"})
+    assert len(steps) == 2  # seen twice, still waiting
+    resend(lose={"PLANT_SPEEDS"})
+    assert len(steps) == 3 and tcu.incomplete_answers == 1  # the third sight is answered
