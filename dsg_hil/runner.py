@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 RETRY_FIRST_S = 0.1  # lock-step: wall-clock wait for a tick's answer before the first re-send [s]
 RETRY_MAX_S = 1.0  # ... the wait doubles after each re-send up to this [s]
 RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.8+1+1+1 = 4.5 s in all)
+STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
 
 
 class PeerTimeout(RuntimeError):
@@ -74,6 +75,7 @@ class PlantRunner:
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._period: list[can.Message] = []  # lock-step: this period's frames, for re-sending
+        self._held: list[can.Message] | None = None  # lock-step: frames taken, logged when the answer is complete
         self._silent_s = 0.0  # lock-step: wall time waited in vain on ticks given up since the TCU was last heard
         self._cmd_on_bus: float | None = None
 
@@ -83,6 +85,9 @@ class PlantRunner:
         self.sent += 1
         self.sent_by[self._names[msg.arbitration_id]] += 1
         self._period.append(msg)
+        self._log(msg)
+
+    def _log(self, msg: can.Message) -> None:
         for listener in self.listeners:
             listener(msg)
 
@@ -101,8 +106,10 @@ class PlantRunner:
         if status != NEW:
             return status, frame
         msg.timestamp = stamp
-        for listener in self.listeners:
-            listener(msg)
+        if self._held is not None:
+            self._held.append(msg)
+        else:
+            self._log(msg)
         if frame.name == "TCU_CMD":
             self.P_cmd = (frame.values["P_CL_Cmd"] * 1e6, frame.values["P_CH_Cmd"] * 1e6)
         elif frame.name == "TCU_STATUS":
@@ -200,47 +207,75 @@ class PlantRunner:
                           f"(ecu-stub) running on the same bus?")
 
     def _await_answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
-        """Wait for the TCU_CMD answering this tick; True when it came.
+        """Wait for the answer to this tick: the TCU_CMD whose SyncEcho is the tick's, after the TCU_STATUS when
+        one is expected (see ``_status_expected``); True when the command came.
 
         While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
-        ``retry_first_s`` and then at doubling intervals up to ``retry_max_s``, at once when a TCU_CMD is
-        rejected; the TCU answers a repeated tick with the frames it already sent. After ``retries_per_tick``
-        re-sends the tick is given up (False). Nothing at all from the TCU for ``reply_timeout`` seconds of
-        waiting (summed over ticks given up; the plant's own time between waits does not count, nor does a
-        stall of the plant: what arrived meanwhile is read first): PeerLost."""
+        ``retry_first_s`` and then at doubling intervals up to ``retry_max_s``; at once when a TCU_CMD is
+        rejected or comes without its TCU_STATUS (then ``STATUS_RETRIES`` times at most). The TCU answers a
+        repeated tick with the frames it already sent. After ``retries_per_tick`` re-sends the tick is given up
+        (False). Nothing at all from the TCU for ``reply_timeout`` seconds of waiting (summed over ticks given
+        up; the plant's own time between waits does not count, nor does a stall of the plant: what arrived
+        meanwhile is read first): PeerLost. The answer's frames are logged when it is complete, TCU_CMD last,
+        as the TCU sends them, whatever retries brought them."""
         cmd_id = self.codec.frame_id("TCU_CMD")
         echo = self.tick & 0xFF
         retries, interval = 0, self.retry_first_s
         since = time.monotonic()  # silence is counted from here, plus ``_silent_s`` of ticks given up
         next_retry = since + interval
-        while True:
-            lost_at = since + reply_timeout - self._silent_s
-            msg = self.bus.recv(timeout=max(0.0, min(next_retry, lost_at) - time.monotonic()))
-            if msg is not None:
-                status, frame = self._take(msg, t, stamp=t)
-                if status != IGNORED:
-                    since, self._silent_s = time.monotonic(), 0.0
-                if status == REJECTED and msg.arbitration_id == cmd_id:
-                    next_retry = time.monotonic()  # a command that failed its checks: ask again at once
-                elif status == NEW and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == echo:
-                    self._silent_s = 0.0
-                    return True
-                continue
-            now = time.monotonic()
-            if now >= lost_at:
-                self.summary.stop_reason = "peer_lost"
-                raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} s): "
-                               f"peer lost; the run ends here")
-            if now >= next_retry:
-                if retries == self.retries_per_tick:
-                    self._silent_s += now - since
-                    return False
-                self._resend_period()
-                retries += 1
-                interval = min(2.0 * interval, self.retry_max_s)
-                next_retry = now + interval
-                if pump is not None:
-                    pump()
+        have_cmd, status_retries = False, 0
+        self._held = []
+        try:
+            while True:
+                lost_at = since + reply_timeout - self._silent_s
+                msg = self.bus.recv(timeout=max(0.0, min(next_retry, lost_at) - time.monotonic()))
+                if msg is not None:
+                    status, frame = self._take(msg, t, stamp=t)
+                    if status != IGNORED:
+                        since, self._silent_s = time.monotonic(), 0.0
+                    if status == REJECTED and msg.arbitration_id == cmd_id and not have_cmd:
+                        next_retry = time.monotonic()  # a command that failed its checks: ask again at once
+                    elif status == NEW and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == echo:
+                        have_cmd = True
+                        if not self._status_expected(t):
+                            return True
+                        next_retry = time.monotonic()  # its TCU_STATUS was lost: ask again at once
+                    elif status == NEW and frame.name == "TCU_STATUS" and have_cmd:
+                        return True
+                    continue
+                now = time.monotonic()
+                if now >= lost_at:
+                    self.summary.stop_reason = "peer_lost"
+                    raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} "
+                                   f"s): peer lost; the run ends here")
+                if now >= next_retry:
+                    if have_cmd and status_retries == STATUS_RETRIES:
+                        log.info("t=%.2f s: TCU_STATUS missing from the answer to tick %d", t, self.tick)
+                        return True
+                    if retries == self.retries_per_tick:
+                        self._silent_s += now - since
+                        return have_cmd
+                    self._resend_period()
+                    retries += 1
+                    status_retries += have_cmd
+                    interval = min(2.0 * interval, self.retry_max_s)
+                    next_retry = now + interval
+                    if pump is not None:
+                        pump()
+        finally:
+            for msg in sorted(self._held, key=lambda m: m.arbitration_id == cmd_id):
+                self._log(msg)
+            self._held = None
+
+    def _status_expected(self, t: float) -> bool:
+        """Whether this tick's answer should hold a TCU_STATUS: due now on its DBC cycle from tick 0, as the last
+        one due came (so a TCU sending it on a schedule of its own costs no retries after tick 0)."""
+        every = round(self.codec.cycle_time("TCU_STATUS") / self.period)
+        state = self.rx.states["TCU_STATUS"]
+        if self.tick % every or (state.last_time is not None and abs(state.last_time - t) < 1e-9):
+            return False
+        previous = t - every * self.period
+        return self.tick == 0 or (state.last_time is not None and abs(state.last_time - previous) < 1e-9)
 
     def _resend_period(self) -> None:
         for msg in self._period:

@@ -106,27 +106,26 @@ def test_a_lost_probe_answer_costs_a_probe(clean):
                                   ("SIM_SYNC", "plant", {2}), ("SIM_SYNC", "plant", {40, 41}),
                                   ("TCU_STATUS", "tcu", {3}), ("PLANT_SPEEDS", "plant", {30})])
 def test_lost_frames_cost_retries_not_the_run_and_leave_the_log_unchanged(clean, lose):
-    """The n-th TCU_CMD, SIM_SYNC or plant frame lost: the plant re-sends the period (the TCU does not answer a
-    tick whose plant frames are incomplete), the TCU answers from what it already computed or from the complete
-    period; the logged frames are those of the clean run, bit for bit. A lost TCU_STATUS is not re-sent (its
-    tick was answered) but counted as lost by the plant."""
+    """Any frame of a period lost (TCU_CMD, TCU_STATUS, SIM_SYNC, a plant frame): the plant re-sends the period
+    (the TCU does not answer a tick whose plant frames are incomplete; the plant asks again for an answer whose
+    TCU_STATUS is missing), the TCU answers from what it already computed or from the complete period; the
+    logged frames are those of the clean run, bit for bit."""
     name, sender, nth = lose
     pair = LockstepPair()
     faulty_send(pair.tcu_bus if sender == "tcu" else pair.plant_bus, pair.id(name), nth)
     pair.run()
     f = pair.runner.frames()
-    if name != "TCU_STATUS":
-        assert pair.frames == clean.frames
-        assert f["retries"] > 0 and f["by_message"]["SIM_SYNC"]["retries"] >= len(nth)
-        assert f["rejected"] == 0 and f["unanswered_ticks"] == 0 and f["lost"] == 0
+    assert pair.frames == clean.frames
+    assert f["retries"] > 0 and f["by_message"]["SIM_SYNC"]["retries"] >= len(nth)
+    assert f["rejected"] == 0 and f["unanswered_ticks"] == 0 and f["lost"] == 0
     if name == "TCU_CMD":  # the TCU re-sent its answers; it did not step again
         assert pair.tcu.answers_resent == len(nth)
     if name == "SIM_SYNC":  # the TCU never had those ticks: the re-sent ones were new to it, not repeats
         assert pair.tcu.answers_resent == 0 and pair.tcu.frame_counts()["by_message"]["SIM_SYNC"]["lost"] == 0
-    if name == "TCU_STATUS":
-        assert f["by_message"]["TCU_STATUS"]["lost"] == 1 and f["retries"] == 0
+    if name == "TCU_STATUS":  # asked again: the TCU re-sent status and command, the command a duplicate
+        assert pair.tcu.answers_resent == 1 and f["by_message"]["TCU_CMD"]["duplicates"] == 1
     if name == "PLANT_SPEEDS":  # re-sent with the period: nothing lost, one retry, no stale answer
-        assert pair.frames == clean.frames and f["by_message"]["SIM_SYNC"]["retries"] == 1
+        assert f["by_message"]["SIM_SYNC"]["retries"] == 1
         counts = pair.tcu.frame_counts()
         assert counts["lost"] == 0 and counts["incomplete_answers"] == 0 and pair.tcu.answers_resent == 0
     assert pair.runner.plant.state.t == pytest.approx(DURATION)
@@ -234,3 +233,13 @@ def test_a_stalled_plant_is_no_lost_peer(clean):
     pair.runner._advance = slow_advance
     pair.run(reply_timeout=0.3)
     assert pair.runner.frames()["retries"] == 0 and pair.frames == clean.frames
+
+
+def test_a_tcu_without_status_costs_retries_at_tick_0_only():
+    """A TCU (not ours) that never sends TCU_STATUS: asked again twice at tick 0, then taken as it is."""
+    pair = LockstepPair()
+    faulty_send(pair.tcu_bus, pair.id("TCU_STATUS"), set(range(1, 10_000)))
+    pair.run()
+    f = pair.runner.frames()
+    assert f["by_message"]["SIM_SYNC"]["retries"] == 2 and f["unanswered_ticks"] == 0
+    assert f["by_message"]["TCU_CMD"]["taken"] == pair.runner.n_periods
