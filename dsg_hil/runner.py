@@ -27,7 +27,7 @@ from .physics.friction import RAD_S_TO_RPM
 from .plant import Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
 from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
-from .protocol.validity import DUPLICATE, IGNORED, NEW, REJECTED
+from .protocol.validity import IGNORED, NEW, REJECTED
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
 

@@ -193,7 +193,7 @@ def test_ticks_given_up_run_on_the_dbc_fallback():
         cmd_id = pair.id("TCU_CMD")
         send = pair.tcu_bus.send
 
-        def lossy(msg, timeout=None, send=send, pair=pair, n_lost=n_lost):
+        def lossy(msg, timeout=None, send=send, pair=pair, n_lost=n_lost, cmd_id=cmd_id):
             if msg.arbitration_id == cmd_id and 50 <= pair.runner.tick < 50 + n_lost:
                 return None
             return send(msg, timeout)

@@ -115,7 +115,7 @@ def check_output_path(option: str, path: str | None) -> None:
 def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario):
     """An exit handler (ExitStack.push) that writes the summary so far when the run ends early: Ctrl-C,
     SIGTERM or a lost peer (stop reasons interrupted, terminated, peer_lost)."""
-    def on_exit(exc_type, exc, tb) -> bool:  # noqa: ARG001 - the __exit__ signature
+    def on_exit(exc_type, exc, tb) -> bool:
         reason = next((r for kind, r in STOP_REASONS if exc_type is not None and issubclass(exc_type, kind)), None)
         if reason is not None:
             runner.summary.stop_reason = reason

@@ -12,7 +12,7 @@ class Terminated(BaseException):
     """SIGTERM, raised in the main thread so that the run ends like on Ctrl-C: summary and log written."""
 
 
-def raise_terminated(signum, frame) -> None:  # noqa: ARG001 - a signal handler's signature
+def raise_terminated(signum, frame) -> None:
     raise Terminated
 
 
