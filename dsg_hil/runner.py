@@ -2,20 +2,23 @@
 
 * Lock-step (``run_lockstep``): the plant is the time master. Each control period (the TCU_CMD cycle time of the
   DBC) it sends the frames that are due and a SIM_SYNC tick, waits for the TCU_CMD whose SyncEcho answers that
-  tick (wall-clock timeout, then a clear error), and advances. Frame timestamps are simulated time, so the same
-  scenario gives the same frames, bit for bit.
+  tick, and advances. A late answer makes it re-send the period's frames, byte for byte (the TCU answers a
+  repeated tick with the frames it already sent); retransmissions and duplicates are counted, never logged, so
+  a run that needed them logs the same frames as one that did not. Frame timestamps are simulated time, so the
+  same scenario gives the same frames, bit for bit. A TCU silent for the reply timeout ends the run (PeerLost).
 * Real time (``run_realtime``): the plant steps at its fixed step paced by a monotonic clock against absolute
   deadlines, sends each frame at its DBC cycle time, and uses commands as they arrive.
 
-In both, a command that is missing for 3 cycle times (or fails its counter or CRC check) puts the hydraulics in
-their unpowered default (commanded pressure 0: the pressures decay, return springs open the clutches); the event
-is counted and logged, and control resumes with the next valid command.
+In both, a command that is missing for 3 cycle times (frames failing their counter or CRC check count as missing)
+puts the hydraulics in their unpowered default (commanded pressure 0: the pressures decay, return springs open
+the clutches); the event is counted and logged, and control resumes with the next valid command.
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections import Counter as Tally
 from typing import Callable
 
 import can
@@ -23,15 +26,26 @@ import can
 from .physics.friction import RAD_S_TO_RPM
 from .plant import Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
-from .protocol import Codec, RxMonitor, TxScheduler
+from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
+from .protocol.validity import IGNORED, NEW, REJECTED
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
 
 log = logging.getLogger(__name__)
 
 
+RETRY_FIRST_S = 0.1  # lock-step: wall-clock wait for a tick's answer before the first re-send [s]
+RETRY_MAX_S = 1.0  # ... the wait doubles after each re-send up to this [s]
+RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.8+1+1+1 = 4.5 s in all)
+STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
+
+
 class PeerTimeout(RuntimeError):
-    """The TCU did not answer a lock-step tick in time."""
+    """The TCU did not answer the lock-step presence probe in time."""
+
+
+class PeerLost(PeerTimeout):
+    """The TCU fell silent during a lock-step run (stop reason ``peer_lost``; the summary is valid so far)."""
 
 
 class PlantRunner:
@@ -54,12 +68,26 @@ class PlantRunner:
         self.P_cmd = (0.0, 0.0)
         self.tick = 0
         self.sent = 0
+        self.sent_by: Tally[str] = Tally()  # frames sent (first transmissions, the ones logged)
+        self.retries: Tally[str] = Tally()  # lock-step re-sends (not logged)
+        self.unanswered_ticks = 0
+        self.probes = 0  # lock-step presence probes sent before tick 0 (not logged)
+        self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
+        self._names = {codec.frame_id(name): name for name in PLANT_USES}
+        self._period: list[can.Message] = []  # lock-step: this period's frames, for re-sending
+        self._held: list[can.Message] | None = None  # lock-step: frames taken, logged when the answer is complete
+        self._silent_s = 0.0  # lock-step: wall time waited in vain on ticks given up since the TCU was last heard
         self._cmd_on_bus: float | None = None
 
     # ---- frames --------------------------------------------------------------------------------------------
     def _emit(self, msg: can.Message) -> None:
         self.bus.send(msg)
         self.sent += 1
+        self.sent_by[self._names[msg.arbitration_id]] += 1
+        self._period.append(msg)
+        self._log(msg)
+
+    def _log(self, msg: can.Message) -> None:
         for listener in self.listeners:
             listener(msg)
 
@@ -71,19 +99,22 @@ class PlantRunner:
         for name in names:
             self._emit(self.tx.frame(name, values[name], timestamp=stamp))
 
-    def _take(self, msg: can.Message, now: float, stamp: float) -> str | None:
-        """Handle one received frame; returns the message name if accepted."""
-        frame = self.rx.receive(msg, now)
-        if frame is None:
-            return None
+    def _take(self, msg: can.Message, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
+        """Handle one received frame: (status, frame) as :meth:`RxMonitor.take`; only new frames are used and
+        logged."""
+        status, frame = self.rx.take(msg, now)
+        if status != NEW:
+            return status, frame
         msg.timestamp = stamp
-        for listener in self.listeners:
-            listener(msg)
+        if self._held is not None:
+            self._held.append(msg)
+        else:
+            self._log(msg)
         if frame.name == "TCU_CMD":
             self.P_cmd = (frame.values["P_CL_Cmd"] * 1e6, frame.values["P_CH_Cmd"] * 1e6)
         elif frame.name == "TCU_STATUS":
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
-        return frame.name
+        return status, frame
 
     def _check_command(self, now: float) -> None:
         valid = self.rx.valid("TCU_CMD", now)
@@ -131,26 +162,36 @@ class PlantRunner:
 
         First a presence handshake (not logged): a SIM_SYNC probe every 0.2 s until the TCU answers, which
         resets it; so the run starts from the same state whenever the TCU came up, and no tick is lost to a TCU
-        still starting."""
+        still starting. Then each tick is re-sent while its answer is late (see ``_await_answer``); a TCU silent
+        for ``reply_timeout`` wall-clock seconds ends the run with :class:`PeerLost` (stop reason
+        ``peer_lost``), the summary being valid up to that point."""
         self._handshake(startup_timeout, pump)
         t0 = time.monotonic()
-        for self.tick in range(self.n_periods):
-            t = self.tick * self.period
-            self._publish_due(t, stamp=t)
-            self._emit(self.sync.frame(SYNC, {"Tick": self.tick}, timestamp=t))
-            if pump is not None:
-                pump()
-            self._await_command(t, reply_timeout)
-            self._check_command(t)
-            self._advance(self.steps_per_period, t)
-            self._report()
-        self.summary.wall_time_s = time.monotonic() - t0
+        try:
+            for self.tick in range(self.n_periods):
+                t = self.tick * self.period
+                self._period.clear()
+                self._publish_due(t, stamp=t)
+                self._emit(self.sync.frame(SYNC, {"Tick": self.tick}, timestamp=t))
+                if pump is not None:
+                    pump()
+                if not self._await_answer(t, reply_timeout, pump):
+                    self.unanswered_ticks += 1
+                    log.warning("t=%.2f s: lock-step tick %d unanswered after %d re-sends: the period runs on the "
+                                "last command while it is valid (DBC: 3 cycle times), then unpowered",
+                                t, self.tick, self.retries_per_tick)
+                self._check_command(t)
+                self._advance(self.steps_per_period, t)
+                self._report()
+        finally:
+            self.summary.wall_time_s = time.monotonic() - t0
         return self.summary
 
     def _handshake(self, timeout: float, pump: Callable[[], None] | None) -> None:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             self.bus.send(self.sync.frame(SYNC, {"Tick": SYNC_PROBE}))
+            self.probes += 1
             if pump is not None:
                 pump()
             probe_end = min(deadline, time.monotonic() + 0.2)
@@ -158,25 +199,88 @@ class PlantRunner:
                 msg = self.bus.recv(timeout=remaining)
                 frame = None if msg is None else self.rx.receive(msg, 0.0)
                 if frame is not None and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == SYNC_PROBE & 0xFF:
-                    self.rx = RxMonitor(self.codec, list(PLANT_RX))  # the run starts from clean counters
+                    self.rx = RxMonitor(self.codec, list(PLANT_RX))  # the run starts from clean counts,
+                    self.rx.prime(msg)  # its counters following the answer (a repeat of it is a duplicate)
                     self.sync = TxScheduler(self.codec, [SYNC])
                     return
         raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
                           f"(ecu-stub) running on the same bus?")
 
-    def _await_command(self, t: float, timeout: float) -> None:
-        deadline = time.monotonic() + timeout
+    def _await_answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
+        """Wait for the answer to this tick: the TCU_CMD whose SyncEcho is the tick's, after the TCU_STATUS when
+        one is expected (see ``_status_expected``); True when the command came.
+
+        While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
+        ``retry_first_s`` and then at doubling intervals up to ``retry_max_s``; at once when a TCU_CMD is
+        rejected or comes without its TCU_STATUS (then ``STATUS_RETRIES`` times at most). The TCU answers a
+        repeated tick with the frames it already sent. After ``retries_per_tick`` re-sends the tick is given up
+        (False). Nothing at all from the TCU for ``reply_timeout`` seconds of waiting (summed over ticks given
+        up; the plant's own time between waits does not count, nor does a stall of the plant: what arrived
+        meanwhile is read first): PeerLost. The answer's frames are logged when it is complete, TCU_CMD last,
+        as the TCU sends them, whatever retries brought them."""
+        cmd_id = self.codec.frame_id("TCU_CMD")
         echo = self.tick & 0xFF
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise PeerTimeout(f"no TCU_CMD answered lock-step tick {self.tick} (t={t:.2f} s) within "
-                                  f"{timeout:g} s: is the TCU (ecu-stub) running on the same bus?")
-            msg = self.bus.recv(timeout=remaining)
-            if msg is None:
-                continue
-            if self._take(msg, t, stamp=t) == "TCU_CMD" and int(self.rx.values("TCU_CMD")["SyncEcho"]) == echo:
-                return
+        retries, interval = 0, self.retry_first_s
+        since = time.monotonic()  # silence is counted from here, plus ``_silent_s`` of ticks given up
+        next_retry = since + interval
+        have_cmd, status_retries = False, 0
+        self._held = []
+        try:
+            while True:
+                lost_at = since + reply_timeout - self._silent_s
+                msg = self.bus.recv(timeout=max(0.0, min(next_retry, lost_at) - time.monotonic()))
+                if msg is not None:
+                    status, frame = self._take(msg, t, stamp=t)
+                    if status != IGNORED:
+                        since, self._silent_s = time.monotonic(), 0.0
+                    if status == REJECTED and msg.arbitration_id == cmd_id and not have_cmd:
+                        next_retry = time.monotonic()  # a command that failed its checks: ask again at once
+                    elif status == NEW and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == echo:
+                        have_cmd = True
+                        if not self._status_expected(t):
+                            return True
+                        next_retry = time.monotonic()  # its TCU_STATUS was lost: ask again at once
+                    elif status == NEW and frame.name == "TCU_STATUS" and have_cmd:
+                        return True
+                    continue
+                now = time.monotonic()
+                if now >= lost_at:
+                    self.summary.stop_reason = "peer_lost"
+                    raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} "
+                                   f"s): peer lost; the run ends here")
+                if now >= next_retry:
+                    if have_cmd and status_retries == STATUS_RETRIES:
+                        log.info("t=%.2f s: TCU_STATUS missing from the answer to tick %d", t, self.tick)
+                        return True
+                    if retries == self.retries_per_tick:
+                        self._silent_s += now - since
+                        return have_cmd
+                    self._resend_period()
+                    retries += 1
+                    status_retries += have_cmd
+                    interval = min(2.0 * interval, self.retry_max_s)
+                    next_retry = now + interval
+                    if pump is not None:
+                        pump()
+        finally:
+            for msg in sorted(self._held, key=lambda m: m.arbitration_id == cmd_id):
+                self._log(msg)
+            self._held = None
+
+    def _status_expected(self, t: float) -> bool:
+        """Whether this tick's answer should hold a TCU_STATUS: due now on its DBC cycle from tick 0, as the last
+        one due came (so a TCU sending it on a schedule of its own costs no retries after tick 0)."""
+        every = round(self.codec.cycle_time("TCU_STATUS") / self.period)
+        state = self.rx.states["TCU_STATUS"]
+        if self.tick % every or (state.last_time is not None and abs(state.last_time - t) < 1e-9):
+            return False
+        previous = t - every * self.period
+        return self.tick == 0 or (state.last_time is not None and abs(state.last_time - previous) < 1e-9)
+
+    def _resend_period(self) -> None:
+        for msg in self._period:
+            self.bus.send(msg)
+            self.retries[self._names[msg.arbitration_id]] += 1
 
     # ---- real time ------------------------------------------------------------------------------------------
     def run_realtime(self, clock: Callable[[], float] = time.monotonic) -> RunSummary:
@@ -193,7 +297,8 @@ class PlantRunner:
             deadline = start + (k + 1) * dt
             while (msg := self.bus.recv(timeout=max(deadline - clock(), 0.0))) is not None:
                 on_bus = msg.timestamp  # until this step's deadline: take what arrives
-                if self._take(msg, clock() - start, stamp=start + t) == "TCU_CMD":
+                status, frame = self._take(msg, clock() - start, stamp=start + t)
+                if status == NEW and frame.name == "TCU_CMD":
                     self._cmd_on_bus = on_bus
             now = clock() - start
             self._check_command(now)
@@ -203,6 +308,7 @@ class PlantRunner:
                     self.summary.command_latency_s.append(latency)
                 self._cmd_on_bus = None
             self._advance(1, now)
+            self._period.clear()  # (re-sent in lock-step only)
             if k % self.steps_per_period == 0:
                 self._report()
         wall = self.summary.wall_time_s = clock() - start
@@ -212,5 +318,17 @@ class PlantRunner:
                         self.scenario.duration_s, wall, 100 * self.summary.realtime_factor)
         return self.summary
 
-    def frames(self) -> dict[str, int]:
-        return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total}
+    def frames(self) -> dict:
+        """Frame counts for the summary: totals (``sent`` counts first transmissions, the frames logged) and per
+        message: sent, retries (lock-step re-sends), received (every frame of it heard), taken, rejected by
+        cause, lost (counter gaps), duplicates (repeats ignored); ``unanswered_ticks``: lock-step periods run
+        without their answer; ``probes``: lock-step presence probes it took to find the TCU."""
+        rx = self.rx.counts()
+        by_message = {}
+        for name in PLANT_USES:
+            got = rx.get(name, {"received": 0, "taken": 0, "rejected": {}, "lost": 0, "duplicates": 0})
+            by_message[name] = {"sent": self.sent_by[name], "retries": self.retries[name], **got}
+        return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total,
+                "retries": sum(self.retries.values()), "lost": sum(m["lost"] for m in rx.values()),
+                "duplicates": sum(m["duplicates"] for m in rx.values()), "unanswered_ticks": self.unanswered_ticks,
+                "probes": self.probes, "by_message": by_message}

@@ -273,6 +273,7 @@ class RunSummary:
     realtime_factor: float | None = None  # simulated s per wall s of a real-time run
     wall_time_s: float | None = None  # of the run itself (after the lockstep handshake)
     command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
+    stop_reason: str | None = None  # how the run ended early (interrupted, terminated, peer_lost); else the creep's
 
     @property
     def tcu_state(self) -> str:
@@ -293,9 +294,12 @@ class RunSummary:
                           truth)
 
     def as_json(self, frames: dict[str, int], scenario: str, mode: str, interface: str, duration_s: float) -> dict:
+        creep = self.creep.as_json()
+        if self.stop_reason is not None:
+            creep["stop_reason"] = self.stop_reason
         return {
             "scenario": scenario, "mode": mode, "interface": interface, "duration_s": round(duration_s, 3),
-            **self.creep.as_json(),
+            **creep,
             "command_fallback": {"events": self.fallback_events, "time_s": round(self.fallback_time_s, 3)},
             "frames": frames,
             "realtime_factor": None if self.realtime_factor is None else round(self.realtime_factor, 3),

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 from importlib import metadata
 
 from dsg_hil.protocol import Codec, load_dbc
@@ -51,10 +53,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
         if warning := per_process_warning(config):
             print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
+        tcu = TcuRunner(codec, bus)
+        stop = threading.Event()  # SIGTERM: stop serving, report, exit 0 (like Ctrl-C)
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
         try:
-            TcuRunner(codec, bus).run(duration=args.duration, idle_timeout=args.idle_exit)
+            tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
         finally:
             bus.shutdown()
+            c = tcu.frame_counts()
+            print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
+                  f"{c['incomplete_answers']} on incomplete plant frames); received "
+                  f"{c['received']}, rejected {c['rejected']}, lost {c['lost']}, duplicates {c['duplicates']}",
+                  file=sys.stderr, flush=True)
     except KeyboardInterrupt:
         return 0
     except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors

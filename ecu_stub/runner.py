@@ -5,6 +5,13 @@ Lock-step or real time is decided by the plant: once a SIM_SYNC tick has been se
 plant, and free-runs on its monotonic clock at the TCU_CMD cycle time only when no tick has come within
 ``SYNC_WAIT_S`` of the plant's first frame (a real-time plant sends no ticks). A lock-step plant first probes for
 the TCU (SIM_SYNC with Tick 0xFFFFFFFF): the TCU resets itself and answers, and the run starts from there.
+
+Lost frames cost a retry, not the run: a plant that hears no answer re-sends the period's frames and its tick;
+the TCU answers a repeated tick (or probe) with the very frames it already sent for it, byte for byte (same
+counters), without stepping again. Repeats of frames it already has are duplicates: counted and ignored, not
+errors. A tick whose plant frames are incomplete (the lock-step plant sends every message due at the tick's time,
+each on its DBC cycle from t = 0) is left unanswered, so the plant re-sends the period; only the third sight of
+the same tick is answered with what the TCU has (counted as ``incomplete_answers``).
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from typing import Callable
 import can
 
 from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
+from dsg_hil.protocol.validity import DUPLICATE, IGNORED, NEW
 
 from .controller import CreepController, TcuInputs, TcuOutputs
 
@@ -39,6 +47,7 @@ REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
 SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
 SYNC_PROBE = 0xFFFFFFFF  # SIM_SYNC Tick of the lockstep presence probe (see the DBC comment)
+SIGHTS_BEFORE_INCOMPLETE = 3  # lock-step: a tick seen this often is answered even with plant frames missing
 
 
 def _choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
@@ -64,6 +73,17 @@ class TcuRunner:
         self._sim_now = 0.0  # lock-step: the time of the last tick answered [s]
         self.heard_plant_at: float | None = None
         self.last: TcuOutputs | None = None
+        self._answered: int | None = None  # lock-step: the tick last answered (SYNC_PROBE: the probe) ...
+        self._answer: list[can.Message] = []  # ... the frames sent for it, re-sent when it is repeated ...
+        self._answer_sends = 0  # ... and how often they were sent
+        self._pending: int | None = None  # lock-step: a tick not answered for want of plant frames ...
+        self._pending_sights = 0  # ... and how often it was seen
+        self._due_every = {name: round(codec.cycle_time(name) / self.cycle) for name in REQUIRED
+                           if abs(codec.cycle_time(name) / self.cycle - round(codec.cycle_time(name) / self.cycle))
+                           < 1e-9}  # lock-step: message due at every n-th tick
+        self.sent = 0
+        self.answers_resent = 0
+        self.incomplete_answers = 0
 
     def inputs(self, now: float) -> TcuInputs:
         valid = all(self.rx.valid(name, now) for name in REQUIRED)
@@ -91,8 +111,9 @@ class TcuRunner:
             fault_bits=faults,
         )
 
-    def control(self, now: float, echo: int = 0) -> None:
-        """One controller cycle at ``now``: compute, then send TCU_CMD (and TCU_STATUS when due)."""
+    def control(self, now: float, echo: int = 0) -> list[can.Message]:
+        """One controller cycle at ``now``: compute, then send TCU_STATUS when due and TCU_CMD, last (in lock-step
+        it completes the answer to the tick); returns the frames sent."""
         out = self.controller.update(self.inputs(now), now)
         self.last = out
         values = {
@@ -101,26 +122,46 @@ class TcuRunner:
                            "BrakeRequest": float(out.brake_request), "T_CL_Pred": out.T_CL_pred_c,
                            "T_CH_Pred": out.T_CH_pred_c, "FaultBits": out.fault_bits},
         }
-        for name in self.tx.due(now):
-            self.bus.send(self.tx.frame(name, values[name]))
+        due = sorted(self.tx.due(now), key=lambda name: name == "TCU_CMD")
+        frames = [self.tx.frame(name, values[name]) for name in due]
+        self._send(frames)
+        return frames
 
-    def handle(self, msg: can.Message, now: float) -> None:
-        """Take one frame; a SIM_SYNC tick is answered at once (lock-step).
+    def _send(self, frames: list[can.Message]) -> None:
+        for msg in frames:
+            self.bus.send(msg)
+            self.sent += 1
+
+    def handle(self, msg: can.Message, now: float) -> bool:
+        """Take one frame; a SIM_SYNC tick is answered at once (lock-step). True if the frame was the plant's
+        (even a duplicate or a rejected one: the plant is alive), False for others (e.g. our own, looped back).
 
         In lock-step, time is the plant's: frames arriving before a tick belong to it (tick time = the previous
         tick's + one cycle), so validity and controller time never depend on the wall clock."""
         stamp = self._sim_now + self.cycle if self.lockstep else now
-        frame = self.rx.receive(msg, stamp)
-        if frame is None:
-            return
+        status, frame = self.rx.take(msg, stamp)
+        if status not in (NEW, DUPLICATE):
+            return status != IGNORED
         if self.heard_plant_at is None:
             self.heard_plant_at = now
         if frame.name != "SIM_SYNC":
-            return
+            return True
         tick = int(frame.values["Tick"])
         if tick == SYNC_PROBE:
-            self._reset_for_lockstep()
-            return
+            if self._answered != SYNC_PROBE:
+                self._reset_for_lockstep()
+            self.rx.states["SIM_SYNC"].forget()  # the plant's ticks restart their counter after the handshake
+        if tick == self._answered:  # a repeated tick (its answer was lost or late): the same frames again
+            self.answers_resent += self._answer_sends > 0
+            self._answer_sends += 1
+            self._send(self._answer)
+            return True
+        if self._answered not in (None, SYNC_PROBE) and tick < self._answered:
+            return True  # a repeat of an older tick: answered long ago
+        if status == DUPLICATE and tick != self._pending:
+            return True
+        if self._answered is not None and not self._complete(tick):
+            return True  # the plant re-sends the period: answered then
         self._sim_now = tick * self.cycle
         if not self.lockstep:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
@@ -130,18 +171,52 @@ class TcuRunner:
             for state in self.rx.states.values():
                 if state.last_time is not None:
                     state.last_time = self._sim_now
-        self.control(self._sim_now, echo=tick & 0xFF)
+        self._answer = self.control(self._sim_now, echo=tick & 0xFF)
+        self._answered, self._answer_sends = tick, 1
+        return True
+
+    def _complete(self, tick: int) -> bool:
+        """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen
+        ``SIGHTS_BEFORE_INCOMPLETE`` times (then it is answered anyway, and counted)."""
+        self._pending_sights = self._pending_sights + 1 if tick == self._pending else 1
+        self._pending = tick
+        t = tick * self.cycle
+        missing = [name for name, every in self._due_every.items() if tick % every == 0
+                   and (self.rx.states[name].last_time is None or abs(self.rx.states[name].last_time - t) > 1e-9)]
+        if not missing:
+            self._pending = None
+            return True
+        if self._pending_sights < SIGHTS_BEFORE_INCOMPLETE:
+            log.info("tick %d: %s missing, waiting for the plant to re-send", tick, ", ".join(missing))
+            return False
+        log.warning("tick %d seen %d times without %s: answered with the last values", tick, self._pending_sights,
+                    ", ".join(missing))
+        self.incomplete_answers += 1
+        self._pending = None
+        return True
 
     def _reset_for_lockstep(self) -> None:
-        """Answer the plant's presence probe from a clean state, so every run starts alike."""
+        """Prepare the answer to the plant's presence probe from a clean state, so every run starts alike.
+        Repeated probes (the plant probes every 0.2 s until it hears the answer) get the same answer, byte for
+        byte: the counters restart once, and the tick-0 answer follows the probe answer's counter."""
         log.info("lock-step presence probe: reset and answer")
         self.lockstep = True
         self.controller = type(self.controller)(self.controller.cal)
         self.rx = RxMonitor(self.codec, list(TCU_RX))
         self.tx = TxScheduler(self.codec, list(TCU_TX))
-        self.bus.send(self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF}))
-        self.tx = TxScheduler(self.codec, list(TCU_TX))
+        self._answer = [self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF})]
+        self._answered, self._answer_sends = SYNC_PROBE, 0
+        self._pending, self._pending_sights = None, 0
         self._sim_now = -self.cycle  # the next tick is tick 0
+
+    def frame_counts(self) -> dict:
+        """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost
+        (counter gaps) and duplicates."""
+        rx = self.rx.counts()
+        return {"sent": self.sent, "answers_resent": self.answers_resent,
+                "incomplete_answers": self.incomplete_answers, "received": self.rx.received,
+                "rejected": self.rx.rejected_total, "lost": sum(m["lost"] for m in rx.values()),
+                "duplicates": sum(m["duplicates"] for m in rx.values()), "by_message": rx}
 
     def free_running(self, now: float) -> bool:
         """True once the plant has been heard for a while without a tick: a real-time plant."""
@@ -165,10 +240,9 @@ class TcuRunner:
             free = self.free_running(now - start)
             msg = self.bus.recv(timeout=max(0.0, next_cycle - now) if free else 0.05)
             now = clock()
-            if msg is not None:
+            if msg is not None and self.handle(msg, now - start):
                 last_heard = now
-                self.handle(msg, now - start)
-            elif idle_timeout is not None and self.heard_plant_at is not None and now - last_heard > idle_timeout:
+            if idle_timeout is not None and self.heard_plant_at is not None and now - last_heard > idle_timeout:
                 log.info("plant silent for %.1f s: stopping", idle_timeout)
                 return
             if not self.free_running(now - start):

@@ -124,7 +124,8 @@ def test_plant_alone_on_virtual_warns_and_prints_counts(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "warning: python-can's 'virtual' interface lives inside one process" in proc.stderr
     done = proc.stderr.strip().splitlines()[-1]
-    assert re.fullmatch(r"done: stop \w+; frames sent \d+, received 0, rejected 0", done), done
+    assert re.fullmatch(r"done: stop \w+; frames sent \d+ \(re-sent 0\), received 0, rejected 0, lost 0, "
+                        r"duplicates 0, unanswered ticks 0", done), done
 
 
 def test_plant_prints_the_tcu_command_for_its_bus():

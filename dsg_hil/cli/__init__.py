@@ -1,18 +1,23 @@
 """Command line: ``dsg-hil <command>``. Each command is a module with ``add_subparser`` and ``_do``.
 
-Errors reach the user as one line ``error: ...`` and a non-zero exit (``--debug`` shows the traceback).
+Errors reach the user as one line ``error: ...`` and a non-zero exit (``--debug`` shows the traceback): 1 for an
+error, 130 for Ctrl-C (SIGINT), 143 for SIGTERM (128 + the signal number, as a shell reports a killed process).
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 
 from .. import __version__
 from . import calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
+from .common import Terminated, raise_terminated
 
 COMMANDS = (run, plant_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)
 EXIT_ERROR = 1
+EXIT_SIGINT, EXIT_SIGTERM = 128 + signal.SIGINT, 128 + signal.SIGTERM
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -33,13 +38,21 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()  # only there can signals be handled
+    previous = signal.signal(signal.SIGTERM, raise_terminated) if main_thread else None
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_SIGINT
+    except Terminated:
+        print("error: terminated", file=sys.stderr)
+        return EXIT_SIGTERM
     except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors
         if args.debug:
             raise
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_ERROR
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 from contextlib import ExitStack
 from pathlib import Path
@@ -16,9 +17,11 @@ from ..plant import Plant
 from ..plant_io import PLANT_USES
 from ..protocol import Codec, load_dbc
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
-from ..runner import PlantRunner
+from ..runner import PeerLost, PlantRunner
 from ..scenario import Scenario, load_scenario
-from .common import params_from, progress
+from .common import Terminated, params_from, progress
+
+STOP_REASONS = ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"))
 
 
 def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
@@ -79,10 +82,42 @@ class LogListener:
 def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantRunner, dict, Scenario]:
     """Logging, scenario, the plant's bus and log from the options, announced; all closed by ``stack``."""
     setup_logging(args.verbose)
+    for option in ("log", "summary"):
+        check_output_path(f"--{option}", getattr(args, option, None))
     scenario = scenario_from(args)
     runner, config = plant_runner(args, stack, scenario)
+    stack.push(_summary_on_abort(args, runner, config, scenario))
     progress(f"{what}: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on {bus_name(config)}")
     return runner, config, scenario
+
+
+def check_output_path(option: str, path: str | None) -> None:
+    """Fail before the run, not after it, when ``path`` cannot be written: a directory, or a parent that is
+    not a writable directory (missing parents are created at the end: the nearest existing one counts)."""
+    if path is None:
+        return
+    target = Path(path)
+    if target.is_dir():
+        raise ValueError(f"{option} {path}: is a directory")
+    parent = target.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {path}: {parent} is not a writable directory")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ValueError(f"{option} {path}: file not writable")
+
+
+def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario):
+    """An exit handler (ExitStack.push) that writes the summary so far when the run ends early: Ctrl-C,
+    SIGTERM or a lost peer (stop reasons interrupted, terminated, peer_lost)."""
+    def on_exit(exc_type, exc, tb) -> bool:
+        reason = next((r for kind, r in STOP_REASONS if exc_type is not None and issubclass(exc_type, kind)), None)
+        if reason is not None:
+            runner.summary.stop_reason = reason
+            finish(args, runner, config, scenario)
+        return False
+    return on_exit
 
 
 def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario) -> tuple[PlantRunner, dict]:
@@ -108,10 +143,18 @@ def drive(runner: PlantRunner, args: argparse.Namespace, pump=None) -> None:
         runner.run_realtime()
 
 
+def frames_line(frames: dict) -> str:
+    """The frame totals of a summary, in one line."""
+    return (f"frames sent {frames['sent']} (re-sent {frames['retries']}), received {frames['received']}, rejected "
+            f"{frames['rejected']}, lost {frames['lost']}, duplicates {frames['duplicates']}, unanswered ticks "
+            f"{frames['unanswered_ticks']}")
+
+
 def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario, **extra) -> dict:
     """The run's summary (written to --summary if given)."""
-    summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode,
-                                     f"{config['interface']}:{config['channel']}", scenario.duration_s)
+    summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode, bus_name(config),
+                                     scenario.duration_s)
+    summary["sim_time_s"] = round(runner.plant.state.t, 3)  # where the run ended (< duration_s if cut short)
     summary.update(extra)
     if args.summary:
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)

@@ -8,7 +8,7 @@ from contextlib import ExitStack
 
 from ..protocol.bus import bus_args, per_process_warning
 from ..runner import PeerTimeout
-from .busopts import add_bus_options, drive, finish, start
+from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
 
@@ -34,10 +34,10 @@ def _do_plant(args: argparse.Namespace) -> int:
         progress(f"warning: {warning}" if warning else f"TCU: ecu-stub {shlex.join(bus_args(config))}")
         try:
             drive(runner, args)
-        except PeerTimeout as exc:
-            raise PeerTimeout(f"{exc} ({warning})" if warning else str(exc)) from None
+        except PeerTimeout as exc:  # (PeerLost too: the type decides the summary's stop reason)
+            if warning:
+                raise type(exc)(f"{exc} ({warning})") from None
+            raise
         summary = finish(args, runner, config, scenario)
-    frames = summary["frames"]
-    progress(f"done: stop {summary['stop_reason']}; frames sent {frames['sent']}, received {frames['received']}, "
-             f"rejected {frames['rejected']}")
+    progress(f"done: stop {summary['stop_reason']}; {frames_line(summary['frames'])}")
     return 0

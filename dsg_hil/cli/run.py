@@ -11,7 +11,7 @@ from contextlib import ExitStack
 
 from ..protocol import Codec
 from ..protocol.bus import bus_args, open_bus
-from .busopts import add_bus_options, drive, finish, start
+from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
 
@@ -73,8 +73,7 @@ def _do_run(args: argparse.Namespace) -> int:
         wall = time.monotonic() - t0
         summary = finish(args, runner, config, scenario)
     progress(f"done: {scenario.duration_s:g} simulated s in {wall:.1f} s wall; stop: {summary['stop_reason']}; "
-             f"handovers: {len(summary['handovers'])}; frames sent {summary['frames']['sent']}, received "
-             f"{summary['frames']['received']}, rejected {summary['frames']['rejected']}")
+             f"handovers: {len(summary['handovers'])}; {frames_line(summary['frames'])}")
     return 0
 
 

@@ -20,8 +20,8 @@ BUS = ["--interface", "socketcan", "--channel", "vcan0"]
 def run_pair(outdir, name, mode, duration, extra=()):
     """Start candump and ecu-stub, run the plant to the end, stop both; returns (summary, frames, log path).
 
-    ``frames`` start at the run: a lockstep plant first probes for the TCU (SIM_SYNC Tick 0xFFFFFFFF, answered
-    with SyncEcho 255; documented in the DBC); those handshake frames are cut off here."""
+    ``frames`` are candump's, in timestamp order (its file order is delivery order, which on several CPUs can put
+    a reply before the frame it answers); in lockstep, from the start of the run (see ``lockstep_run``)."""
     dump = Candump(outdir / f"{name}.candump.log")
     tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "3"], stderr=subprocess.PIPE, text=True)
     summary = outdir / f"{name}.summary.json"
@@ -37,11 +37,33 @@ def run_pair(outdir, name, mode, duration, extra=()):
             tcu.kill()
         frames = dump.stop()
     (outdir / f"{name}.plant.stderr").write_text(plant.stderr)
-    if mode == "lockstep":
-        first_tick = next(i for i, (_, ident, data) in enumerate(frames) if ident == 0x7F0 and data[:4] == bytes(4))
-        frames = frames[first_tick - 8:]  # the 8 frames due at t=0 precede tick 0
-        assert frames[0][1] == 0x100
-    return json.loads(summary.read_text()), frames, dump.path
+    frames = sorted(frames, key=lambda f: f[0])
+    return json.loads(summary.read_text()), lockstep_run(frames) if mode == "lockstep" else frames, dump.path
+
+
+def lockstep_run(frames):
+    """The frames of the run proper: a lockstep plant first probes for the TCU (SIM_SYNC Tick 0xFFFFFFFF,
+    answered with SyncEcho 255; documented in the DBC) and sends its first data frame only when answered. So the
+    run starts at the first PLANT_ENGINE frame; the probes and the probe answer (repeated identically when the
+    TCU heard several probes) are left out."""
+    start = next(t for t, ident, _ in frames if ident == 0x100)
+    probe_answer = next((data for t, ident, data in frames if ident == 0x200 and t <= start), None)
+    tick255 = next((t for t, ident, data in frames if ident == 0x7F0 and data[:4] == bytes((255, 0, 0, 0))),
+                   float("inf"))
+    return [(t, ident, data) for t, ident, data in frames if t >= start
+            and not (ident == 0x7F0 and data[:4] == b"\xff" * 4)
+            and not (ident == 0x200 and data == probe_answer and t < tick255)]
+
+
+def first_transmissions(frames):
+    """Without lockstep retransmissions: a frame byte-identical to the previous one of its ID is a re-send (a
+    retry after a late answer), counted by the plant and the TCU, never logged by the plant."""
+    last, kept = {}, []
+    for t, ident, data in frames:
+        if last.get(ident) != data:
+            kept.append((t, ident, data))
+        last[ident] = data
+    return kept
 
 
 def by_id(frames):
@@ -79,6 +101,7 @@ def test_lockstep_creeps_with_separate_processes(lockstep, duration):
 
 def test_lockstep_every_message_at_its_cycle_with_counters(db, lockstep, duration):
     _, frames, _ = lockstep
+    frames = first_transmissions(frames)
     groups = by_id(frames)
     for m in db.messages:
         assert m.frame_id in groups, f"{m.name} never on the bus"
@@ -88,17 +111,20 @@ def test_lockstep_every_message_at_its_cycle_with_counters(db, lockstep, duratio
 
 
 def test_lockstep_command_answers_each_tick(db, lockstep):
-    _, frames, _ = lockstep
+    """By causality, on candump's timestamps: the n-th command answers tick n and comes after it was sent."""
+    summary, frames, _ = lockstep
     sync, cmd = db.get_message_by_name("SIM_SYNC"), db.get_message_by_name("TCU_CMD")
-    pending, answered = None, 0
-    for _, ident, data in frames:
+    tick_sent = {}
+    for t, ident, data in frames:
         if ident == sync.frame_id:
-            assert pending is None, "a tick was not answered before the next one"
-            pending = sync.decode(data)["Tick"] & 0xFF
-        elif ident == cmd.frame_id:
-            assert pending is not None and cmd.decode(data)["SyncEcho"] == pending
-            pending, answered = None, answered + 1
-    assert answered > 100
+            tick_sent.setdefault(sync.decode(data)["Tick"], t)
+    answers = [(t, cmd.decode(data)["SyncEcho"]) for t, ident, data in first_transmissions(frames)
+               if ident == cmd.frame_id]
+    assert [echo for _, echo in answers] == [tick & 0xFF for tick in range(len(answers))]
+    assert len(answers) == len(tick_sent) == summary["frames"]["by_message"]["SIM_SYNC"]["sent"] > 100
+    for tick, (t, _) in enumerate(answers):
+        assert tick_sent[tick] <= t, f"the answer to tick {tick} ({t:.6f}) precedes the tick ({tick_sent[tick]:.6f})"
+    assert summary["frames"]["unanswered_ticks"] == 0
 
 
 def test_cantools_decodes_the_recorded_log(db, lockstep):
@@ -110,12 +136,17 @@ def test_cantools_decodes_the_recorded_log(db, lockstep):
         assert f"{m.name}(" in out.stdout, m.name
 
 
-def test_realtime_periods_and_counters(db, realtime):
-    """Each message at its DBC cycle time: the TCU's on the wall clock; the plant's on the plant's clock, which
-    is the wall clock where the machine keeps up (realtime_factor 1) and slower where it cannot (emulated VM)."""
+def test_realtime_periods_and_counters(db, realtime, duration):
+    """Each message at its DBC cycle time, judged without assuming a uniform pace: a loaded machine stalls a
+    process, which then catches up against its absolute deadlines (short intervals after long ones), and an
+    emulated one may be behind all along (every interval longer). The plant sends exactly one frame per cycle of
+    simulated time; its typical (median) interval lies between the cycle time and the run's average pace
+    (cycle / realtime_factor). The TCU, on its own clock, sends never more often than its cycle time and at least
+    every other cycle on average."""
     summary, frames, _ = realtime
     factor = summary["realtime_factor"]
     assert 0.05 < factor <= 1.05
+    simulated = min(duration, 6.0)
     groups = by_id(frames)
     for m in db.messages:
         if m.name == "SIM_SYNC":
@@ -123,9 +154,14 @@ def test_realtime_periods_and_counters(db, realtime):
             continue
         times = [t for t, _ in groups[m.frame_id]]
         assert len(times) > 10, m.name
-        period = statistics.median(b - a for a, b in zip(times, times[1:]))
-        expected = m.cycle_time / 1000.0 / (1.0 if m.senders == ["TCU"] else factor)
-        assert period == pytest.approx(expected, rel=0.25), m.name
+        cycle = m.cycle_time / 1000.0
+        span = times[-1] - times[0]
+        if m.senders == ["PLANT"]:
+            assert abs(len(times) - simulated / cycle) <= 1, f"{m.name}: {len(times)} frames"
+            median = statistics.median(b - a for a, b in zip(times, times[1:]))
+            assert 0.75 * cycle <= median <= 1.25 * cycle / factor, f"{m.name}: median interval {median:.4f} s"
+        else:
+            assert span / cycle / 2 - 1 <= len(times) <= span / cycle + 2, f"{m.name}: {len(times)} in {span:.2f} s"
     assert_counters_increment(db, frames)
     assert summary["frames"]["received"] > 0 and summary["frames"]["rejected"] == 0
     assert summary["command_latency_ms"]["p50"] < 50.0

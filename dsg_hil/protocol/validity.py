@@ -17,6 +17,7 @@ from .e2e import MAX_DELTA
 log = logging.getLogger(__name__)
 
 TIMEOUT_CYCLES = 3.0
+NEW, DUPLICATE, REJECTED, IGNORED = "new", "duplicate", "rejected", "ignored"
 
 
 @dataclass
@@ -31,16 +32,19 @@ class RxState:
     last_counter: int | None = None
     values: dict[str, float] = field(default_factory=dict)
     received: int = 0
-    counter_jumps: int = 0  # gaps: the counter advanced by more than one
-    lost: int = 0  # frames missing in those gaps
+    counter_jumps: int = 0  # gaps in the counter (it advanced by more than one)
+    lost: int = 0  # frames missing in those gaps (at most MAX_DELTA - 1 each; a longer outage is a timeout)
+    duplicates: int = 0  # byte-identical repeats of the last frame taken (retransmissions), ignored
+    rejected: Tally[str] = field(default_factory=Tally)  # by cause: dlc, crc, range, malformed, counter
+    last_data: bytes | None = None
 
     @property
     def deadline(self) -> float:
         return TIMEOUT_CYCLES * self.cycle_time
 
-    def update(self, now: float, frame: DecodedFrame) -> str | None:
+    def update(self, now: float, frame: DecodedFrame, data: bytes = b"") -> str | None:
         """Take a decoded frame; returns why it was not taken (repeated or out-of-order counter), else None."""
-        if self.last_counter is not None and self.valid(now):
+        if self.last_counter is not None and (self.last_time is None or self.valid(now)):
             step = (frame.counter - self.last_counter) % self.counter_modulus
             if step == 0:
                 return f"counter {frame.counter} repeated"
@@ -50,10 +54,15 @@ class RxState:
                 self.counter_jumps += 1
                 self.lost += step - 1
         self.last_counter = frame.counter
+        self.last_data = data
         self.last_time = now
         self.values = frame.values
         self.received += 1
         return None
+
+    def forget(self) -> None:
+        """Check the next frame's counter against nothing (the sender restarts its counter)."""
+        self.last_counter = self.last_data = None
 
     def valid(self, now: float) -> bool:
         return self.last_time is not None and now - self.last_time <= self.deadline + 1e-9
@@ -74,24 +83,46 @@ class RxMonitor:
         return not msg.is_extended_id and msg.arbitration_id in self._ids
 
     def receive(self, msg: can.Message, now: float) -> DecodedFrame | None:
-        """Take one frame. Returns the decoded frame if accepted, None if it is not ours or was rejected."""
+        """Take one frame. Returns the decoded frame if accepted, None if it is not ours, a duplicate or
+        rejected."""
+        status, frame = self.take(msg, now)
+        return frame if status == NEW else None
+
+    def take(self, msg: can.Message, now: float) -> tuple[str, DecodedFrame | None]:
+        """Take one frame: (``NEW``, frame) if accepted; (``DUPLICATE``, frame) for a byte-identical repeat of
+        the last frame taken of its message (a retransmission: counted, not taken, not an error); (``REJECTED``,
+        None) when it fails its checks; (``IGNORED``, None) when it is not ours."""
         if msg.is_error_frame or msg.is_remote_frame or not self.wants(msg):
-            return None
+            return IGNORED, None
         self.received += 1
+        state = self.states[self._ids[msg.arbitration_id]]
+        data = bytes(msg.data)
         try:
             if msg.is_fd:
                 raise FrameError("dlc", f"0x{msg.arbitration_id:03X}: CAN FD frame on a classic CAN contract")
-            frame = self.codec.decode(msg.arbitration_id, bytes(msg.data))
+            frame = self.codec.decode(msg.arbitration_id, data)
         except FrameError as exc:
-            self._reject(exc.reason, str(exc))
-            return None
-        refused = self.states[frame.name].update(now, frame)
+            self._reject(state, exc.reason, str(exc))
+            return REJECTED, None
+        if data == state.last_data:
+            state.duplicates += 1
+            return DUPLICATE, frame
+        refused = state.update(now, frame, data)
         if refused is not None:
-            self._reject("counter", f"{frame.name}: {refused}")
-            return None
-        return frame
+            self._reject(state, "counter", f"{frame.name}: {refused}")
+            return REJECTED, None
+        return NEW, frame
 
-    def _reject(self, reason: str, text: str) -> None:
+    def prime(self, msg: can.Message) -> None:
+        """Make ``msg`` the last frame seen of its message without taking its values (a frame the other side
+        already sent, e.g. the answer to the lockstep presence probe): its repeats are then duplicates and the
+        next frame's counter is checked against it."""
+        state = self.states[self._ids[msg.arbitration_id]]
+        state.last_counter = self.codec.decode(msg.arbitration_id, bytes(msg.data)).counter
+        state.last_data = bytes(msg.data)
+
+    def _reject(self, state: RxState, reason: str, text: str) -> None:
+        state.rejected[reason] += 1
         self.rejected[reason] += 1
         n = self.rejected[reason]
         if n <= 5 or n % 1000 == 0:  # log the first few and then every thousandth
@@ -106,6 +137,13 @@ class RxMonitor:
     @property
     def rejected_total(self) -> int:
         return sum(self.rejected.values())
+
+    def counts(self) -> dict[str, dict]:
+        """Per message: frames received (all, including rejected and duplicates), taken, rejected by cause,
+        lost (counter gaps) and duplicates."""
+        return {name: {"received": s.received + s.duplicates + sum(s.rejected.values()), "taken": s.received,
+                       "rejected": dict(sorted(s.rejected.items())), "lost": s.lost, "duplicates": s.duplicates}
+                for name, s in self.states.items()}
 
 
 class TxScheduler:

@@ -77,12 +77,12 @@ def test_probability_is_deterministic_for_a_seed(db, codec):
     assert 100 < len(runs[0]) < 180  # about 70 % kept
 
 
-def test_duplicate_is_rejected_as_a_repeated_counter(db, codec):
+def test_duplicate_is_counted_as_a_duplicate_and_ignored(db, codec):
     stream = frames(codec, "TCU_CMD", 5, CMD)
     out = through(FaultInjector(db, [parse_fault("duplicate:TCU_CMD@0.02-0.03")]), stream)
     assert len(out) == 6
     rx, accepted = receive_all(codec, ["TCU_CMD"], out)
-    assert len(accepted) == 5 and rx.rejected["counter"] == 1
+    assert len(accepted) == 5 and rx.states["TCU_CMD"].duplicates == 1 and rx.rejected_total == 0
 
 
 def test_delay_holds_frames_until_due(db, codec):
@@ -101,12 +101,24 @@ def test_corrupt_crc_detected_as_crc(db, codec):
     assert rx.rejected["crc"] == 2 and len(accepted) == 6
 
 
+def moving_commands(codec, n):
+    tx, period = TxScheduler(codec, ["TCU_CMD"]), codec.cycle_time("TCU_CMD")
+    return [(k * period, tx.frame("TCU_CMD", {**CMD, "P_CL_Cmd": 0.1 + 0.01 * k}, timestamp=k * period))
+            for k in range(n)]
+
+
 def test_frozen_counter_detected_as_counter(db, codec):
-    out = through(FaultInjector(db, [parse_fault("freeze_counter:TCU_CMD@0.03-0.07")]),
-                  frames(codec, "TCU_CMD", 10, CMD))
+    out = through(FaultInjector(db, [parse_fault("freeze_counter:TCU_CMD@0.03-0.07")]), moving_commands(codec, 10))
     rx, accepted = receive_all(codec, ["TCU_CMD"], out)
     assert rx.rejected["counter"] == 3 and rx.rejected["crc"] == 0  # the CRC was recomputed: only the counter
     assert len(accepted) == 7
+
+
+def test_frozen_sender_with_frozen_data_times_out(db, codec):
+    """A sender stuck on one frame repeats it byte for byte: duplicates, never taken, so the message times out."""
+    out = through(FaultInjector(db, [parse_fault("freeze_counter:TCU_CMD@0.03-")]), frames(codec, "TCU_CMD", 10, CMD))
+    rx, accepted = receive_all(codec, ["TCU_CMD"], out)
+    assert len(accepted) == 4 and rx.states["TCU_CMD"].duplicates == 6 and not rx.valid("TCU_CMD", 0.09)
 
 
 def test_out_of_range_detected_as_range_with_valid_crc(db, codec):

@@ -58,7 +58,7 @@ def test_a_crc_that_cannot_carry_the_scheme_fails_at_start_up(crc_sig, words):
 def _frames(codec, counters, t0=0.0, period=0.01):
     msgs = []
     for k, c in enumerate(counters):
-        data = codec.encode("TCU_CMD", {"P_CL_Cmd": 0.1}, counter=c)
+        data = codec.encode("TCU_CMD", {"P_CL_Cmd": 0.1 + 0.01 * k}, counter=c)  # values move: no duplicates
         msgs.append(can.Message(arbitration_id=0x200, data=data, is_extended_id=False, timestamp=t0 + k * period))
     return msgs
 
@@ -71,6 +71,15 @@ def test_counter_rules():
     assert accepted == [True, True, False, True, True, False]
     state = rx.states["TCU_CMD"]
     assert rx.rejected["counter"] == 2 and state.counter_jumps == 2 and state.lost == 1 + (MAX_DELTA - 1)
+    assert state.duplicates == 0
+
+
+def test_a_byte_identical_repeat_is_a_duplicate_not_an_error():
+    codec = Codec(load_dbc(), {"TCU_CMD": ("P_CL_Cmd",)})
+    rx = RxMonitor(codec, ["TCU_CMD"])
+    first = _frames(codec, [4])[0]
+    assert rx.take(first, 0.0)[0] == "new" and rx.take(first, 0.001)[0] == "duplicate"
+    assert rx.rejected_total == 0 and rx.states["TCU_CMD"].duplicates == 1
 
 
 def test_resynchronised_after_a_timeout():

@@ -1,0 +1,177 @@
+"""How a run ends, through the command line: the summary is written on Ctrl-C (exit 130), SIGTERM (exit 143) and
+when the TCU dies (exit 1); unwritable --log/--summary paths fail before the run. Plant and ecu-stub as two
+processes over python-can's udp_multicast (no kernel CAN needed): lockstep gives the log of the in-process run."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import pytest
+
+DSG_HIL = [sys.executable, "-m", "dsg_hil"]
+ECU_STUB = [sys.executable, "-m", "ecu_stub"]
+
+
+def start_run(tmp_path: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen([*DSG_HIL, "run", "--interface", "virtual", "--duration", "1000", "--summary",
+                             str(tmp_path / "s.json"), "--log", str(tmp_path / "r.log"), *extra],
+                            stderr=subprocess.PIPE, text=True)
+
+
+def wait_for(proc: subprocess.Popen, text: str, timeout: float = 120.0) -> list[str]:
+    """stderr lines up to the first containing ``text``."""
+    lines, deadline = [], time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if not line:
+            break
+        lines.append(line)
+        if text in line:
+            return lines
+    proc.kill()
+    pytest.fail(f"never saw {text!r}: {''.join(lines)}")
+
+
+@pytest.mark.parametrize("sig, code, reason", [(signal.SIGINT, 130, "interrupted"),
+                                               (signal.SIGTERM, 143, "terminated")])
+def test_signal_ends_the_run_with_summary_and_log(tmp_path, sig, code, reason):
+    proc = start_run(tmp_path)
+    wait_for(proc, "t=   10.0/1000 s")  # a progress line: the run is under way
+    proc.send_signal(sig)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == code, err
+    assert err.strip().splitlines()[-1] == f"error: {reason}"
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["stop_reason"] == reason and 10.0 <= summary["sim_time_s"] < 1000.0
+    assert summary["frames"]["by_message"]["SIM_SYNC"]["sent"] >= 1000
+    lines = (tmp_path / "r.log").read_text().splitlines()
+    assert len(lines) > 5000 and all(line.split()[2].count("#") == 1 for line in lines)  # closed cleanly
+
+
+@pytest.mark.parametrize("option, path, message", [
+    ("--summary", ".", "is a directory"),
+    ("--log", "afile/run.log", "afile is not a writable directory"),
+    ("--summary", "afile/sub/s.json", "afile is not a writable directory"),
+])
+def test_unwritable_outputs_fail_before_the_run(tmp_path, option, path, message):
+    (tmp_path / "afile").write_text("a file, not a directory")
+    proc = subprocess.run([*DSG_HIL, "run", "--interface", "virtual", "--duration", "1000", option, path],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=60)
+    assert proc.returncode == 1
+    assert proc.stderr.strip().splitlines() == [f"error: {option} {path}: {message}"]  # before the run starts
+
+
+def multicast_group() -> str:
+    """A group of our own for this test: 239.74.<pid>.<random> (administratively scoped IPv4)."""
+    group = f"239.74.{os.getpid() % 250}.{random.randint(1, 254)}"
+    try:
+        a = can.Bus(interface="udp_multicast", channel=group)
+        b = can.Bus(interface="udp_multicast", channel=group)
+    except (OSError, can.CanError) as exc:
+        pytest.skip(f"this machine cannot do UDP multicast: {exc}")
+    try:
+        a.send(can.Message(arbitration_id=0x7FF, data=bytes(8), is_extended_id=False))
+        if b.recv(2.0) is None:
+            pytest.skip("this machine cannot do UDP multicast: nothing came back on loopback")
+    finally:
+        a.shutdown()
+        b.shutdown()
+    return group
+
+
+def log_frames(path: Path) -> list[tuple[str, str]]:
+    """(timestamp, id#data) of a candump -L log, without the channel name."""
+    return [(line.split()[0], line.split()[2]) for line in path.read_text().splitlines()]
+
+
+UDP_DURATION = "20"
+
+
+@pytest.fixture(scope="module")
+def reference_log(tmp_path_factory) -> Path:
+    """The plant log of the in-process lockstep run on virtual."""
+    path = tmp_path_factory.mktemp("ref") / "ref.log"
+    ref = subprocess.run([*DSG_HIL, "run", "--interface", "virtual", "--duration", UDP_DURATION, "--log", str(path)],
+                         capture_output=True, text=True, timeout=600)
+    assert ref.returncode == 0, ref.stderr
+    return path
+
+
+def udp_lockstep(tmp_path: Path, during=None) -> tuple[dict, str]:
+    """ecu-stub and dsg-hil plant (lockstep) as processes on a multicast group of their own; ``during(tcu,
+    plant)`` runs while both are up. Returns the plant's summary and the TCU's stderr."""
+    bus = ["--interface", "udp_multicast", "--channel", multicast_group()]
+    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2"], stderr=subprocess.PIPE, text=True)
+    try:
+        assert "listening on udp_multicast" in tcu.stderr.readline()
+        plant = subprocess.Popen([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", UDP_DURATION,
+                                  "--log", str(tmp_path / "plant.log"), "--summary", str(tmp_path / "s.json")],
+                                 stderr=subprocess.PIPE, text=True)
+        if during is not None:
+            during(tcu, plant)
+        plant_err = plant.communicate(timeout=600)[1]
+        tcu_err = tcu.communicate(timeout=60)[1]
+    finally:
+        for proc in (tcu, plant):
+            if proc.poll() is None:
+                proc.kill()
+    assert plant.returncode == 0, plant_err
+    assert tcu.returncode == 0 and "ecu-stub: sent" in tcu_err, tcu_err
+    return json.loads((tmp_path / "s.json").read_text()), tcu_err
+
+
+def test_lockstep_across_two_processes_over_udp_multicast(tmp_path, reference_log):
+    """ecu-stub and dsg-hil plant as separate processes: the plant's log is that of the in-process run."""
+    summary, _ = udp_lockstep(tmp_path)
+    assert summary["frames"]["rejected"] == 0 and summary["frames"]["unanswered_ticks"] == 0
+    assert log_frames(tmp_path / "plant.log") == log_frames(reference_log)
+
+
+def test_a_stalled_tcu_costs_retries_not_the_log(tmp_path, reference_log):
+    """The TCU process stopped for a second mid-run (a starved process): the plant re-sends the tick, the TCU,
+    woken, answers the tick and its repeats; the plant counts the repeats as duplicates, and logs the frames of
+    a clean run."""
+    def stall(tcu, plant):
+        wait_for(plant, "t=   10.0/20 s")
+        tcu.send_signal(signal.SIGSTOP)
+        time.sleep(1.0)
+        tcu.send_signal(signal.SIGCONT)
+
+    summary, tcu_err = udp_lockstep(tmp_path, during=stall)
+    frames = summary["frames"]
+    assert frames["by_message"]["SIM_SYNC"]["retries"] >= 2 and frames["by_message"]["TCU_CMD"]["duplicates"] >= 1
+    assert frames["rejected"] == 0 and frames["unanswered_ticks"] == 0 and frames["lost"] == 0
+    assert "answers re-sent" in tcu_err and "(0 lock-step answers re-sent)" not in tcu_err
+    assert log_frames(tmp_path / "plant.log") == log_frames(reference_log)
+
+
+def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
+    """The TCU process killed mid-run: the plant says so in one line, exits 1 and writes the summary so far."""
+    group = multicast_group()
+    bus = ["--interface", "udp_multicast", "--channel", group]
+    tcu = subprocess.Popen([*ECU_STUB, *bus], stderr=subprocess.PIPE, text=True)
+    try:
+        assert "listening on udp_multicast" in tcu.stderr.readline()
+        plant = subprocess.Popen([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", "1000",
+                                  "--reply-timeout", "1", "--summary", str(tmp_path / "s.json")],
+                                 stderr=subprocess.PIPE, text=True)
+        wait_for(plant, "t=   10.0/1000 s")
+    finally:
+        tcu.kill()
+        tcu.wait()
+    err = plant.communicate(timeout=120)[1]
+    assert plant.returncode == 1, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("error: TCU silent for 1 s at lock-step tick ") and "peer lost" in last
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["stop_reason"] == "peer_lost" and 10.0 <= summary["sim_time_s"] < 1000.0
+    assert summary["frames"]["by_message"]["SIM_SYNC"]["retries"] > 0
+
