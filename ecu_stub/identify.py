@@ -1,0 +1,317 @@
+"""Identify the TCU's clutch model from recorded runs: ``python -m ecu_stub.identify run1.log [run2.log ...]``.
+
+Reads candump ``-L`` / ``.asc`` / ``.blf`` logs with python-can, decodes them with the DBC (``dsg_hil.protocol``)
+and fits, from what a gearbox measures plus the simulation-only ``SIM_TRUTH_CL/CH`` frames in the role of a rig's
+thermocouples and torque sensor:
+
+* ``speed_ratio_m`` per clutch: vehicle speed per clutch output speed (median while moving);
+* ``k_geom_m3`` per clutch: torque / (mu P) (median while slipping under pressure);
+* the friction map mu(T, slip) + c_lnP ln(P/P_ref): regularised least squares over the truth mu samples
+  (bilinear grid, second differences penalised so that cells without data interpolate smoothly);
+* ``C_plate_j_k`` and ``K_plate_oil_w_k`` per clutch: C dT/dt = Q - K (T - T_oil_out) fitted to the truth temperature over the
+  truth plate temperature and heat flux.
+
+Then it replays the TCU's own predictor (``clutch_model``) with the fitted values over every log, from the
+start-up assumption on, and prints the prediction error (truth minus prediction: its maximum is what the
+handover margin must cover). ``--write FILE`` writes a calibration: the base calibration (``--calibration``,
+default the shipped one) with the identified entries replaced and ``prediction_error_k`` set from the replay.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import can
+import numpy as np
+
+from dsg_hil.protocol import Codec, FrameError, load_dbc
+
+from .calibration import Clutch, FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
+from .clutch_model import RPM_TO_RAD_S, friction_heat, plate_step
+
+USES = {
+    "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
+    "PLANT_VEHICLE": ("VehicleSpeed",),
+    "PLANT_PRESSURE": ("P_CL", "P_CH"),
+    "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH"),
+    "SIM_TRUTH_CL": ("T_Plate", "Mu", "Torque", "HeatFlux"),
+    "SIM_TRUTH_CH": ("T_Plate", "Mu", "Torque", "HeatFlux"),
+}
+T_GRID = tuple(float(t) for t in range(20, 321, 10))
+SLIP_GRID = tuple(float(n) for n in range(0, 401, 10))
+P_REF_MPA, P_FLOOR_MPA = 0.5, 0.05
+SMOOTHING = 0.02  # weight of the second-difference penalty per grid node (relative to one sample)
+ERROR_ROUND_K = 0.5  # prediction_error_k is the replay's worst error rounded up to this step
+
+
+@dataclass
+class Record:
+    """One log as aligned arrays: a row per PLANT_SPEEDS frame (the 10-ms grid), other signals sample-and-hold."""
+
+    name: str
+    t: np.ndarray
+    signals: dict[str, np.ndarray]
+
+
+def read_log(path: str | Path, codec: Codec) -> Record:
+    """Decode a log; rows at each PLANT_SPEEDS frame; truth columns hold their last value (NaN before the first)."""
+    latest: dict[str, float] = {}
+    rows: list[tuple[float, dict[str, float]]] = []
+    try:
+        reader = can.LogReader(str(path))
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot read log: {exc}") from None
+    with reader:
+        for msg in reader:
+            try:
+                frame = codec.decode(msg.arbitration_id, bytes(msg.data))
+            except FrameError:
+                continue
+            for signal in USES[frame.name]:
+                latest[f"{frame.name}.{signal}"] = frame.values[signal]
+            if frame.name == "PLANT_SPEEDS":
+                rows.append((msg.timestamp, dict(latest)))
+    if len(rows) < 100:
+        raise ValueError(f"{path}: only {len(rows)} PLANT_SPEEDS frames: not a recorded run of this DBC")
+    keys = [f"{m}.{s}" for m, sigs in USES.items() for s in sigs]
+    t = np.array([r[0] for r in rows]) - rows[0][0]
+    return Record(Path(path).name, t, {k: np.array([r[1].get(k, np.nan) for r in rows]) for k in keys})
+
+
+def _clutch_columns(r: Record, c: str) -> dict[str, np.ndarray]:
+    s = r.signals
+    return {"slip": s["PLANT_SPEEDS.ClutchInputSpeed"] - s[f"PLANT_SPEEDS.{c}OutputSpeed"],
+            "out": s[f"PLANT_SPEEDS.{c}OutputSpeed"], "v": s["PLANT_VEHICLE.VehicleSpeed"],
+            "P": s[f"PLANT_PRESSURE.P_{c}"], "T_oil": s[f"PLANT_OIL_TEMP.T_Oil{c}"],
+            "T": s[f"SIM_TRUTH_{c}.T_Plate"], "mu": s[f"SIM_TRUTH_{c}.Mu"], "M": s[f"SIM_TRUTH_{c}.Torque"],
+            "Q": s[f"SIM_TRUTH_{c}.HeatFlux"]}
+
+
+def fit_speed_ratio(cols: list[dict]) -> float:
+    v = np.concatenate([d["v"] for d in cols])
+    w = np.concatenate([d["out"] for d in cols]) * RPM_TO_RAD_S
+    ok = np.isfinite(v) & (v > 0.03) & (w > 0.5)
+    if ok.sum() < 10:
+        raise ValueError("speed ratio: the runs never moved (vehicle speed > 0.03 m/s)")
+    return float(np.median(v[ok] / w[ok]))
+
+
+def _slipping(d: dict) -> np.ndarray:
+    return np.isfinite(d["mu"]) & (d["P"] > 0.1) & (np.abs(d["slip"]) > 5.0) & (np.abs(d["M"]) > 20.0)
+
+
+def fit_k_geom(cols: list[dict]) -> float:
+    k = [d["M"][m] / (d["mu"][m] * d["P"][m] * 1e6) for d in cols if (m := _slipping(d)).any()]
+    if not k:
+        raise ValueError("k_geom: the clutch never slipped under pressure (P > 0.1 MPa) in these runs")
+    return float(np.median(np.abs(np.concatenate(k))))
+
+
+def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
+    """Regularised least squares of the map; returns it and the RMS of the fit over the samples."""
+    from scipy.sparse import coo_matrix, vstack
+    from scipy.sparse.linalg import lsqr
+
+    T = np.concatenate([d["T"][_slipping(d)] for d in cols])
+    n = np.abs(np.concatenate([d["slip"][_slipping(d)] for d in cols]))
+    P = np.concatenate([d["P"][_slipping(d)] for d in cols])
+    mu = np.concatenate([d["mu"][_slipping(d)] for d in cols])
+    if len(mu) < 50:
+        raise ValueError("friction map: fewer than 50 slipping samples")
+    nT, nS = len(T_GRID), len(SLIP_GRID)
+    i = np.clip(np.searchsorted(T_GRID, T, side="right") - 1, 0, nT - 2)
+    j = np.clip(np.searchsorted(SLIP_GRID, n, side="right") - 1, 0, nS - 2)
+    wt = np.clip((T - np.take(T_GRID, i)) / (np.take(T_GRID, i + 1) - np.take(T_GRID, i)), 0, 1)
+    ws = np.clip((n - np.take(SLIP_GRID, j)) / (np.take(SLIP_GRID, j + 1) - np.take(SLIP_GRID, j)), 0, 1)
+    rows = np.repeat(np.arange(len(mu)), 5)
+    cols_ = np.stack([i * nS + j, i * nS + j + 1, (i + 1) * nS + j, (i + 1) * nS + j + 1,
+                      np.full_like(i, nT * nS)], axis=1).ravel()
+    lnP = np.log(np.maximum(P, P_FLOOR_MPA) / P_REF_MPA)
+    vals = np.stack([(1 - wt) * (1 - ws), (1 - wt) * ws, wt * (1 - ws), wt * ws, lnP], axis=1).ravel()
+    A = coo_matrix((vals, (rows, cols_)), shape=(len(mu), nT * nS + 1))
+    lam = math.sqrt(SMOOTHING * len(mu) / (nT * nS))
+    reg_r, reg_c, reg_v = [], [], []
+    k = 0
+    for a in range(nT):
+        for b in range(nS):
+            for da, db in ((1, 0), (0, 1)):
+                if 0 < a < nT - 1 if da else 0 < b < nS - 1:
+                    for off, w in ((-1, 1.0), (0, -2.0), (1, 1.0)):
+                        reg_r.append(k)
+                        reg_c.append((a + da * off) * nS + b + db * off)
+                        reg_v.append(lam * w)
+                    k += 1
+    R = coo_matrix((reg_v, (reg_r, reg_c)), shape=(k, nT * nS + 1))
+    x = lsqr(vstack([A, R]).tocsr(), np.concatenate([mu, np.zeros(k)]), atol=1e-12, btol=1e-12,
+             iter_lim=20000)[0]
+    grid = x[:-1].reshape(nT, nS)
+    rms = float(np.sqrt(np.mean((A @ x - mu) ** 2)))
+    fm = FrictionMap(T_GRID, SLIP_GRID, tuple(tuple(round(float(v), 5) for v in row) for row in grid),
+                     round(float(x[-1]), 5), P_REF_MPA, P_FLOOR_MPA)
+    return fm, rms
+
+
+def fit_thermal(cols: list[dict], times: list[np.ndarray]) -> tuple[float, float, float]:
+    """C and K of C dT/dt = Q - K (T - T_oil_out), fitted by output error: the plate simulated from the truth
+    heat flux and the measured oil temperature (exact step, as the predictor does), started at the truth, against
+    the truth temperature at every 100-ms truth frame. Returns (C, K, RMS temperature error [K])."""
+    from scipy.optimize import least_squares
+
+    series = []
+    for d, t in zip(cols, times):
+        idx = np.flatnonzero(np.isfinite(d["T"]) & np.isfinite(d["T_oil"]) & np.isfinite(d["Q"]))[::10]
+        if len(idx) > 20:
+            series.append((t[idx], d["T"][idx], d["Q"][idx], d["T_oil"][idx]))
+    if not series:
+        raise ValueError("thermal fit: no plate temperature record in these runs")
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        C, K = np.exp(x)
+        res = []
+        for t, T, Q, To in series:
+            T_sim = np.empty_like(T)
+            T_sim[0] = T[0]
+            decay = np.exp(-K * np.diff(t) / C)
+            for k in range(1, len(T)):
+                T_inf = To[k - 1] + Q[k - 1] / K
+                T_sim[k] = T_inf + (T_sim[k - 1] - T_inf) * decay[k - 1]
+            res.append(T_sim - T)
+        return np.concatenate(res)
+
+    sol = least_squares(residuals, np.log([4000.0, 500.0]), x_scale=1.0)
+    C, K = np.exp(sol.x)
+    return float(C), float(K), float(np.sqrt(np.mean(sol.fun ** 2)))
+
+
+def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
+    """Run the TCU's predictor over a log (start-up assumption included); truth minus prediction per clutch."""
+    out = {}
+    T0 = cal.strategy.T_start_assumed_c
+    for c in ("CL", "CH"):
+        d, clutch = _clutch_columns(r, c), cal.clutch(c)
+        T_pred, errs, errs_late = None, [], []
+        for k in range(len(r.t)):
+            if not np.isfinite(d["T_oil"][k]):
+                continue
+            if T_pred is None:
+                T_pred = max(T0, d["T_oil"][k])
+            else:
+                dt = r.t[k] - r.t[k - 1]
+                Q = friction_heat(cal.friction, clutch, T_pred, d["slip"][k], d["P"][k])
+                T_pred = plate_step(clutch, T_pred, Q, d["T_oil"][k], dt)
+            if np.isfinite(d["T"][k]):
+                errs.append(d["T"][k] - T_pred)
+                if r.t[k] > 5 * clutch.C_plate_j_k / clutch.K_plate_oil_w_k:
+                    errs_late.append(d["T"][k] - T_pred)
+        e = np.array(errs)
+        out[c] = {"max_under_k": float(e.max()), "max_over_k": float(-e.min()),
+                  "rms_after_startup_k": float(np.sqrt(np.mean(np.square(errs_late)))) if errs_late else float("nan")}
+    return out
+
+
+def identify(paths: list[str], base: TcuCalibration, dbc: str | None = None) -> tuple[TcuCalibration, dict]:
+    codec = Codec(load_dbc(dbc), USES)
+    records = [read_log(p, codec) for p in paths]
+    report: dict = {"logs": [r.name for r in records]}
+    clutches = {}
+    for c in ("CL", "CH"):
+        cols = [_clutch_columns(r, c) for r in records]
+        C, K, rms_dTdt = fit_thermal(cols, [r.t for r in records])
+        clutches[c] = Clutch(k_geom_m3=round(fit_k_geom(cols), 6), C_plate_j_k=round(C, 1),
+                             K_plate_oil_w_k=round(K, 2), speed_ratio_m=round(fit_speed_ratio(cols), 6))
+        report[c] = {"thermal_fit_rms_k": rms_dTdt}
+    fmap, mu_rms = fit_friction_map([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
+    report["friction_map_rms"] = mu_rms
+    cal = replace(base, friction=fmap, CL=clutches["CL"], CH=clutches["CH"])
+    report["replay"] = {r.name: replay(r, cal) for r in records}
+    worst = max(e["max_under_k"] for rep in report["replay"].values() for e in rep.values())
+    error_k = max(ERROR_ROUND_K, math.ceil(worst / ERROR_ROUND_K) * ERROR_ROUND_K)
+    report["worst_under_prediction_k"] = worst
+    cal = replace(cal, strategy=replace(cal.strategy, prediction_error_k=error_k))
+    return cal, report
+
+
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="python -m ecu_stub.identify", description=__doc__.split("\n\n")[0])
+    parser.add_argument("logs", nargs="+", metavar="LOG", help="recorded runs (candump -L .log, .asc, .blf)")
+    parser.add_argument("--calibration", metavar="FILE", help="base calibration (default: the shipped one)")
+    parser.add_argument("--write", metavar="FILE", help="write the identified calibration here")
+    parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
+    return parser.parse_args(argv)
+
+
+def write_calibration(path: str, cal: TcuCalibration, base: str | None, logs: list[str], rep: dict) -> None:
+    """The base calibration file with the identified entries replaced (source = identified, how = this run)."""
+    raw = raw_sections(base)
+    cmd = "python -m ecu_stub.identify " + " ".join(Path(p).name for p in logs)
+    for c in ("CL", "CH"):
+        k, fit = cal.clutch(c), rep[c]["thermal_fit_rms_k"]
+        for key, how in (("k_geom_m3", "median of truth torque / (truth mu x measured P) while slipping"),
+                         ("C_plate_j_k", f"C dT/dt = Q - K (T - T_oil_out) fitted to the truth temperature (output error, RMS {fit:.3f} K)"),
+                         ("K_plate_oil_w_k", f"same fit as C_plate_j_k (output error, RMS {fit:.3f} K)"),
+                         ("speed_ratio_m", "median of vehicle speed / clutch output speed while moving")):
+            raw[f"clutch.{c}"][key] = {**raw[f"clutch.{c}"][key], "value": getattr(k, key), "source": "identified",
+                                       "how": f"{cmd}: {how}"}
+    f = cal.friction
+    how = f"{cmd}: regularised least squares over the truth mu samples (fit RMS {rep['friction_map_rms']:.5f})"
+    for key in ("mu", "c_lnP"):
+        value = [list(row) for row in f.mu] if key == "mu" else f.c_lnP
+        raw["friction"][key] = {**raw["friction"][key], "value": value, "source": "identified", "how": how}
+    for key in ("T_grid_c", "slip_grid_rpm"):
+        raw["friction"][key]["value"] = list(getattr(f, key))
+    raw["strategy"]["prediction_error_k"] = {
+        **raw["strategy"]["prediction_error_k"], "value": cal.strategy.prediction_error_k, "source": "identified",
+        "how": f"{cmd}: worst truth-minus-prediction of the TCU's predictor replayed over these runs from the "
+               f"start-up assumption on ({rep['worst_under_prediction_k']:.2f} K), rounded up to "
+               f"{ERROR_ROUND_K} K"}
+    Path(path).write_text(dump_calibration(raw, HEADER), encoding="utf-8")
+
+
+HEADER = """ecu-stub calibration: what the TCU is flashed with (its own numbers, not the plant's).
+Each value: source = identified (python -m ecu_stub.identify on recorded runs), derived (from other values) or
+chosen (engineering choice / vehicle data sheet); 'how' says which. Units: SI, degC, MPa.
+
+Handover margin (ecu_stub/controller.py, CreepController.limit): the active clutch hands over when its predicted
+plate temperature reaches T_safe - prediction_error_k - dT_crossover, where
+  prediction_error_k = worst (truth - prediction) of the predictor replayed over the identification runs, and
+  dT_crossover = Q * (handover_time_s / 2 + hydraulic_lag_s + one control period) / C_plate
+is the rise still coming into the off-going plate from its present friction power Q while its share ramps out
+linearly, its pressure lags and the decision waits a cycle (cooling neglected: conservative). So the truth stays
+at or below T_safe as long as the prediction error stays within prediction_error_k."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse_args(argv)
+    try:
+        base = load_calibration(args.calibration)
+        cal, rep = identify(args.logs, base, args.dbc)
+    except (ValueError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    print(f"logs: {', '.join(rep['logs'])}")
+    for c in ("CL", "CH"):
+        k = cal.clutch(c)
+        print(f"{c}: k_geom = {k.k_geom_m3:.6f} m^3  C_plate = {k.C_plate_j_k:.1f} J/K  K_plate_oil = "
+              f"{k.K_plate_oil_w_k:.2f} W/K (tau {k.C_plate_j_k / k.K_plate_oil_w_k:.2f} s, fit RMS "
+              f"{rep[c]['thermal_fit_rms_k']:.3f} K)  speed_ratio = {k.speed_ratio_m:.6f} m")
+    print(f"friction map: {len(cal.friction.T_grid_c)} x {len(cal.friction.slip_grid_rpm)} nodes, c_lnP = "
+          f"{cal.friction.c_lnP:+.5f}, fit RMS {rep['friction_map_rms']:.5f}")
+    print("predictor replay (truth - prediction, from the start-up assumption on):")
+    for name, r in rep["replay"].items():
+        print("  " + name + ": " + "; ".join(
+            f"{c} max under {e['max_under_k']:+.2f} K, max over {e['max_over_k']:.2f} K, RMS after start-up "
+            f"{e['rms_after_startup_k']:.2f} K" for c, e in r.items()))
+    print(f"worst under-prediction {rep['worst_under_prediction_k']:.2f} K -> prediction_error_k = "
+          f"{cal.strategy.prediction_error_k:g} K")
+    if args.write:
+        write_calibration(args.write, cal, args.calibration, args.logs, rep)
+        print(f"wrote {args.write}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
