@@ -43,7 +43,7 @@ class Strategy:
     hydraulic_lag_s: float = c("s", 0.0, 1.0)  # pressure follows the command with this lag (for the margin)
     dwell_band_k: float = c("K", 0.0, 20.0)  # a plate kept this close below its threshold ...
     dwell_time_s: float = c("s", 1.0, 600.0)  # ... for this long is treated as having reached it
-    T_start_assumed_c: float = c("degC", -40.0, 300.0)  # plate estimate at start-up (assume hot)
+    startup_observer_s: float = c("s", 0.0, 60.0)  # start-up: no creep while the plate estimate comes from the oil
     stop_release_s: float = c("s", 0.0, 2.0)  # STOPPED_OVERHEAT: clutch torque ramps out while the brake comes in
 
 
@@ -84,6 +84,7 @@ class Clutch:
     C_plate_j_k: float = c("J/K", 1.0, 1e6)
     K_plate_oil_w_k: float = c("W/K", 0.1, 1e5)
     speed_ratio_m: float = c("m", 1e-4, 1.0)  # vehicle speed per clutch output speed [m/s per rad/s]
+    cooling_w_k: float = c("W/K", 0.0, 1e5)  # heat capacity flow of the cooling oil through the clutch (rho c_p q)
 
 
 @dataclass(frozen=True)

@@ -22,10 +22,12 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   the driver withdraws the creep request.
 * FAULT: plant frames missing or invalid: both clutches open, fault bit set; back to IDLE when they return.
 
-Start-up: a plate's temperature is unknown until the predictor has converged, so each estimate starts at
-``T_start_assumed_c`` (the hottest documented start, "assume hot") or the oil leaving that clutch if hotter. The
-estimation error then decays with the plate's own time constant C/K (the predictor and the plate share it), so
-the estimate stays on the safe side and is credible after a few time constants.
+Start-up: a plate's temperature is unknown when the TCU wakes up, so it estimates it from the oil: the oil in a
+clutch pack settles within a fraction of a second to the balance of heat from the plates and the cooling flow,
+K (T_plate - T_oil_out) = cooling (T_oil_out - T_oil_in), so T_plate = T_oil_out + cooling / K (T_oil_out - T_oil_in),
+with the sump temperature for T_oil_in (the oil is heated by the pump and valves on its way to the clutches, so
+this over-estimates: the safe side). The TCU refuses to creep for ``startup_observer_s`` (five time constants of
+the oil in the pack) while it takes its estimate from this observer; afterwards the predictor runs from it.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ class TcuInputs:
     P_CH_mpa: float = 0.0
     T_oil_CL_c: float = 25.0
     T_oil_CH_c: float = 25.0
+    T_sump_c: float = 25.0
     creep_request: bool = False
     brake_pct: float = 0.0
     desired_speed_mps: float = 0.0
@@ -88,6 +91,7 @@ class CreepController:
         self.state = "IDLE"
         self.active = "NONE"
         self.T_pred: dict[str, float] | None = None
+        self.first_seen: float | None = None  # time of the first valid plant frames
         self.heat = {"CL": 0.0, "CH": 0.0}  # estimated friction power [W]
         self.P_cmd = {"CL": 0.0, "CH": 0.0}
         self.F_cmd = 0.0  # wheel force demanded by the speed controller [N]
@@ -102,11 +106,22 @@ class CreepController:
         self.stop_P0 = {"CL": 0.0, "CH": 0.0}
 
     # ---- the clutch model ------------------------------------------------------------------------------------
-    def _predict(self, inp: TcuInputs, dt: float) -> None:
-        """Advance both plate estimates; first sight: assume hot (see the module docstring)."""
-        T0 = self.cal.strategy.T_start_assumed_c
-        if self.T_pred is None:
-            self.T_pred = {c: max(T0, inp.oil_c(c)) for c in ("CL", "CH")}
+    def observed_plate_c(self, clutch: str, inp: TcuInputs) -> float:
+        """Plate temperature from the oil balance of the pack (start-up observer, see the module docstring)."""
+        c, T_out = self.cal.clutch(clutch), inp.oil_c(clutch)
+        return T_out + c.cooling_w_k / c.K_plate_oil_w_k * max(T_out - inp.T_sump_c, 0.0)
+
+    def starting(self, now: float) -> bool:
+        """True while the plate estimates still come from the start-up observer."""
+        return self.first_seen is None or now - self.first_seen < self.cal.strategy.startup_observer_s
+
+    def _predict(self, inp: TcuInputs, dt: float, now: float) -> None:
+        """Advance both plate estimates; at start-up, take them from the observer."""
+        if self.first_seen is None:
+            self.first_seen = now
+        if self.starting(now):
+            self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
+            return
         for c in ("CL", "CH"):
             clutch = self.cal.clutch(c)
             self.heat[c] = friction_heat(self.cal.friction, clutch, self.T_pred[c], inp.slip_rpm(c),
@@ -172,7 +187,7 @@ class CreepController:
                 self.state, self.active, self.brake_request = "FAULT", "NONE", False
                 self._open_both()
             return self._outputs(faults | FAULT_PLANT_MISSING)
-        self._predict(inp, dt)
+        self._predict(inp, dt, now)
         if self.state == "FAULT":
             self.state = "IDLE"
 
@@ -187,7 +202,7 @@ class CreepController:
             return self._outputs(faults)
 
         pedal = inp.brake_pct >= BRAKE_PRESSED_PCT
-        if not (inp.creep_request and not pedal):
+        if not (inp.creep_request and not pedal) or self.starting(now):
             self._idle(inp, now, pedal)
             return self._outputs(faults)
 
@@ -242,7 +257,8 @@ class CreepController:
         return self.pid.update(v_err, dt)
 
     def _idle(self, inp: TcuInputs, now: float, pedal: bool) -> None:
-        """No creep wanted: clutches open; hill-hold while standing on the brake, for at most hold_max_s after."""
+        """No creep wanted (or not yet allowed): clutches open; hill-hold while standing on the brake, for at most
+        hold_max_s after."""
         self.state, self.active = "IDLE", "NONE"
         self._open_both()
         standing = abs(inp.v_mps) < self.cal.launch.standstill_mps

@@ -41,7 +41,7 @@ def run(ctrl, clock, inputs, seconds):
 def creeping(cal=FLAT, clutch="CL"):
     """A controller in CREEP on CL at the desired speed, the pre-fill done; plates at the oil temperature."""
     ctrl, clock = CreepController(cal), Clock()
-    run(ctrl, clock, BRAKED, 0.5)
+    run(ctrl, clock, BRAKED, cal.strategy.startup_observer_s + 0.1)
     out = run(ctrl, clock, replace(CREEP, P_CL_mpa=1.0, v_mps=0.2), 0.05)
     assert out.state == "CREEP" and out.active_clutch == clutch
     ctrl.T_pred = {"CL": 100.0, "CH": 100.0}
@@ -69,7 +69,7 @@ def test_idle_with_hill_hold_while_the_driver_brakes_at_standstill():
 
 def test_engage_prefills_under_the_brake_then_releases_it_and_tracks_speed():
     ctrl, clock = CreepController(FLAT), Clock()
-    run(ctrl, clock, BRAKED, 0.5)
+    run(ctrl, clock, BRAKED, FLAT.strategy.startup_observer_s + 0.1)
     out = ctrl.update(CREEP, clock.tick())  # driver releases and asks to creep; pressure not there yet
     assert out.state == "ENGAGE" and out.active_clutch == "CL" and out.brake_request and out.P_CH_cmd_mpa == 0.0
     c = FLAT.CL
@@ -159,23 +159,31 @@ def test_stops_when_neither_can_take_over_but_not_before_the_hotter_is_near_its_
     assert out.state == "IDLE"
 
 
-def test_startup_assumes_hot_and_converges_with_the_plate_time_constant():
+def test_startup_estimates_plates_from_the_oil_and_waits_before_creeping():
     ctrl, clock = CreepController(FLAT), Clock()
-    out = ctrl.update(BRAKED, clock.tick())
-    T0 = FLAT.strategy.T_start_assumed_c
-    assert out.T_CL_pred_c == pytest.approx(T0, abs=0.5) and out.T_CH_pred_c == pytest.approx(T0, abs=0.5)
+    hot = replace(BRAKED, T_oil_CL_c=200.0, T_oil_CH_c=120.0, T_sump_c=90.0)
+    out = ctrl.update(hot, clock.tick())
     c = FLAT.CL
+    assert out.T_CL_pred_c == pytest.approx(200.0 + c.cooling_w_k / c.K_plate_oil_w_k * 110.0)
+    assert out.T_CH_pred_c == pytest.approx(120.0 + FLAT.CH.cooling_w_k / FLAT.CH.K_plate_oil_w_k * 30.0)
+    window = FLAT.strategy.startup_observer_s
+    out = run(ctrl, clock, replace(hot, creep_request=True, brake_pct=0.0), window - 2 * DT)
+    assert out.state == "IDLE" and out.brake_request and out.P_CL_cmd_mpa == 0.0  # held, not creeping yet
+    out = run(ctrl, clock, replace(hot, creep_request=True, brake_pct=0.0), 3 * DT)
+    assert out.state == "ENGAGE" and out.brake_request and out.P_CL_cmd_mpa > 0.0
+    T = out.T_CL_pred_c  # from now on the predictor: the estimate cools towards the oil with tau = C / K
     tau = c.C_plate_j_k / c.K_plate_oil_w_k
-    out = run(ctrl, clock, BRAKED, tau)
-    assert out.T_CL_pred_c == pytest.approx(100.0 + (T0 - 100.0) / math.e, abs=0.5)
-    hot_oil = CreepController(FLAT).update(replace(BRAKED, T_oil_CL_c=T0 + 20.0), 0.0)
-    assert hot_oil.T_CL_pred_c == pytest.approx(T0 + 20.0, abs=0.1)  # never below the oil leaving it
+    ctrl2, clock2 = CreepController(FLAT), Clock()
+    run(ctrl2, clock2, hot, window + DT)
+    T0 = ctrl2.T_pred["CL"]
+    out = run(ctrl2, clock2, hot, tau)
+    assert out.T_CL_pred_c == pytest.approx(200.0 + (T0 - 200.0) / math.e, abs=0.05) and T > 200.0
 
 
-def test_startup_refuses_to_creep_when_both_estimates_are_too_hot():
-    cal = replace(FLAT, strategy=replace(FLAT.strategy, T_start_assumed_c=245.0))
-    ctrl, clock = CreepController(cal), Clock()
-    out = ctrl.update(CREEP, clock.tick())
+def test_startup_refuses_to_creep_when_both_plates_are_too_hot():
+    ctrl, clock = CreepController(FLAT), Clock()
+    hot = replace(CREEP, T_oil_CL_c=240.0, T_oil_CH_c=238.0, T_sump_c=150.0)
+    out = run(ctrl, clock, hot, FLAT.strategy.startup_observer_s + 0.05)
     assert out.state == "STOPPED_OVERHEAT" and out.brake_request and out.P_CL_cmd_mpa == 0.0
 
 
