@@ -115,8 +115,7 @@ def fit_k_geom(cols: list[dict]) -> float:
 
 def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
     """Regularised least squares of the map; returns it and the RMS of the fit over the samples."""
-    from scipy.sparse import coo_matrix, vstack
-    from scipy.sparse.linalg import lsqr
+    from scipy.sparse import coo_matrix
 
     T = np.concatenate([d["T"][_slipping(d)] for d in cols])
     n = np.abs(np.concatenate([d["slip"][_slipping(d)] for d in cols]))
@@ -148,8 +147,8 @@ def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
                         reg_v.append(lam * w)
                     k += 1
     R = coo_matrix((reg_v, (reg_r, reg_c)), shape=(k, nT * nS + 1))
-    x = lsqr(vstack([A, R]).tocsr(), np.concatenate([mu, np.zeros(k)]), atol=1e-12, btol=1e-12,
-             iter_lim=20000)[0]
+    A, R = A.tocsr(), R.tocsr()
+    x = np.linalg.solve((A.T @ A + R.T @ R).toarray(), A.T @ mu)  # normal equations: small and well posed
     grid = x[:-1].reshape(nT, nS)
     rms = float(np.sqrt(np.mean((A @ x - mu) ** 2)))
     fm = FrictionMap(T_GRID, SLIP_GRID, tuple(tuple(round(float(v), 5) for v in row) for row in grid),
@@ -202,9 +201,10 @@ def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
                 continue
             if t0 is None:
                 t0 = r.t[k]
-            if r.t[k] - t0 < window:
+            if r.t[k] - t0 < window:  # the TCU does not creep yet: the error does not count
                 T_pred = d["T_oil"][k] + clutch.cooling_w_k / clutch.K_plate_oil_w_k * max(
                     d["T_oil"][k] - d["T_sump"][k], 0.0)
+                continue
             else:
                 Q = friction_heat(cal.friction, clutch, T_pred, d["slip"][k], d["P"][k])
                 T_pred = plate_step(clutch, T_pred, Q, d["T_oil"][k], r.t[k] - r.t[k - 1])
@@ -223,7 +223,7 @@ def identify(paths: list[str], base: TcuCalibration, dbc: str | None = None) -> 
     for c in ("CL", "CH"):
         cols = [_clutch_columns(r, c) for r in records]
         C, K, rms_dTdt = fit_thermal(cols, [r.t for r in records])
-        clutches[c] = Clutch(k_geom_m3=round(fit_k_geom(cols), 6), C_plate_j_k=round(C, 1),
+        clutches[c] = replace(base.clutch(c), k_geom_m3=round(fit_k_geom(cols), 6), C_plate_j_k=round(C, 1),
                              K_plate_oil_w_k=round(K, 2), speed_ratio_m=round(fit_speed_ratio(cols), 6))
         report[c] = {"thermal_fit_rms_k": rms_dTdt}
     fmap, mu_rms = fit_friction_map([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
