@@ -7,7 +7,7 @@ thermocouples and torque sensor:
 * ``speed_ratio_m`` per clutch: vehicle speed per clutch output speed (median while moving);
 * ``k_geom_m3`` per clutch: torque / (mu P) (median while slipping under pressure);
 * the friction map mu(T, slip) + c_lnP ln(P/P_ref): regularised least squares over the truth mu samples
-  (bilinear grid, second differences penalised so that cells without data interpolate smoothly);
+  (bilinear grid, first differences penalised so that cells without data take their neighbours' values);
 * ``C_plate_j_k`` and ``K_plate_oil_w_k`` per clutch: C dT/dt = Q - K (T - T_oil_out) fitted by output error to
   the truth plate temperature, driven by the truth heat flux and the measured oil temperature.
 
@@ -45,7 +45,7 @@ USES = {
 T_GRID = tuple(float(t) for t in range(20, 321, 10))
 SLIP_GRID = tuple(float(n) for n in range(0, 401, 10))
 P_REF_MPA, P_FLOOR_MPA = 0.5, 0.05
-SMOOTHING = 0.02  # weight of the second-difference penalty per grid node (relative to one sample)
+SMOOTHING = 0.02  # weight of the first-difference penalty per grid node (relative to one sample)
 ERROR_ROUND_K = 0.5  # prediction_error_k is the replay's worst error rounded up to this step
 
 
@@ -137,14 +137,13 @@ def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
     lam = math.sqrt(SMOOTHING * len(mu) / (nT * nS))
     reg_r, reg_c, reg_v = [], [], []
     k = 0
-    for a in range(nT):
+    for a in range(nT):  # first differences along T and slip: flat, bounded extrapolation where there is no data
         for b in range(nS):
             for da, db in ((1, 0), (0, 1)):
-                if 0 < a < nT - 1 if da else 0 < b < nS - 1:
-                    for off, w in ((-1, 1.0), (0, -2.0), (1, 1.0)):
-                        reg_r.append(k)
-                        reg_c.append((a + da * off) * nS + b + db * off)
-                        reg_v.append(lam * w)
+                if a + da < nT and b + db < nS:
+                    reg_r += [k, k]
+                    reg_c += [a * nS + b, (a + da) * nS + b + db]
+                    reg_v += [-lam, lam]
                     k += 1
     R = coo_matrix((reg_v, (reg_r, reg_c)), shape=(k, nT * nS + 1))
     A, R = A.tocsr(), R.tocsr()
@@ -253,7 +252,8 @@ def write_calibration(path: str, cal: TcuCalibration, base: str | None, logs: li
     for c in ("CL", "CH"):
         k, fit = cal.clutch(c), rep[c]["thermal_fit_rms_k"]
         for key, how in (("k_geom_m3", "median of truth torque / (truth mu x measured P) while slipping"),
-                         ("C_plate_j_k", f"C dT/dt = Q - K (T - T_oil_out) fitted to the truth temperature (output error, RMS {fit:.3f} K)"),
+                         ("C_plate_j_k", "C dT/dt = Q - K (T - T_oil_out) fitted to the truth temperature "
+                                         f"(output error, RMS {fit:.3f} K)"),
                          ("K_plate_oil_w_k", f"same fit as C_plate_j_k (output error, RMS {fit:.3f} K)"),
                          ("speed_ratio_m", "median of vehicle speed / clutch output speed while moving")):
             raw[f"clutch.{c}"][key] = {**raw[f"clutch.{c}"][key], "value": getattr(k, key), "source": "identified",
@@ -305,7 +305,8 @@ def main(argv: list[str] | None = None) -> int:
     print("plate estimate replayed as the TCU runs it, start-up observer then predictor (truth - estimate):")
     for name, r in rep["replay"].items():
         print("  " + name + ": " + "; ".join(
-            f"{c} max under {e['max_under_k']:+.2f} K, max over {e['max_over_k']:.2f} K, RMS {e['rms_k']:.2f} K" for c, e in r.items()))
+            f"{c} max under {e['max_under_k']:+.2f} K, max over {e['max_over_k']:.2f} K, RMS {e['rms_k']:.2f} K"
+            for c, e in r.items()))
     print(f"worst under-prediction {rep['worst_under_prediction_k']:.2f} K -> prediction_error_k = "
           f"{cal.strategy.prediction_error_k:g} K")
     if args.write:

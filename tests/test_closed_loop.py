@@ -20,6 +20,8 @@ from dsg_hil.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.runner import PeerTimeout, PlantRunner
 from dsg_hil.scenario import load_scenario, parse_scenario
+from ecu_stub.calibration import TcuCalibration
+from ecu_stub.controller import CreepController
 from ecu_stub.runner import TCU_USES, TcuRunner
 
 T_SAFE = 250.0
@@ -27,7 +29,7 @@ T_SAFE = 250.0
 
 def creep_scenario(duration: float, grade: float = 0.174, idle_rpm: float = 800.0, speed: float = 0.22,
                    T_oil: float = 90.0, release_s: float = 1.0):
-    """Brake held until ``release_s``, then creep at ``speed`` until the end."""
+    """Brake held until ``release_s``, then creep at ``speed`` until the end (hotter starts: ``closed_loop``)."""
     return parse_scenario(f"""
 name = "closed-loop test"
 duration_s = {duration}
@@ -73,9 +75,10 @@ class Trace:
 
 
 def closed_loop(channel: str, scenario=None, T_plates: tuple[float, float] | None = None, mass_factor: float = 1.0,
-                T_oil_nodes: float | None = None):
+                T_oil_nodes: float | None = None, cal: TcuCalibration | None = None):
     """Run the scenario; ``T_plates`` sets CL and CH apart from the scenario's clutch temperature,
-    ``T_oil_nodes`` every other node of the thermal network, ``mass_factor`` scales the vehicle mass."""
+    ``T_oil_nodes`` every other node of the thermal network, ``mass_factor`` scales the vehicle mass, ``cal``
+    replaces the TCU's shipped calibration."""
     params, db = load_params(), load_dbc()
     scenario = scenario or load_scenario()
     if mass_factor != 1.0:
@@ -86,9 +89,10 @@ def closed_loop(channel: str, scenario=None, T_plates: tuple[float, float] | Non
     plant_bus = can.Bus(interface="virtual", channel=channel)
     tcu_bus = can.Bus(interface="virtual", channel=channel)
     frames: list[tuple[float, int, bytes]] = []
+    record = (lambda m: frames.append((m.timestamp, m.arbitration_id, bytes(m.data))),)
     runner = PlantRunner(Plant(params, T_init=T_init, v_init=scenario.v_mps), scenario, Codec(db, PLANT_USES),
-                         plant_bus, listeners=(lambda m: frames.append((m.timestamp, m.arbitration_id, bytes(m.data))),))
-    tcu = TcuRunner(Codec(db, TCU_USES), tcu_bus)
+                         plant_bus, listeners=record)
+    tcu = TcuRunner(Codec(db, TCU_USES), tcu_bus, CreepController(cal))
     trace = Trace([], [], [], [], [], [])
 
     def pump() -> None:
@@ -111,16 +115,16 @@ def closed_loop(channel: str, scenario=None, T_plates: tuple[float, float] | Non
 
 # ---- hot clutches: the handover and the thermal limit on the plant's truth ------------------------------------
 HOT = {  # name: scenario, (T_CL, T_CH) plates, rest of the network, mass factor
-    "paper grade, 800 r/min, 0.22 m/s": (dict(grade=0.174, idle_rpm=800, speed=0.22), (246.0, 200.0), 200.0, 1.0),
-    "steep, fast, heavy": (dict(grade=0.2, idle_rpm=1300, speed=0.4), (246.0, 205.0), 205.0, 1.3),
-    "level, slow, light": (dict(grade=0.0, idle_rpm=700, speed=0.05), (248.0, 205.0), 205.0, 0.7),
+    "paper grade, 800 r/min, 0.22 m/s": (dict(grade=0.174, idle_rpm=800, speed=0.22), (246.0, 215.0), 238.0, 1.0),
+    "steep, fast, heavy": (dict(grade=0.2, idle_rpm=1300, speed=0.4), (246.0, 215.0), 238.0, 1.3),
+    "level, slow, light": (dict(grade=0.0, idle_rpm=700, speed=0.05), (248.0, 215.0), 242.0, 0.7),
 }
 
 
 @pytest.fixture(scope="module", params=list(HOT), ids=list(HOT))
 def hot_run(request):
     kwargs, plates, rest, mass = HOT[request.param]
-    scenario = creep_scenario(12.0, T_oil=rest, **kwargs)
+    scenario = creep_scenario(12.0, **kwargs)
     return closed_loop(f"hot-{request.param}", scenario, plates, mass, rest)
 
 
@@ -141,7 +145,7 @@ def test_speed_stays_within_20_percent_of_its_target_through_the_handover(hot_ru
 
 
 def test_stops_when_neither_clutch_can_take_over_with_the_truth_under_250():
-    scenario = creep_scenario(15.0, T_oil=200.0)
+    scenario = creep_scenario(15.0)
     s, trace, _ = closed_loop("hot-both", scenario, (244.0, 245.0), T_oil_nodes=200.0)
     assert s["stop_reason"] == "STOPPED_OVERHEAT" and not s["handovers"]
     assert max(trace.T_CL) <= T_SAFE and max(trace.T_CH) <= T_SAFE
