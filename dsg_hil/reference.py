@@ -41,3 +41,14 @@ SAFETY_TEMPERATURE_C = 250.0
 TOL_RISE_C = 4.0
 TOL_TORQUE_REL = 0.07
 TOL_MU = 0.004
+
+# Section V.B: the creep timeline (Figs. 8-12) and the done-when bands of issue 7.
+CREEP_TIME_S = 174.0  # until the stop
+CREEP_SLIP_TIME_S = {"CL": 43.5, "CH": 130.5}
+CREEP_T_CL_AT_FIRST_CH_LIMIT_C = 205.5  # CL when CH first reaches 250 degC
+CREEP_T_ONCOMING_AT_STOP_C = 246.0  # the on-coming CL when the vehicle stops
+TOL_CREEP_TIME_REL = 0.10
+TOL_SLIP_TIME_REL = 0.15
+TOL_CREEP_T_C = 10.0
+TOL_CREEP_MU = 0.005
+TOL_CREEP_P_MPA = 0.05

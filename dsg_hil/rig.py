@@ -1,8 +1,10 @@
 """The single-clutch test rig of Section III.C: clutch CL slips at constant pressure and relative speed.
 
-The friction coefficient (6) and torque (5) set the friction heat (4) into the plates of the gearbox network
-(with the rig's test clutch as element CL). The rig starts in thermal equilibrium: every node and the environment E
-at the start temperature (40 degC in the paper), so the rise is the clutch's own doing.
+The friction coefficient (6) and torque (5) set the friction heat (4) into the plates of the gearbox network in its
+rig configuration (:func:`rig_configuration`): the test clutch (``clutch.test``, two friction surfaces) with the
+rig's lubrication (``thermal.clutch.test``) takes the place of element CL. The rig starts in thermal equilibrium:
+every node and the environment E at the start temperature (40 degC in the paper), so the rise is the clutch's own
+doing.
 """
 
 from __future__ import annotations
@@ -44,11 +46,22 @@ class RigTrace:
         return float(self.T_CL[-1] - self.T_CL[0])
 
 
+def rig_configuration(params: Params, T_start: float) -> Params:
+    """The parameters of the Section III.C rig: the test clutch and its lubrication in slot CL, E at T_start.
+    The rig has no second clutch: slot CH keeps the vehicle's pack but no cooling flow, so it stays at T_start
+    and nothing of the vehicle's CH reaches the rig's results."""
+    cool = params.thermal.clutch
+    clutch = replace(params.clutch, CL=params.clutch.test)
+    cool = replace(cool, CL=cool.test, CH=replace(cool.CH, Q_cool=0.0))
+    return replace(params, clutch=clutch, thermal=replace(params.thermal, T_E=T_start, clutch=cool))
+
+
 def run_rig(params: Params, case: RigCase, duration: float = 100.0, dt: float = 1e-3,
             T_start: float = 40.0, every: int = 100) -> RigTrace:
     """Simulate the rig for ``duration`` s at step ``dt``; exact ZOH thermal step, friction evaluated per step."""
-    geometry = params.clutch.test
-    net = gearbox_network(replace(params, thermal=replace(params.thermal, T_E=T_start)), CL=geometry)
+    params = rig_configuration(params, T_start)
+    geometry = params.clutch.CL
+    net = gearbox_network(params)
     disc = discretize(net, dt)
     T = np.full(len(NODES), float(T_start))
     T0 = T.copy()

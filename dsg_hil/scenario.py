@@ -7,6 +7,8 @@ grade_rad = 0.174            # optional; default: the parameter file's vehicle.b
 engine_speed_rpm = 800.0     # optional; idle governor setpoint
 [initial]
 T_clutch_c = 100.0           # plates of CL and CH
+T_CL_c = 100.0               # optional: CL's plates (default T_clutch_c)
+T_CH_c = 100.0               # optional: CH's plates (default T_clutch_c)
 T_oil_c = 90.0               # every other node
 v_mps = 0.0
 [[driver]]                   # piecewise constant from t_s on
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -48,8 +50,14 @@ class Scenario:
     engine_speed_rpm: float | None
     T_clutch_c: float
     T_oil_c: float
+    T_CL_c: float
+    T_CH_c: float
     v_mps: float
     driver: tuple[DriverInput, ...]
+
+    def initial_temperatures(self, nodes: tuple[str, ...]) -> dict[str, float]:
+        """Start temperature of each thermal node [degC]: the plates CL and CH their own, every other T_oil_c."""
+        return {n: self.T_oil_c for n in nodes} | {"CL": self.T_CL_c, "CH": self.T_CH_c}
 
     def driver_at(self, t: float) -> DriverInput:
         """The driver's inputs in force at time t [s] (the last event at or before t)."""
@@ -64,8 +72,7 @@ class Scenario:
     def with_duration(self, duration_s: float) -> "Scenario":
         if not duration_s > 0.0:
             raise ScenarioError(f"duration must be positive, got {duration_s}")
-        return Scenario(self.name, duration_s, self.grade_rad, self.engine_speed_rpm, self.T_clutch_c, self.T_oil_c,
-                        self.v_mps, self.driver)
+        return replace(self, duration_s=duration_s)
 
 
 def _number(table: dict, key: str, where: str, lo: float, hi: float, default: Any = ...) -> Any:
@@ -93,6 +100,10 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
     initial = data.get("initial", {})
     if not isinstance(initial, dict):
         raise ScenarioError("initial: must be a table")
+    extra = set(initial) - {"T_clutch_c", "T_CL_c", "T_CH_c", "T_oil_c", "v_mps"}
+    if extra:
+        raise ScenarioError(f"initial.{sorted(extra)[0]}: unknown key")
+    T_clutch = _number(initial, "T_clutch_c", "initial.", -40.0, 300.0, 25.0)
     events = data.get("driver")
     if not isinstance(events, list) or not events:
         raise ScenarioError("driver: needs at least one [[driver]] event")
@@ -115,8 +126,10 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
         duration_s=_number(data, "duration_s", "", 1e-3, 1e6),
         grade_rad=_number(data, "grade_rad", "", -0.5, 0.5, None),
         engine_speed_rpm=_number(data, "engine_speed_rpm", "", 500.0, 2500.0, None),
-        T_clutch_c=_number(initial, "T_clutch_c", "initial.", -40.0, 300.0, 25.0),
+        T_clutch_c=T_clutch,
         T_oil_c=_number(initial, "T_oil_c", "initial.", -40.0, 150.0, 25.0),
+        T_CL_c=_number(initial, "T_CL_c", "initial.", -40.0, 300.0, T_clutch),
+        T_CH_c=_number(initial, "T_CH_c", "initial.", -40.0, 300.0, T_clutch),
         v_mps=_number(initial, "v_mps", "initial.", -5.0, 5.0, 0.0),
         driver=tuple(driver),
     )

@@ -25,7 +25,8 @@ def test_validate_writes_json_and_plots(tmp_path, capsys):
 def test_params_lists_sources(capsys):
     assert main(["params", "--source", "calibrated"]) == 0
     out = capsys.readouterr().out
-    assert "friction.A_stribeck" in out and "thermal.clutch.h_plate_oil" in out and "2 calibrated" in out
+    assert "friction.A_stribeck" in out and "thermal.clutch.test.h_plate_oil" in out
+    assert "clutch.CL.C_plate" in out and "thermal.clutch.CH.Q_cool" in out and "10 calibrated" in out
 
 
 @pytest.mark.parametrize("argv, message", [

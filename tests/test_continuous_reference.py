@@ -15,7 +15,7 @@ from dsg_hil.physics.powertrain import IDX, N_STATE
 from dsg_hil.physics.thermal import NODES, gearbox_network, heat_sources
 from dsg_hil.plant import Plant, PlantInputs
 from dsg_hil.reference import RIG_CASES
-from dsg_hil.rig import RigCase, run_rig
+from dsg_hil.rig import RigCase, rig_configuration, run_rig
 
 SPEEDS = ("e", "in", "1", "2", "3", "4", "5")
 
@@ -57,14 +57,15 @@ def test_plant_matches_solve_ivp_over_100_s(params):
 @pytest.mark.parametrize("ref", RIG_CASES, ids=lambda r: f"case{r.case}")
 def test_rig_matches_solve_ivp(params, ref):
     trace = run_rig(params, RigCase(ref.pressure_mpa, ref.speed_rpm), 100.0, 1e-3, 40.0, every=1000)
-    net = gearbox_network(replace(params, thermal=replace(params.thermal, T_E=40.0)), CL=params.clutch.test)
+    rig = rig_configuration(params, 40.0)
+    net = gearbox_network(rig)
     P, omega = ref.pressure_mpa * 1e6, ref.speed_rpm / RAD_S_TO_RPM
     k = torque_per_mu(params.clutch.test, P)
     i_CL = NODES.index("CL")
 
     def f(t, T):
         mu = friction_coefficient(ref.speed_rpm, T[i_CL], ref.pressure_mpa, params.friction)
-        return net.derivative(T, heat_sources(params, mu * k * omega, 0.0, P, 0.0))
+        return net.derivative(T, heat_sources(rig, mu * k * omega, 0.0, P, 0.0))
 
     sol = solve_ivp(f, (0.0, 100.0), np.full(len(NODES), 40.0), method="Radau", rtol=1e-10, atol=1e-10,
                     t_eval=trace.t)

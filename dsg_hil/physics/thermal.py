@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from .params import ClutchGeometry, Element, Params
+from .params import ClutchGeometry, ClutchThermal, Element, Params
 
 ELEMENTS = ("F", "P", "RV", "V", "CL", "CH", "R")
 NODES = tuple(n for e in ELEMENTS for n in (e, e + "o"))
@@ -82,20 +82,20 @@ class NetworkBuilder:
         return Network(self.names, self.C.copy(), self.L.copy(), self.g_E.copy(), self.T_E)
 
 
-def clutch_element(params: Params, geometry: ClutchGeometry) -> Element:
+def clutch_element(geometry: ClutchGeometry, thermal: ClutchThermal) -> Element:
     """Element CL or CH of (3): plate pack, its oil, and K_CL,CLo = h N pi (R_o^2 - R_i^2)."""
-    t = params.thermal.clutch
     wetted = geometry.N * np.pi * (geometry.R_o**2 - geometry.R_i**2)
-    return Element(C=geometry.C_plate, V_o=t.V_o, K_io=t.h_plate_oil * wetted, K_iE=t.K_iE, K_oE=t.K_oE)
+    return Element(C=geometry.C_plate, V_o=thermal.V_o, K_io=thermal.h_plate_oil * wetted, K_iE=thermal.K_iE,
+                   K_oE=thermal.K_oE)
 
 
-def gearbox_network(params: Params, CL: ClutchGeometry | None = None, CH: ClutchGeometry | None = None) -> Network:
-    """The network of Fig. 2 with the circuit's oil flows; CL/CH default to the vehicle's clutches."""
+def gearbox_network(params: Params) -> Network:
+    """The network of Fig. 2 with the circuit's oil flows, for the clutches params.clutch.CL/CH."""
     th, c, oil = params.thermal, params.circuit, params.oil
     elements = {
         "F": th.F, "P": th.P, "RV": th.RV, "V": th.V, "R": th.R,
-        "CL": clutch_element(params, CL or params.clutch.CL),
-        "CH": clutch_element(params, CH or params.clutch.CH),
+        "CL": clutch_element(params.clutch.CL, th.clutch.CL),
+        "CH": clutch_element(params.clutch.CH, th.clutch.CH),
     }
     b = NetworkBuilder(NODES, th.T_E)
     for name, e in elements.items():
@@ -107,16 +107,16 @@ def gearbox_network(params: Params, CL: ClutchGeometry | None = None, CH: Clutch
         b.conductance(o, "E", e.K_oE)
     W = oil.rho * oil.c_p  # J/(m^3 K)
     Q_valve = c.Q_pump - c.Q_relief
-    Q_bypass = Q_valve - c.Q_cool_CL - c.Q_cool_CH
+    Q_CL, Q_CH = th.clutch.CL.Q_cool, th.clutch.CH.Q_cool
     b.flow("Fo", "Po", W * c.Q_pump)
     b.flow("Po", "RVo", W * c.Q_relief)
     b.flow("RVo", "Fo", W * c.Q_relief)
     b.flow("Po", "Vo", W * Q_valve)
-    b.flow("Vo", "CLo", W * c.Q_cool_CL)
-    b.flow("Vo", "CHo", W * c.Q_cool_CH)
-    b.flow("Vo", "Ro", W * Q_bypass)
-    b.flow("CLo", "Ro", W * c.Q_cool_CL)
-    b.flow("CHo", "Ro", W * c.Q_cool_CH)
+    b.flow("Vo", "CLo", W * Q_CL)
+    b.flow("Vo", "CHo", W * Q_CH)
+    b.flow("Vo", "Ro", W * (Q_valve - Q_CL - Q_CH))
+    b.flow("CLo", "Ro", W * Q_CL)
+    b.flow("CHo", "Ro", W * Q_CH)
     b.flow("Ro", "Fo", W * Q_valve)
     return b.build()
 
@@ -128,10 +128,10 @@ def heat_sources(params: Params, Q_CL: float, Q_CH: float, P_CL: float, P_CH: fl
     with q_r the cooling flow and delta_p the clutch pressure P_CL/P_CH [Pa]; the rest of the pump's hydraulic power
     is throttled in V and RV, and the pump's own losses heat its oil, so the circuit turns all pump power into heat.
     """
-    c = params.circuit
+    c, cool = params.circuit, params.thermal.clutch
     q = np.zeros(len(NODES))
-    throttle_CL = c.Q_cool_CL * max(P_CL, 0.0)
-    throttle_CH = c.Q_cool_CH * max(P_CH, 0.0)
+    throttle_CL = cool.CL.Q_cool * max(P_CL, 0.0)
+    throttle_CH = cool.CH.Q_cool * max(P_CH, 0.0)
     hydraulic = c.Q_pump * c.p_line
     q[_I["CL"]] = Q_CL
     q[_I["CH"]] = Q_CH

@@ -42,7 +42,9 @@ def test_every_value_is_tagged_with_a_reason(params):
         assert source in {"paper", "assumed", "calibrated"}
         assert len(reason) >= 5, key
     calibrated = {k for k, (s, _) in params.provenance.items() if s == "calibrated"}
-    assert calibrated == {"friction.A_stribeck", "thermal.clutch.h_plate_oil"}
+    assert calibrated == {"friction.A_stribeck", "thermal.clutch.test.h_plate_oil", "clutch.CL.C_plate",
+                          "clutch.CH.C_plate", "thermal.clutch.CL.Q_cool", "thermal.clutch.CH.Q_cool",
+                          "powertrain.eta_L", "powertrain.eta_H", "powertrain.eta_1", "powertrain.eta_b"}
 
 
 BASE = DEFAULT_PARAMS_PATH.read_text(encoding="utf-8")
