@@ -8,6 +8,8 @@ thermocouples and torque sensor:
 * ``k_geom_m3`` per clutch: torque / (mu P) (median while slipping under pressure);
 * the friction map mu(T, slip) + c_lnP ln(P/P_ref): regularised least squares over the truth mu samples
   (bilinear grid, first differences penalised so that cells without data take their neighbours' values);
+* ``cooling_w_k`` per clutch, for the start-up observer: K (T - T_oil_out) = cooling (T_oil_out - T_sump) while
+  no friction heat flows;
 * ``C_plate_j_k`` and ``K_plate_oil_w_k`` per clutch: C dT/dt = Q - K (T - T_oil_out) fitted by output error to
   the truth plate temperature, driven by the truth heat flux and the measured oil temperature.
 
@@ -187,6 +189,22 @@ def fit_thermal(cols: list[dict], times: list[np.ndarray]) -> tuple[float, float
     return float(C), float(K), float(np.sqrt(np.mean(sol.fun ** 2)))
 
 
+def fit_cooling(cols: list[dict], K: float) -> tuple[float, float]:
+    """Cooling flow (rho c_p q) of the start-up observer: the oil balance of a pack K (T - T_out) = cooling
+    (T_out - T_in) with the sump for T_in, least squares through the origin over samples without friction heat.
+    Returns (cooling [W/K], RMS of the plate temperature it implies [K])."""
+    x, y = [], []
+    for d in cols:
+        ok = np.isfinite(d["T"]) & np.isfinite(d["T_sump"]) & (d["Q"] <= 0.0) & (d["T_oil"] - d["T_sump"] > 1.0)
+        x.append((d["T_oil"] - d["T_sump"])[ok])
+        y.append((d["T"] - d["T_oil"])[ok])
+    x, y = np.concatenate(x), np.concatenate(y)
+    if len(x) < 20:
+        raise ValueError("cooling: too few samples without friction heat and with the pack above the sump")
+    ratio = max(float(x @ y / (x @ x)), 0.0)
+    return ratio * K, float(np.sqrt(np.mean((y - ratio * x) ** 2)))
+
+
 def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
     """Run the TCU's plate estimate over a log as the controller does: the start-up observer for
     ``startup_observer_s`` after the first oil temperature, then the predictor. Truth minus estimate per clutch."""
@@ -222,9 +240,11 @@ def identify(paths: list[str], base: TcuCalibration, dbc: str | None = None) -> 
     for c in ("CL", "CH"):
         cols = [_clutch_columns(r, c) for r in records]
         C, K, rms_dTdt = fit_thermal(cols, [r.t for r in records])
+        cooling, rms_obs = fit_cooling(cols, K)
         clutches[c] = replace(base.clutch(c), k_geom_m3=round(fit_k_geom(cols), 6), C_plate_j_k=round(C, 1),
-                             K_plate_oil_w_k=round(K, 2), speed_ratio_m=round(fit_speed_ratio(cols), 6))
-        report[c] = {"thermal_fit_rms_k": rms_dTdt}
+                              K_plate_oil_w_k=round(K, 2), speed_ratio_m=round(fit_speed_ratio(cols), 6),
+                              cooling_w_k=round(cooling, 2))
+        report[c] = {"thermal_fit_rms_k": rms_dTdt, "observer_fit_rms_k": rms_obs}
     fmap, mu_rms = fit_friction_map([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
     report["friction_map_rms"] = mu_rms
     cal = replace(base, friction=fmap, CL=clutches["CL"], CH=clutches["CH"])
@@ -255,7 +275,9 @@ def write_calibration(path: str, cal: TcuCalibration, base: str | None, logs: li
                          ("C_plate_j_k", "C dT/dt = Q - K (T - T_oil_out) fitted to the truth temperature "
                                          f"(output error, RMS {fit:.3f} K)"),
                          ("K_plate_oil_w_k", f"same fit as C_plate_j_k (output error, RMS {fit:.3f} K)"),
-                         ("speed_ratio_m", "median of vehicle speed / clutch output speed while moving")):
+                         ("speed_ratio_m", "median of vehicle speed / clutch output speed while moving"),
+                         ("cooling_w_k", "oil balance K (T - T_oil_out) = cooling (T_oil_out - T_sump) without "
+                                         f"friction heat, least squares (RMS {rep[c]['observer_fit_rms_k']:.2f} K)")):
             raw[f"clutch.{c}"][key] = {**raw[f"clutch.{c}"][key], "value": getattr(k, key), "source": "identified",
                                        "how": f"{cmd}: {how}"}
     f = cal.friction
@@ -299,7 +321,8 @@ def main(argv: list[str] | None = None) -> int:
         k = cal.clutch(c)
         print(f"{c}: k_geom = {k.k_geom_m3:.6f} m^3  C_plate = {k.C_plate_j_k:.1f} J/K  K_plate_oil = "
               f"{k.K_plate_oil_w_k:.2f} W/K (tau {k.C_plate_j_k / k.K_plate_oil_w_k:.2f} s, fit RMS "
-              f"{rep[c]['thermal_fit_rms_k']:.3f} K)  speed_ratio = {k.speed_ratio_m:.6f} m")
+              f"{rep[c]['thermal_fit_rms_k']:.3f} K)  speed_ratio = {k.speed_ratio_m:.6f} m  cooling = "
+              f"{k.cooling_w_k:.1f} W/K (observer RMS {rep[c]['observer_fit_rms_k']:.2f} K)")
     print(f"friction map: {len(cal.friction.T_grid_c)} x {len(cal.friction.slip_grid_rpm)} nodes, c_lnP = "
           f"{cal.friction.c_lnP:+.5f}, fit RMS {rep['friction_map_rms']:.5f}")
     print("plate estimate replayed as the TCU runs it, start-up observer then predictor (truth - estimate):")

@@ -28,15 +28,18 @@ T_SAFE = 250.0
 
 
 def creep_scenario(duration: float, grade: float = 0.174, idle_rpm: float = 800.0, speed: float = 0.22,
-                   T_oil: float = 90.0, release_s: float = 1.0):
-    """Brake held until ``release_s``, then creep at ``speed`` until the end (hotter starts: ``closed_loop``)."""
+                   T_oil: float = 90.0, T_plates: tuple[float, float] | None = None, release_s: float = 1.0):
+    """Brake held until ``release_s``, then creep at ``speed`` until the end; plates (CL, CH) at ``T_plates``
+    (default: the oil temperature)."""
+    T_CL, T_CH = T_plates or (T_oil, T_oil)
     return parse_scenario(f"""
 name = "closed-loop test"
 duration_s = {duration}
 grade_rad = {grade}
 engine_speed_rpm = {idle_rpm}
 [initial]
-T_clutch_c = {T_oil}
+T_CL_c = {T_CL}
+T_CH_c = {T_CH}
 T_oil_c = {T_oil}
 [[driver]]
 t_s = 0.0
@@ -74,18 +77,14 @@ class Trace:
         return any(a <= t <= b for a, b in windows)
 
 
-def closed_loop(channel: str, scenario=None, T_plates: tuple[float, float] | None = None, mass_factor: float = 1.0,
-                T_oil_nodes: float | None = None, cal: TcuCalibration | None = None):
-    """Run the scenario; ``T_plates`` sets CL and CH apart from the scenario's clutch temperature,
-    ``T_oil_nodes`` every other node of the thermal network, ``mass_factor`` scales the vehicle mass, ``cal``
-    replaces the TCU's shipped calibration."""
+def closed_loop(channel: str, scenario=None, mass_factor: float = 1.0, cal: TcuCalibration | None = None):
+    """Run the scenario (default: the shipped one); ``mass_factor`` scales the vehicle mass, ``cal`` replaces
+    the TCU's shipped calibration."""
     params, db = load_params(), load_dbc()
     scenario = scenario or load_scenario()
     if mass_factor != 1.0:
         params = replace(params, vehicle=replace(params.vehicle, m=params.vehicle.m * mass_factor))
-    T_CL, T_CH = T_plates or (scenario.T_clutch_c, scenario.T_clutch_c)
-    T_rest = scenario.T_oil_c if T_oil_nodes is None else T_oil_nodes
-    T_init = {n: T_rest for n in NODES} | {"CL": T_CL, "CH": T_CH}
+    T_init = scenario.initial_temperatures(NODES)
     plant_bus = can.Bus(interface="virtual", channel=channel)
     tcu_bus = can.Bus(interface="virtual", channel=channel)
     frames: list[tuple[float, int, bytes]] = []
@@ -115,17 +114,17 @@ def closed_loop(channel: str, scenario=None, T_plates: tuple[float, float] | Non
 
 # ---- hot clutches: the handover and the thermal limit on the plant's truth ------------------------------------
 HOT = {  # name: scenario, (T_CL, T_CH) plates, rest of the network, mass factor
-    "paper grade, 800 r/min, 0.22 m/s": (dict(grade=0.174, idle_rpm=800, speed=0.22), (246.0, 215.0), 238.0, 1.0),
-    "steep, fast, heavy": (dict(grade=0.2, idle_rpm=1300, speed=0.4), (246.0, 215.0), 238.0, 1.3),
-    "level, slow, light": (dict(grade=0.0, idle_rpm=700, speed=0.05), (248.0, 215.0), 242.0, 0.7),
+    "paper grade, 800 r/min, 0.22 m/s": (dict(grade=0.174, idle_rpm=800, speed=0.22), (228.0, 150.0), 120.0, 1.0),
+    "steep, fast, heavy": (dict(grade=0.2, idle_rpm=1300, speed=0.4), (228.0, 150.0), 140.0, 1.3),
+    "level, slow, light": (dict(grade=0.0, idle_rpm=700, speed=0.05), (232.0, 150.0), 140.0, 0.7),
 }
 
 
 @pytest.fixture(scope="module", params=list(HOT), ids=list(HOT))
 def hot_run(request):
     kwargs, plates, rest, mass = HOT[request.param]
-    scenario = creep_scenario(12.0, **kwargs)
-    return closed_loop(f"hot-{request.param}", scenario, plates, mass, rest)
+    scenario = creep_scenario(14.0, T_oil=rest, T_plates=plates, **kwargs)
+    return closed_loop(f"hot-{request.param}", scenario, mass)
 
 
 def test_hot_cl_hands_over_to_ch_and_the_truth_stays_under_250(hot_run):
@@ -145,8 +144,8 @@ def test_speed_stays_within_20_percent_of_its_target_through_the_handover(hot_ru
 
 
 def test_stops_when_neither_clutch_can_take_over_with_the_truth_under_250():
-    scenario = creep_scenario(15.0)
-    s, trace, _ = closed_loop("hot-both", scenario, (244.0, 245.0), T_oil_nodes=200.0)
+    scenario = creep_scenario(14.0, T_oil=120.0, T_plates=(228.0, 240.0))  # CH cannot take over
+    s, trace, _ = closed_loop("hot-both", scenario)
     assert s["stop_reason"] == "STOPPED_OVERHEAT" and not s["handovers"]
     assert max(trace.T_CL) <= T_SAFE and max(trace.T_CH) <= T_SAFE
     i_stop = trace.state.index("STOPPED_OVERHEAT")
