@@ -65,6 +65,7 @@ class Launch:
     prefill_ready_fraction: float = c("1", 0.1, 1.0)  # measured pressure / pre-fill pressure to release the brake
     hold_max_s: float = c("s", 0.0, 10.0)  # longest hill-hold without a creep request (pedal released)
     standstill_mps: float = c("m/s", 0.0, 0.5)
+    accel_mps2: float = c("m/s^2", 0.01, 5.0)  # the speed reference rises to the desired creep speed at this rate
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
 * ENGAGE: on the creep request, the on-coming clutch (CL first) is filled at once to the pressure that carries
   ``launch.F_prefill_n`` at the wheel (enough to hold the heaviest vehicle on the steepest documented grade, with
   rolling resistance); the brake request is dropped when the measured pressure has reached it.
-* CREEP: a PI controller on vehicle speed sets the wheel force; the active clutch's pressure follows from the TCU's
+* CREEP: a PI controller on vehicle speed sets the wheel force (its reference reaches the desired speed along a
+  ramp of ``launch.accel_mps2``, so a launch or a new desired speed is no step); the active clutch's pressure follows from the TCU's
   model of that clutch (torque = mu(T, slip, P) k_geom P, the speed ratio to the wheel, efficiency).
 * HANDOVER: a torque handover as in a DCT shift: over ``handover_time_s`` the on-coming clutch takes a growing
   share x of the wheel force and the off-going the rest (1 - x), each converted to pressure by its own model,
@@ -95,6 +96,7 @@ class CreepController:
         self.heat = {"CL": 0.0, "CH": 0.0}  # estimated friction power [W]
         self.P_cmd = {"CL": 0.0, "CH": 0.0}
         self.F_cmd = 0.0  # wheel force demanded by the speed controller [N]
+        self.v_ref = 0.0  # speed reference: the desired speed reached along a ramp [m/s]
         self.brake_request = False
         self.hold_since: float | None = None  # hill-hold: when the driver's foot came off without a creep request
         self.last_now: float | None = None
@@ -216,12 +218,15 @@ class CreepController:
             self.brake_request = self.brake_request and abs(inp.v_mps) < self.cal.launch.standstill_mps
 
         self.hold_since = None
-        v_err = inp.desired_speed_mps - inp.v_mps
+        step = self.cal.launch.accel_mps2 * dt
+        self.v_ref = min(max(inp.desired_speed_mps, self.v_ref - step), self.v_ref + step)
+        v_err = self.v_ref - inp.v_mps
         if self.state == "ENGAGE":
             P = self.P_cmd[self.active] = self.pressure_for(self.active, self.F_cmd, inp)
             if inp.pressure_mpa(self.active) >= self.cal.launch.prefill_ready_fraction * P:
                 self.state, self.brake_request = "CREEP", False
                 self.pid.reset(self.F_cmd)
+                self.v_ref = max(inp.v_mps, 0.0)
         elif self.state == "CREEP":
             self.F_cmd = self._speed_control(v_err, dt, self.active, inp)
             self.P_cmd[self.active] = self.pressure_for(self.active, self.F_cmd, inp)

@@ -113,17 +113,17 @@ def closed_loop(channel: str, scenario=None, mass_factor: float = 1.0, cal: TcuC
 
 
 # ---- hot clutches: the handover and the thermal limit on the plant's truth ------------------------------------
-HOT = {  # name: scenario, (T_CL, T_CH) plates, rest of the network, mass factor
-    "paper grade, 800 r/min, 0.22 m/s": (dict(grade=0.174, idle_rpm=800, speed=0.22), (228.0, 150.0), 120.0, 1.0),
-    "steep, fast, heavy": (dict(grade=0.2, idle_rpm=1300, speed=0.4), (228.0, 150.0), 140.0, 1.3),
-    "level, slow, light": (dict(grade=0.0, idle_rpm=700, speed=0.05), (232.0, 150.0), 140.0, 0.7),
+HOT = {  # name: scenario, (T_CL, T_CH) plates, rest of the network, mass factor, duration
+    "paper grade, 800 r/min, 0.22 m/s": (dict(grade=0.174, idle_rpm=800, speed=0.22), (228.0, 150.0), 120.0, 1.0, 12),
+    "steep, fast, heavy": (dict(grade=0.2, idle_rpm=1300, speed=0.4), (228.0, 150.0), 140.0, 1.3, 12),
+    "level, slow, light": (dict(grade=0.0, idle_rpm=700, speed=0.05), (240.0, 150.0), 140.0, 0.7, 17),
 }
 
 
 @pytest.fixture(scope="module", params=list(HOT), ids=list(HOT))
 def hot_run(request):
-    kwargs, plates, rest, mass = HOT[request.param]
-    scenario = creep_scenario(14.0, T_oil=rest, T_plates=plates, **kwargs)
+    kwargs, plates, rest, mass, duration = HOT[request.param]
+    scenario = creep_scenario(duration, T_oil=rest, T_plates=plates, **kwargs)
     return closed_loop(f"hot-{request.param}", scenario, mass)
 
 
@@ -144,8 +144,8 @@ def test_speed_stays_within_20_percent_of_its_target_through_the_handover(hot_ru
 
 
 def test_stops_when_neither_clutch_can_take_over_with_the_truth_under_250():
-    scenario = creep_scenario(14.0, T_oil=120.0, T_plates=(228.0, 240.0))  # CH cannot take over
-    s, trace, _ = closed_loop("hot-both", scenario)
+    scenario = creep_scenario(8.0, grade=0.2, idle_rpm=1300, speed=0.4, T_oil=150.0, T_plates=(232.0, 249.0))
+    s, trace, _ = closed_loop("hot-both", scenario, 1.3)  # CH cannot take over: creep on CL, then stop
     assert s["stop_reason"] == "STOPPED_OVERHEAT" and not s["handovers"]
     assert max(trace.T_CL) <= T_SAFE and max(trace.T_CH) <= T_SAFE
     i_stop = trace.state.index("STOPPED_OVERHEAT")

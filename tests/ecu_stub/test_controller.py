@@ -80,8 +80,10 @@ def test_engage_prefills_under_the_brake_then_releases_it_and_tracks_speed():
     out = ctrl.update(replace(CREEP, P_CL_mpa=0.95 * P_pre), clock.tick())
     assert out.state == "CREEP" and not out.brake_request
     assert out.P_CL_cmd_mpa == pytest.approx(P_pre, rel=0.02)  # bumpless from the pre-fill
-    slow = run(ctrl, clock, replace(CREEP, P_CL_mpa=P_pre, v_mps=0.1), 0.3)
-    assert slow.P_CL_cmd_mpa > P_pre  # too slow: more force
+    run(ctrl, clock, replace(CREEP, P_CL_mpa=P_pre), 0.5)
+    assert ctrl.v_ref == pytest.approx(0.51 * FLAT.launch.accel_mps2, rel=0.05)  # the reference ramps up: no step
+    slow = run(ctrl, clock, replace(CREEP, P_CL_mpa=P_pre, v_mps=0.1), 1.0)
+    assert ctrl.v_ref == 0.2 and slow.P_CL_cmd_mpa > P_pre  # too slow: more force
     fast = run(ctrl, clock, replace(CREEP, P_CL_mpa=P_pre, v_mps=0.3), 0.6)
     assert fast.P_CL_cmd_mpa < slow.P_CL_cmd_mpa
 
