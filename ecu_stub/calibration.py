@@ -90,15 +90,13 @@ class Clutch:
 
 @dataclass(frozen=True)
 class FrictionMap:
-    """mu(T, slip, P) = map(T, slip) bilinear (clamped at the edges) + c_lnP * ln(P / P_ref): formula (6)'s
-    dependences, identified from a recorded run instead of its garbled printed constants."""
+    """mu(T, slip, P): a map over plate temperature, slip speed and pressure, trilinear and clamped at its edges;
+    formula (6)'s dependences, identified from recorded runs instead of its garbled printed constants."""
 
     T_grid_c: tuple[float, ...] = c("degC")
     slip_grid_rpm: tuple[float, ...] = c("rpm")
-    mu: tuple[tuple[float, ...], ...] = c("1", 0.0, 0.5)  # [T index][slip index]
-    c_lnP: float = c("1", -0.1, 0.1)
-    P_ref_mpa: float = c("MPa", 0.01, 2.0)
-    P_floor_mpa: float = c("MPa", 0.001, 1.0)
+    P_grid_mpa: tuple[float, ...] = c("MPa")
+    mu: tuple[tuple[tuple[float, ...], ...], ...] = c("1", 0.0, 0.5)  # [T index][slip index][P index]
 
 
 @dataclass(frozen=True)
@@ -140,13 +138,15 @@ def _value(key: str, entry: Any, meta: dict) -> Any:
     if not isinstance(entry.get("how"), str) or not entry["how"].strip():
         raise CalibrationError(f"{key}: needs 'how' (how the value was obtained)")
     value, lo, hi = entry["value"], meta["lo"], meta["hi"]
+    return _nested(key, value, lo, hi)
+
+
+def _nested(key: str, value: Any, lo: float | None, hi: float | None) -> Any:
+    """A number, or (nested) lists of numbers as tuples, each checked."""
     if isinstance(value, list):
         if not value:
             raise CalibrationError(f"{key}: empty list")
-        if isinstance(value[0], list):
-            return tuple(tuple(_check_number(f"{key}[{i}][{j}]", x, lo, hi) for j, x in enumerate(row))
-                         for i, row in enumerate(value))
-        return tuple(_check_number(f"{key}[{i}]", x, lo, hi) for i, x in enumerate(value))
+        return tuple(_nested(f"{key}[{i}]", x, lo, hi) for i, x in enumerate(value))
     return _check_number(key, value, lo, hi)
 
 
@@ -169,12 +169,18 @@ def _section(data: dict, name: str, cls: type) -> Any:
 
 
 def _check_map(m: FrictionMap) -> None:
-    for key, grid in (("T_grid_c", m.T_grid_c), ("slip_grid_rpm", m.slip_grid_rpm)):
-        if len(grid) < 2 or any(b <= a for a, b in zip(grid, grid[1:])):
-            raise CalibrationError(f"friction.{key}: needs at least two strictly increasing values")
-    if len(m.mu) != len(m.T_grid_c) or any(len(row) != len(m.slip_grid_rpm) for row in m.mu):
-        raise CalibrationError(f"friction.mu: must be {len(m.T_grid_c)} rows (T_grid_c) of "
-                               f"{len(m.slip_grid_rpm)} values (slip_grid_rpm)")
+    grids = (("T_grid_c", m.T_grid_c), ("slip_grid_rpm", m.slip_grid_rpm), ("P_grid_mpa", m.P_grid_mpa))
+    for key, grid in grids:
+        if not isinstance(grid, tuple) or len(grid) < 2 or any(not isinstance(x, float) for x in grid) or \
+                any(b <= a for a, b in zip(grid, grid[1:])):
+            raise CalibrationError(f"friction.{key}: needs a list of at least two strictly increasing values")
+    shape = tuple(len(g) for _, g in grids)
+    ok = isinstance(m.mu, tuple) and len(m.mu) == shape[0] and all(
+        isinstance(row, tuple) and len(row) == shape[1] and all(
+            isinstance(cell, tuple) and len(cell) == shape[2] for cell in row) for row in m.mu)
+    if not ok:
+        raise CalibrationError(f"friction.mu: must be {shape[0]} x {shape[1]} x {shape[2]} values "
+                               f"(T_grid_c x slip_grid_rpm x P_grid_mpa)")
 
 
 def parse_calibration(text: str, origin: str = "<string>") -> TcuCalibration:
@@ -189,6 +195,9 @@ def parse_calibration(text: str, origin: str = "<string>") -> TcuCalibration:
         raise CalibrationError(f"clutch.{sorted(set(data['clutch']) - {'CL', 'CH'})[0]}: unknown section")
     parts = {name.replace("clutch.", ""): _section(data, name, cls) for name, cls in SECTIONS.items()}
     _check_map(parts["friction"])
+    if parts["strategy"].stop_release_s > parts["strategy"].handover_time_s:
+        raise CalibrationError("strategy.stop_release_s: must not exceed strategy.handover_time_s (the handover "
+                               "margin covers the heat of the stop ramp only then)")
     return TcuCalibration(**parts)
 
 

@@ -32,12 +32,16 @@ def _locate(grid: tuple[float, ...], x: float) -> tuple[int, float]:
 
 
 def friction_coefficient(m: FrictionMap, T_c: float, slip_rpm: float, P_mpa: float) -> float:
-    """mu from the map: bilinear in (T, |slip|), clamped at the edges, plus c_lnP ln(P/P_ref) (P floored)."""
+    """mu from the map: trilinear in (T, |slip|, P), clamped at the edges."""
     i, wt = _locate(m.T_grid_c, T_c)
     j, ws = _locate(m.slip_grid_rpm, abs(slip_rpm))
-    a, b = m.mu[i], m.mu[i + 1]
-    base = (1 - wt) * ((1 - ws) * a[j] + ws * a[j + 1]) + wt * ((1 - ws) * b[j] + ws * b[j + 1])
-    return base + m.c_lnP * math.log(max(P_mpa, m.P_floor_mpa) / m.P_ref_mpa)
+    k, wp = _locate(m.P_grid_mpa, P_mpa)
+    mu = 0.0
+    for di, w_i in ((0, 1 - wt), (1, wt)):
+        for dj, w_j in ((0, 1 - ws), (1, ws)):
+            cell = m.mu[i + di][j + dj]
+            mu += w_i * w_j * ((1 - wp) * cell[k] + wp * cell[k + 1])
+    return mu
 
 
 def torque_per_mpa(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:

@@ -9,8 +9,9 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   ``launch.F_prefill_n`` at the wheel (enough to hold the heaviest vehicle on the steepest documented grade, with
   rolling resistance); the brake request is dropped when the measured pressure has reached it.
 * CREEP: a PI controller on vehicle speed sets the wheel force (its reference reaches the desired speed along a
-  ramp of ``launch.accel_mps2``, so a launch or a new desired speed is no step); the active clutch's pressure follows from the TCU's
-  model of that clutch (torque = mu(T, slip, P) k_geom P, the speed ratio to the wheel, efficiency).
+  ramp of ``launch.accel_mps2``, so a launch or a new desired speed is no step); the active clutch's pressure
+  follows from the TCU's model of that clutch (torque = mu(T, slip, P) k_geom P, the speed ratio to the wheel,
+  efficiency).
 * HANDOVER: a torque handover as in a DCT shift: over ``handover_time_s`` the on-coming clutch takes a growing
   share x of the wheel force and the off-going the rest (1 - x), each converted to pressure by its own model,
   while the speed controller keeps running.

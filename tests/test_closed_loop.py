@@ -61,6 +61,7 @@ class Trace:
     T_CL: list[float]
     T_CH: list[float]
     state: list[str]
+    T_pred: list[tuple[float, float]]  # the TCU's estimates (CL, CH), for reports only: tests judge the truth
 
     def handover_windows(self, after_s: float = 1.0) -> list[tuple[float, float]]:
         """(start, end + after_s) of each HANDOVER."""
@@ -92,7 +93,7 @@ def closed_loop(channel: str, scenario=None, mass_factor: float = 1.0, cal: TcuC
     runner = PlantRunner(Plant(params, T_init=T_init, v_init=scenario.v_mps), scenario, Codec(db, PLANT_USES),
                          plant_bus, listeners=record)
     tcu = TcuRunner(Codec(db, TCU_USES), tcu_bus, CreepController(cal))
-    trace = Trace([], [], [], [], [], [])
+    trace = Trace([], [], [], [], [], [], [])
 
     def pump() -> None:
         tcu.pump()
@@ -103,6 +104,8 @@ def closed_loop(channel: str, scenario=None, mass_factor: float = 1.0, cal: TcuC
         trace.T_CL.append(o.T_CL)
         trace.T_CH.append(o.T_CH)
         trace.state.append(tcu.controller.state)
+        T_pred = tcu.controller.T_pred or {"CL": math.nan, "CH": math.nan}
+        trace.T_pred.append((T_pred["CL"], T_pred["CH"]))
 
     try:
         summary = runner.run_lockstep(pump=pump)

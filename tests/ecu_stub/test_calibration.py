@@ -47,7 +47,7 @@ def test_missing_key_and_bad_map_shape():
     with pytest.raises(CalibrationError, match=r"launch\.hold_max_s: missing"):
         parse_calibration("\n".join(lines))
     raw = raw_sections()
-    raw["friction"]["mu"] = {**raw["friction"]["mu"], "value": [[0.07, 0.07]]}
+    raw["friction"]["mu"] = {**raw["friction"]["mu"], "value": [[[0.07, 0.07]]]}
     with pytest.raises(CalibrationError, match=r"friction\.mu: must be"):
         parse_calibration(dump_calibration(raw))
 

@@ -16,7 +16,7 @@ from ecu_stub.pid import PID
 DT = 0.01
 CAL = load_calibration()
 # a flat map, so that heat and pressures are easy to compute by hand in these tests
-FLAT = replace(CAL, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), ((0.07, 0.07), (0.07, 0.07)), 0.0, 0.5, 0.05))
+FLAT = replace(CAL, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), (0.0, 1.5), (((0.07,) * 2,) * 2,) * 2))
 CREEP = TcuInputs(plant_valid=True, clutch_in_rpm=150.0, cl_out_rpm=50.0, ch_out_rpm=30.0, v_mps=0.0,
                   T_oil_CL_c=100.0, T_oil_CH_c=100.0, creep_request=True, brake_pct=0.0, desired_speed_mps=0.2)
 BRAKED = replace(CREEP, creep_request=False, brake_pct=100.0)
@@ -205,13 +205,15 @@ def test_time_must_advance():
 
 
 def test_friction_map_and_plate_step_by_hand():
-    m = FrictionMap((100.0, 200.0), (0.0, 100.0), ((0.06, 0.08), (0.07, 0.10)), -0.005, 0.5, 0.05)
-    assert friction_coefficient(m, 150.0, 50.0, 0.5) == pytest.approx((0.06 + 0.08 + 0.07 + 0.10) / 4)
-    assert friction_coefficient(m, 300.0, -500.0, 0.5) == pytest.approx(0.10)  # clamped, |slip|
-    assert friction_coefficient(m, 100.0, 0.0, 0.01) == pytest.approx(0.06 - 0.005 * math.log(0.05 / 0.5))
+    m = FrictionMap((100.0, 200.0), (0.0, 100.0), (0.0, 1.0),
+                    (((0.06, 0.05), (0.08, 0.07)), ((0.07, 0.06), (0.10, 0.09))))  # [T][slip][P]
+    assert friction_coefficient(m, 150.0, 50.0, 0.0) == pytest.approx((0.06 + 0.08 + 0.07 + 0.10) / 4)
+    assert friction_coefficient(m, 150.0, 50.0, 0.5) == pytest.approx((0.06 + 0.08 + 0.07 + 0.10) / 4 - 0.005)
+    assert friction_coefficient(m, 300.0, -500.0, 2.0) == pytest.approx(0.09)  # clamped, |slip|
+    assert friction_coefficient(m, 100.0, 0.0, 0.25) == pytest.approx(0.0575)
     c = CAL.CL
     Q = friction_heat(m, c, 100.0, 100.0, 0.5)
-    assert Q == pytest.approx(0.08 * c.k_geom_m3 * 0.5e6 * 100.0 * 2 * math.pi / 60)
+    assert Q == pytest.approx(0.075 * c.k_geom_m3 * 0.5e6 * 100.0 * 2 * math.pi / 60)
     T = 100.0
     for _ in range(200):
         T = plate_step(c, T, Q, 90.0, 1.0)
