@@ -161,8 +161,8 @@ class CreepController:
         return s.T_safe_c - s.prediction_error_k - self.crossover_rise_k(clutch, heat)
 
     def can_take_over(self, clutch: str) -> bool:
-        """The other clutch may take the load if predicted headroom under its limit (at the load the active clutch
-        carries now, scaled by nothing: both see the same wheel force and comparable slip power)."""
+        """The clutch may take the load if its estimate is ``takeover_headroom_k`` under its limit, the limit taken at
+        the largest friction power of the two now (the on-coming clutch will carry the same wheel force)."""
         load = max(self.heat.values())
         return self.T_pred[clutch] <= self.limit(clutch, load) - self.cal.strategy.takeover_headroom_k
 
