@@ -62,7 +62,10 @@ class Record:
 
 
 def read_log(path: str | Path, codec: Codec) -> Record:
-    """Decode a log; rows at each PLANT_SPEEDS frame; truth columns hold their last value (NaN before the first)."""
+    """Decode a log; rows at each PLANT_SPEEDS frame, every other signal its last value (NaN before the first).
+    ``SIM_TRUTH_CL.fresh`` / ``SIM_TRUTH_CH.fresh`` mark the rows where a truth frame came since the previous row:
+    there the truth and the pressure are of the same control period (the plant sends the truth after the
+    pressure), so only those rows are used where torque, mu and pressure are combined."""
     latest: dict[str, float] = {}
     rows: list[tuple[float, dict[str, float]]] = []
     try:
@@ -77,11 +80,14 @@ def read_log(path: str | Path, codec: Codec) -> Record:
                 continue
             for signal in USES[frame.name]:
                 latest[f"{frame.name}.{signal}"] = frame.values[signal]
+            if frame.name.startswith("SIM_TRUTH"):
+                latest[f"{frame.name}.fresh"] = 1.0
             if frame.name == "PLANT_SPEEDS":
                 rows.append((msg.timestamp, dict(latest)))
+                latest["SIM_TRUTH_CL.fresh"] = latest["SIM_TRUTH_CH.fresh"] = 0.0
     if len(rows) < 100:
         raise ValueError(f"{path}: only {len(rows)} PLANT_SPEEDS frames: not a recorded run of this DBC")
-    keys = [f"{m}.{s}" for m, sigs in USES.items() for s in sigs]
+    keys = [f"{m}.{s}" for m, sigs in USES.items() for s in sigs] + ["SIM_TRUTH_CL.fresh", "SIM_TRUTH_CH.fresh"]
     t = np.array([r[0] for r in rows]) - rows[0][0]
     return Record(Path(path).name, t, {k: np.array([r[1].get(k, np.nan) for r in rows]) for k in keys})
 
@@ -93,7 +99,7 @@ def _clutch_columns(r: Record, c: str) -> dict[str, np.ndarray]:
             "P": s[f"PLANT_PRESSURE.P_{c}"], "T_oil": s[f"PLANT_OIL_TEMP.T_Oil{c}"],
             "T_sump": s["PLANT_OIL_TEMP.T_Sump"],
             "T": s[f"SIM_TRUTH_{c}.T_Plate"], "mu": s[f"SIM_TRUTH_{c}.Mu"], "M": s[f"SIM_TRUTH_{c}.Torque"],
-            "Q": s[f"SIM_TRUTH_{c}.HeatFlux"]}
+            "Q": s[f"SIM_TRUTH_{c}.HeatFlux"], "fresh": s[f"SIM_TRUTH_{c}.fresh"] == 1.0}
 
 
 def fit_speed_ratio(cols: list[dict]) -> float:
@@ -105,8 +111,9 @@ def fit_speed_ratio(cols: list[dict]) -> float:
     return float(np.median(v[ok] / w[ok]))
 
 
-def _slipping(d: dict) -> np.ndarray:
-    return np.isfinite(d["mu"]) & (d["P"] > 0.1) & (np.abs(d["slip"]) > 5.0) & (np.abs(d["M"]) > 20.0)
+def _slipping(d: dict, P_min: float = 0.1) -> np.ndarray:
+    """Rows with a fresh truth frame while the clutch slips under pressure."""
+    return d["fresh"] & np.isfinite(d["mu"]) & (d["P"] > P_min) & (np.abs(d["slip"]) > 5.0) & (np.abs(d["M"]) > 5.0)
 
 
 def fit_k_geom(cols: list[dict]) -> float:
@@ -128,7 +135,7 @@ def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
     from scipy.sparse import coo_matrix
     from scipy.sparse.linalg import spsolve
 
-    pick = [_slipping(d) for d in cols]
+    pick = [_slipping(d, P_min=0.02) for d in cols]  # low pressures too: the handovers pass through them
     T, n, P, mu = (np.concatenate([f(d)[m] for d, m in zip(cols, pick)]) for f in (
         lambda d: d["T"], lambda d: np.abs(d["slip"]), lambda d: d["P"], lambda d: d["mu"]))
     if len(mu) < 50:
