@@ -4,7 +4,7 @@ scipy's solve_ivp at (at least) equal accuracy, both on the same 100-s case and 
     python bench/plant_speed.py [--seconds 100]
 
 The case (tests/test_continuous_reference.py): level road, engine governed at 2000 r/min, vehicle rolling,
-CL pressure rising to 0.25 MPa, CL slipping throughout. "Equal accuracy": solve_ivp's tolerance is loosened
+CH pressure rising to 0.4 MPa, CH slipping throughout. "Equal accuracy": solve_ivp's tolerance is loosened
 until its plate temperature and speeds are no closer to a tight reference (rtol 1e-10) than the plant's are.
 """
 
@@ -23,11 +23,11 @@ from dsg_hil.physics.powertrain import N_DOF, N_STATE
 from dsg_hil.physics.thermal import NODES
 from dsg_hil.plant import Plant, PlantInputs
 
-I_TCL = N_STATE + NODES.index("CL")
+I_TCL = N_STATE + NODES.index("CH")
 
 
 def errors(speeds, T_CL, ref):
-    """(max |T_CL error| [K], max relative speed error) against the reference solution."""
+    """(max |plate temperature error| [K], max relative speed error) against the reference solution."""
     ref_speeds, ref_T = ref[:N_DOF].T, ref[I_TCL]
     scale = np.maximum(np.abs(ref_speeds), 1.0)
     return float(np.abs(T_CL - ref_T).max()), float((np.abs(speeds - ref_speeds) / scale).max())
@@ -38,7 +38,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=100.0, help="simulated duration (default 100)")
     args = ap.parse_args()
     params = load_params()
-    inputs = PlantInputs(P_CL_cmd=0.25e6, grade=0.0, brake=0.0, engine_speed_request=2000.0 / RAD_S_TO_RPM)
+    inputs = PlantInputs(P_CH_cmd=0.4e6, grade=0.0, brake=0.0, engine_speed_request=2000.0 / RAD_S_TO_RPM)
     plant = Plant(params, T_init=40.0, v_init=0.5)
     y0, f = pack(plant), rhs(plant, inputs)
     n = int(round(args.seconds / plant.dt))
@@ -51,7 +51,7 @@ def main() -> None:
         out = plant.step(inputs)
         if k % every == 0:
             speeds.append(plant.state.x[:N_DOF].copy())
-            T_CL.append(out.T_CL)
+            T_CL.append(out.T_CH)
     wall_plant = time.perf_counter() - t0
     speeds, T_CL = np.array(speeds), np.array(T_CL)
 
@@ -67,8 +67,8 @@ def main() -> None:
         if err[0] <= err_plant[0] and err[1] <= err_plant[1]:
             chosen = (rtol, wall, err, sol.nfev)
             break
-    print(f"case: {args.seconds:g} s, CL slipping, 1 ms plant step; reference solve_ivp Radau rtol=1e-10")
-    print(f"{'':<28}{'sim s / wall s':>15}{'wall s':>9}{'max dT_CL K':>13}{'max speed err':>15}")
+    print(f"case: {args.seconds:g} s, CH slipping, 1 ms plant step; reference solve_ivp Radau rtol=1e-10")
+    print(f"{'':<28}{'sim s / wall s':>15}{'wall s':>9}{'max dT_CH K':>13}{'max speed err':>15}")
     print(f"{'plant (exact ZOH, 1 ms)':<28}{args.seconds / wall_plant:>15.1f}{wall_plant:>9.2f}"
           f"{err_plant[0]:>13.2e}{err_plant[1]:>15.2e}")
     if chosen is None:

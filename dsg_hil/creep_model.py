@@ -22,6 +22,8 @@ from .physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
 from .physics.params import Params
 from .physics.powertrain import road_load
 from .physics.thermal import NODES, discretize, gearbox_network, heat_sources
+from .plant import Plant, PlantInputs
+from .scenario import Scenario
 
 CLUTCHES = ("CL", "CH")
 
@@ -161,7 +163,7 @@ def simulate_creep(params: Params, op: OperatingPoint, T_clutch: dict[str, float
     return CreepResult(phases, t, stopped, slip_time, T_max, first, first_P, trace)
 
 
-def run_plant_creep(params: Params, scenario, T_handover: float = 250.0, T_takeover: float = 240.0,
+def run_plant_creep(params: Params, scenario: Scenario, T_handover: float = 250.0, T_takeover: float = 240.0,
                     dt: float = 1e-3, kp: float = 1.5e6, ki: float = 1.5e6, ramp_s: float = 0.5,
                     settle_s: float = 3.0) -> CreepResult:
     """The idealised strategy closed around the full plant on its truth (no bus, no TCU): a PI controller on vehicle
@@ -170,8 +172,6 @@ def run_plant_creep(params: Params, scenario, T_handover: float = 250.0, T_takeo
     ``T_takeover``, otherwise both open and the brake holds the vehicle. Creep starts when the brake is released.
     mu_CH and P_CH of the first CH slip are taken from ``settle_s`` after the takeover (the handover transient
     over) to its end. A cross-check of the reduced model, not a TCU."""
-    from .plant import Plant, PlantInputs  # the plant depends on the physics only; keep this module importable alone
-
     s = scenario
     omega_e = params.engine.omega_idle if s.engine_speed_rpm is None else s.engine_speed_rpm / RAD_S_TO_RPM
     v_des = max(d.desired_speed_mps for d in s.driver if d.creep_request)
