@@ -1,30 +1,239 @@
-"""The TCU's calibration data: what a transmission ECU is flashed with. Its own numbers, not the plant's."""
+"""The TCU's calibration: what a transmission ECU is flashed with. Its own numbers, not the plant's.
+
+One TOML file (default: ``ecu_stub/data/calibration.toml``; ``ecu-stub --calibration FILE``). Every value is an
+inline table ``{ value = ..., unit = "...", source = "...", how = "..." }`` where ``source`` is
+
+* ``identified``: fitted to a recorded run by ``python -m ecu_stub.identify`` (``how`` names the run and command),
+* ``derived``: computed from other values (``how`` gives the derivation),
+* ``chosen``: an engineering choice or a vehicle data-sheet value (``how`` gives the reason).
+
+Anything missing, unknown, mistyped, out of range or in another unit raises :class:`CalibrationError` naming
+the key. Units are SI with temperatures in degC and pressures in MPa (the DBC's units for the TCU's commands).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
+SOURCES = ("identified", "derived", "chosen")
+
+
+class CalibrationError(ValueError):
+    """A calibration file is missing, unreadable, or has a bad, missing or unknown value (the message names it)."""
+
+
+def c(unit: str, lo: float | None = None, hi: float | None = None) -> Any:
+    """A calibration field with its unit and allowed range [lo, hi]."""
+    return field(metadata={"unit": unit, "lo": lo, "hi": hi})
+
+
+@dataclass(frozen=True)
+class Strategy:
+    """Section V.A's safety temperature and how close to it the TCU lets a plate come (see the TOML's derivation)."""
+
+    T_safe_c: float = c("degC", 100.0, 400.0)  # clutch safety temperature (paper, Section V.A)
+    prediction_error_k: float = c("K", 0.0, 30.0)  # worst truth-minus-prediction over the identification runs
+    takeover_headroom_k: float = c("K", 0.0, 50.0)  # the on-coming clutch needs this much below its threshold
+    handover_time_s: float = c("s", 0.05, 5.0)  # torque crossover duration
+    hydraulic_lag_s: float = c("s", 0.0, 1.0)  # pressure follows the command with this lag (for the margin)
+    dwell_band_k: float = c("K", 0.0, 20.0)  # a plate kept this close below its threshold ...
+    dwell_time_s: float = c("s", 1.0, 600.0)  # ... for this long is treated as having reached it
+    startup_observer_s: float = c("s", 0.0, 60.0)  # start-up: no creep while the plate estimate comes from the oil
+    stop_release_s: float = c("s", 0.0, 2.0)  # STOPPED_OVERHEAT: clutch torque ramps out while the brake comes in
+
+
+@dataclass(frozen=True)
+class SpeedControl:
+    """PI on vehicle speed with a wheel-force output, split over the clutches by the torque handover."""
+
+    kp_n_per_mps: float = c("N/(m/s)", 0.0, 1e7)
+    ki_n_per_m: float = c("N/m", 0.0, 1e8)
+    force_rate_n_per_s: float = c("N/s", 1.0, 1e8)
+    P_max_mpa: float = c("MPa", 0.1, 1.5)
+
+
+@dataclass(frozen=True)
+class Launch:
+    """Hill-hold and pre-fill: the vehicle is held by a brake request until the clutch carries F_prefill."""
+
+    F_prefill_n: float = c("N", 0.0, 1e6)
+    prefill_ready_fraction: float = c("1", 0.1, 1.0)  # measured pressure / pre-fill pressure to release the brake
+    hold_max_s: float = c("s", 0.0, 10.0)  # longest hill-hold without a creep request (pedal released)
+    standstill_mps: float = c("m/s", 0.0, 0.5)
+    accel_mps2: float = c("m/s^2", 0.01, 5.0)  # the speed reference rises to the desired creep speed at this rate
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """Vehicle data-sheet values the TCU is flashed with (used for gains and the pre-fill only)."""
+
+    m_kg: float = c("kg", 100.0, 1e5)
+    delta: float = c("1", 1.0, 3.0)  # rotating-mass factor
+    eta: float = c("1", 0.5, 1.0)  # clutch-to-wheel torque efficiency
+
+
+@dataclass(frozen=True)
+class Clutch:
+    """The TCU's model of one clutch: torque = mu * k_geom * P (5); C dT/dt = Q - K (T - T_oil_out)."""
+
+    k_geom_m3: float = c("m^3", 1e-5, 1.0)  # N * A_f * r_m
+    C_plate_j_k: float = c("J/K", 1.0, 1e6)
+    K_plate_oil_w_k: float = c("W/K", 0.1, 1e5)
+    speed_ratio_m: float = c("m", 1e-4, 1.0)  # vehicle speed per clutch output speed [m/s per rad/s]
+    cooling_w_k: float = c("W/K", 0.0, 1e5)  # heat capacity flow of the cooling oil through the clutch (rho c_p q)
+
+
+@dataclass(frozen=True)
+class FrictionMap:
+    """mu(T, slip, P): a map over plate temperature, slip speed and pressure, trilinear and clamped at its edges;
+    formula (6)'s dependences, identified from recorded runs instead of its garbled printed constants."""
+
+    T_grid_c: tuple[float, ...] = c("degC")
+    slip_grid_rpm: tuple[float, ...] = c("rpm")
+    P_grid_mpa: tuple[float, ...] = c("MPa")
+    mu: tuple[tuple[tuple[float, ...], ...], ...] = c("1", 0.0, 0.5)  # [T index][slip index][P index]
 
 
 @dataclass(frozen=True)
 class TcuCalibration:
-    # strategy
-    T_safe_c: float = 250.0  # clutch safety temperature (Section V.A)
-    takeover_margin_c: float = 10.0  # the other clutch takes over only if predicted below T_safe - margin
-    handover_time_s: float = 1.0  # off-going pressure ramps down, on-coming up, over this time
-    # pressure control (PI on vehicle speed, output in MPa)
-    kp_mpa_per_mps: float = 1.5
-    ki_mpa_per_m: float = 1.5
-    kd_mpa_s2_per_m: float = 0.0
-    P_min_mpa: float = 0.0
-    P_max_mpa: float = 1.5
-    P_rate_mpa_s: float = 2.0  # command rate limit
-    engage_rate_mpa_s: float = 0.4  # ENGAGE: pressure ramp until the vehicle moves
-    engage_speed_fraction: float = 0.3  # ENGAGE ends at this fraction of the desired speed
-    # the TCU's model of its clutches: torque = mu_nom * k_geom * P; plate temperature predictor
-    mu_nom: float = 0.065
-    k_geom_m3: float = 6 * 0.0427 * 0.10670  # N * A_f * r_m of each clutch
-    C_plate_j_k: float = 4200.0
-    K_plate_oil_w_k: float = 800.0
-    # gearbox ratios (for the bumpless handover from CL to CH pressure)
-    i_L: float = 1.59
-    i_H: float = 0.92
+    strategy: Strategy
+    speed: SpeedControl
+    launch: Launch
+    vehicle: Vehicle
+    friction: FrictionMap
+    CL: Clutch
+    CH: Clutch
+
+    def clutch(self, name: str) -> Clutch:
+        return self.CL if name == "CL" else self.CH
+
+
+SECTIONS = {"strategy": Strategy, "speed": SpeedControl, "launch": Launch, "vehicle": Vehicle,
+            "friction": FrictionMap, "clutch.CL": Clutch, "clutch.CH": Clutch}
+
+
+def _check_number(key: str, x: Any, lo: float | None, hi: float | None) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+        raise CalibrationError(f"{key}: must be a finite number, got {x!r}")
+    if (lo is not None and x < lo) or (hi is not None and x > hi):
+        raise CalibrationError(f"{key}: {x} is out of range [{lo}, {hi}]")
+    return float(x)
+
+
+def _value(key: str, entry: Any, meta: dict) -> Any:
+    if not isinstance(entry, dict) or "value" not in entry:
+        raise CalibrationError(f"{key}: must be an inline table {{ value, unit, source, how }}")
+    extra = set(entry) - {"value", "unit", "source", "how"}
+    if extra:
+        raise CalibrationError(f"{key}.{sorted(extra)[0]}: unknown field")
+    if entry.get("unit") != meta["unit"]:
+        raise CalibrationError(f"{key}: unit must be {meta['unit']!r}, got {entry.get('unit')!r}")
+    if entry.get("source") not in SOURCES:
+        raise CalibrationError(f"{key}: source must be one of {', '.join(SOURCES)}, got {entry.get('source')!r}")
+    if not isinstance(entry.get("how"), str) or not entry["how"].strip():
+        raise CalibrationError(f"{key}: needs 'how' (how the value was obtained)")
+    value, lo, hi = entry["value"], meta["lo"], meta["hi"]
+    return _nested(key, value, lo, hi)
+
+
+def _nested(key: str, value: Any, lo: float | None, hi: float | None) -> Any:
+    """A number, or (nested) lists of numbers as tuples, each checked."""
+    if isinstance(value, list):
+        if not value:
+            raise CalibrationError(f"{key}: empty list")
+        return tuple(_nested(f"{key}[{i}]", x, lo, hi) for i, x in enumerate(value))
+    return _check_number(key, value, lo, hi)
+
+
+def _section(data: dict, name: str, cls: type) -> Any:
+    table: Any = data
+    for part in name.split("."):
+        if not isinstance(table, dict) or part not in table:
+            raise CalibrationError(f"{name}: missing section")
+        table = table[part]
+    known = {f.name for f in fields(cls)}
+    unknown = set(table) - known
+    if unknown:
+        raise CalibrationError(f"{name}.{sorted(unknown)[0]}: unknown key")
+    values = {}
+    for f in fields(cls):
+        if f.name not in table:
+            raise CalibrationError(f"{name}.{f.name}: missing")
+        values[f.name] = _value(f"{name}.{f.name}", table[f.name], f.metadata)
+    return cls(**values)
+
+
+def _check_map(m: FrictionMap) -> None:
+    grids = (("T_grid_c", m.T_grid_c), ("slip_grid_rpm", m.slip_grid_rpm), ("P_grid_mpa", m.P_grid_mpa))
+    for key, grid in grids:
+        if not isinstance(grid, tuple) or len(grid) < 2 or any(not isinstance(x, float) for x in grid) or \
+                any(b <= a for a, b in zip(grid, grid[1:])):
+            raise CalibrationError(f"friction.{key}: needs a list of at least two strictly increasing values")
+    shape = tuple(len(g) for _, g in grids)
+    ok = isinstance(m.mu, tuple) and len(m.mu) == shape[0] and all(
+        isinstance(row, tuple) and len(row) == shape[1] and all(
+            isinstance(cell, tuple) and len(cell) == shape[2] for cell in row) for row in m.mu)
+    if not ok:
+        raise CalibrationError(f"friction.mu: must be {shape[0]} x {shape[1]} x {shape[2]} values "
+                               f"(T_grid_c x slip_grid_rpm x P_grid_mpa)")
+
+
+def parse_calibration(text: str, origin: str = "<string>") -> TcuCalibration:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CalibrationError(f"{origin}: not valid TOML: {exc}") from None
+    unknown = set(data) - {"strategy", "speed", "launch", "vehicle", "friction", "clutch"}
+    if unknown:
+        raise CalibrationError(f"{sorted(unknown)[0]}: unknown section")
+    if set(data.get("clutch", {})) - {"CL", "CH"}:
+        raise CalibrationError(f"clutch.{sorted(set(data['clutch']) - {'CL', 'CH'})[0]}: unknown section")
+    parts = {name.replace("clutch.", ""): _section(data, name, cls) for name, cls in SECTIONS.items()}
+    _check_map(parts["friction"])
+    if parts["strategy"].stop_release_s > parts["strategy"].handover_time_s:
+        raise CalibrationError("strategy.stop_release_s: must not exceed strategy.handover_time_s (the handover "
+                               "margin covers the heat of the stop ramp only then)")
+    return TcuCalibration(**parts)
+
+
+def load_calibration(path: str | Path | None = None) -> TcuCalibration:
+    path = Path(path) if path is not None else DEFAULT_CALIBRATION
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CalibrationError(f"{path}: cannot read calibration: {exc.strerror}") from None
+    try:
+        return parse_calibration(text, str(path))
+    except CalibrationError as exc:
+        raise CalibrationError(f"{path}: {exc}") from None
+
+
+def _toml_value(x: Any) -> str:
+    if isinstance(x, str):
+        return '"' + x.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(x, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in x) + "]"
+    return repr(float(x)) if isinstance(x, float) else str(x)
+
+
+def dump_calibration(raw: dict, header: str = "") -> str:
+    """TOML text of a calibration given as ``{section: {key: {value, unit, source, how}}}`` (sections may be
+    dotted, e.g. ``clutch.CL``), in the order given; ``header`` becomes leading comment lines."""
+    lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    for section, entries in raw.items():
+        lines += ["", f"[{section}]"]
+        for key, e in entries.items():
+            fields_ = ", ".join(f"{k} = {_toml_value(e[k])}" for k in ("value", "unit", "source", "how") if k in e)
+            lines.append(f"{key} = {{ {fields_} }}")
+    return "\n".join(lines) + "\n"
+
+
+def raw_sections(path: str | Path | None = None) -> dict:
+    """The calibration file as ``{section: {key: entry}}`` with dotted section names (for rewriting it)."""
+    data = tomllib.loads(Path(path or DEFAULT_CALIBRATION).read_text(encoding="utf-8"))
+    return {name: dict(data[name] if "." not in name else data["clutch"][name.split(".")[1]]) for name in SECTIONS}

@@ -12,6 +12,8 @@ from importlib import metadata
 from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.bus import add_bus_arguments, bus_config, bus_name, open_bus, per_process_warning
 
+from .calibration import load_calibration
+from .controller import CreepController
 from .runner import TCU_USES, TcuRunner
 
 
@@ -26,14 +28,17 @@ def _version() -> str:
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="ecu-stub",
-        description="Transmission control unit with the paper's creep strategy: engages CL first, tracks the "
-                    "desired creep speed with clutch pressure, predicts both plate temperatures, hands over at "
-                    "250 degC and stops the vehicle when neither clutch can take over. Knows the plant only "
-                    "through the DBC. Answers SIM_SYNC ticks when the plant runs in lockstep, else runs on its "
-                    "own clock at the TCU_CMD cycle time.")
+        description="Transmission control unit with the paper's creep strategy: engages CL first (hill-hold and "
+                    "pre-fill), tracks the desired creep speed with clutch pressure, predicts both plate temperatures "
+                    "with its calibrated model, hands the torque over to the other clutch before the slipping one can "
+                    "pass 250 degC, and stops the vehicle when neither can take over. Knows the plant only through "
+                    "the DBC. Answers SIM_SYNC ticks when the plant runs in lockstep, else runs on its own clock at "
+                    "the TCU_CMD cycle time.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     add_bus_arguments(parser)
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
+    parser.add_argument("--calibration", metavar="FILE",
+                        help="TCU calibration TOML (default: ecu_stub/data/calibration.toml)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: never)")
     parser.add_argument("--idle-exit", type=float, metavar="S",
                         help="stop when the plant has been silent for S seconds after having been heard")
@@ -47,13 +52,14 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
+        controller = CreepController(load_calibration(args.calibration))
         config = bus_config(args)
         codec = Codec(load_dbc(args.dbc), TCU_USES)
         bus = open_bus(config)
         print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
         if warning := per_process_warning(config):
             print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
-        tcu = TcuRunner(codec, bus)
+        tcu = TcuRunner(codec, bus, controller)
         stop = threading.Event()  # SIGTERM: stop serving, report, exit 0 (like Ctrl-C)
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())

@@ -34,7 +34,7 @@ TCU_RX = {
     "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
     "PLANT_VEHICLE": ("VehicleSpeed",),
     "PLANT_PRESSURE": ("P_CL", "P_CH"),
-    "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH"),
+    "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH", "T_Sump"),
     "DRIVER": ("CreepRequest", "BrakePedal", "DesiredCreepSpeed"),
     "SIM_SYNC": ("Tick",),
 }
@@ -105,6 +105,7 @@ class TcuRunner:
             P_CH_mpa=v["PLANT_PRESSURE"]["P_CH"],
             T_oil_CL_c=v["PLANT_OIL_TEMP"]["T_OilCL"],
             T_oil_CH_c=v["PLANT_OIL_TEMP"]["T_OilCH"],
+            T_sump_c=v["PLANT_OIL_TEMP"]["T_Sump"],
             creep_request=v["DRIVER"]["CreepRequest"] >= 0.5,
             brake_pct=v["DRIVER"]["BrakePedal"],
             desired_speed_mps=v["DRIVER"]["DesiredCreepSpeed"],

@@ -1,4 +1,5 @@
-"""The creep strategy with a fake clock: engage CL first, PI tracking, handover at 250 degC, stop, faults."""
+"""The creep strategy with a fake clock: hill-hold and pre-fill, PI tracking, torque handover, the thermal limit and
+its margin, dwell, start-up assumption, stop when neither clutch can take over (and not before), faults."""
 
 from __future__ import annotations
 
@@ -7,14 +8,18 @@ from dataclasses import replace
 
 import pytest
 
-from ecu_stub.calibration import TcuCalibration
+from ecu_stub.calibration import FrictionMap, load_calibration
+from ecu_stub.clutch_model import RPM_TO_RAD_S, friction_coefficient, friction_heat, plate_step
 from ecu_stub.controller import CreepController, TcuInputs
 from ecu_stub.pid import PID
-from ecu_stub.thermal_model import heat_estimate, predict_step
 
 DT = 0.01
+CAL = load_calibration()
+# a flat map, so that heat and pressures are easy to compute by hand in these tests
+FLAT = replace(CAL, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), (0.0, 1.5), (((0.07,) * 2,) * 2,) * 2))
 CREEP = TcuInputs(plant_valid=True, clutch_in_rpm=150.0, cl_out_rpm=50.0, ch_out_rpm=30.0, v_mps=0.0,
-                  T_oil_CL_c=100.0, T_oil_CH_c=100.0, creep_request=True, brake_pct=0.0, desired_speed_mps=0.1)
+                  T_oil_CL_c=100.0, T_oil_CH_c=100.0, creep_request=True, brake_pct=0.0, desired_speed_mps=0.2)
+BRAKED = replace(CREEP, creep_request=False, brake_pct=100.0)
 
 
 class Clock:
@@ -33,86 +38,188 @@ def run(ctrl, clock, inputs, seconds):
     return out
 
 
-def test_idle_until_the_driver_asks_and_releases_the_brake():
-    ctrl, clock = CreepController(), Clock()
-    out = run(ctrl, clock, replace(CREEP, creep_request=False), 1.0)
-    assert out.state == "IDLE" and out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0
-    out = run(ctrl, clock, replace(CREEP, brake_pct=50.0), 1.0)
+def creeping(cal=FLAT, clutch="CL"):
+    """A controller in CREEP on CL at the desired speed, the pre-fill done; plates at the oil temperature."""
+    ctrl, clock = CreepController(cal), Clock()
+    run(ctrl, clock, BRAKED, cal.strategy.startup_observer_s + 0.1)
+    out = run(ctrl, clock, replace(CREEP, P_CL_mpa=1.0, v_mps=0.2), 0.05)
+    assert out.state == "CREEP" and out.active_clutch == clutch
+    ctrl.T_pred = {"CL": 100.0, "CH": 100.0}
+    return ctrl, clock
+
+
+def hold_at(ctrl, clock, inp, T_CL, T_CH):
+    """Put the estimates at (T_CL, T_CH) with the oil at the same temperatures and no slip (no drift), one cycle."""
+    ctrl.T_pred = {"CL": T_CL, "CH": T_CH}
+    return ctrl.update(replace(inp, T_oil_CL_c=T_CL, T_oil_CH_c=T_CH), clock.tick())
+
+
+def test_idle_with_hill_hold_while_the_driver_brakes_at_standstill():
+    ctrl, clock = CreepController(FLAT), Clock()
+    out = run(ctrl, clock, BRAKED, 1.0)
+    assert out.state == "IDLE" and out.brake_request and out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0
+    released = replace(BRAKED, brake_pct=0.0)  # foot off, no creep request: hold for hold_max_s, then let go
+    out = run(ctrl, clock, released, FLAT.launch.hold_max_s - 0.1)
+    assert out.brake_request
+    out = run(ctrl, clock, released, 0.2)
+    assert out.state == "IDLE" and not out.brake_request
+    out = run(ctrl, clock, replace(BRAKED, v_mps=1.0), 0.1)  # moving: no hill-hold
+    assert not out.brake_request
+
+
+def test_engage_prefills_under_the_brake_then_releases_it_and_tracks_speed():
+    ctrl, clock = CreepController(FLAT), Clock()
+    run(ctrl, clock, BRAKED, FLAT.strategy.startup_observer_s + 0.1)
+    out = ctrl.update(CREEP, clock.tick())  # driver releases and asks to creep; pressure not there yet
+    assert out.state == "ENGAGE" and out.active_clutch == "CL" and out.brake_request and out.P_CH_cmd_mpa == 0.0
+    c = FLAT.CL
+    P_pre = FLAT.launch.F_prefill_n * c.speed_ratio_m / FLAT.vehicle.eta / (0.07 * c.k_geom_m3 * 1e6)
+    assert out.P_CL_cmd_mpa == pytest.approx(P_pre, rel=1e-9)  # the whole pre-fill at once
+    out = run(ctrl, clock, replace(CREEP, P_CL_mpa=0.8 * P_pre), 0.1)
+    assert out.state == "ENGAGE" and out.brake_request  # held until 90 % of the pressure is measured
+    out = ctrl.update(replace(CREEP, P_CL_mpa=0.95 * P_pre), clock.tick())
+    assert out.state == "CREEP" and not out.brake_request
+    assert out.P_CL_cmd_mpa == pytest.approx(P_pre, rel=0.02)  # bumpless from the pre-fill
+    run(ctrl, clock, replace(CREEP, P_CL_mpa=P_pre), 0.5)
+    assert ctrl.v_ref == pytest.approx(0.51 * FLAT.launch.accel_mps2, rel=0.05)  # the reference ramps up: no step
+    slow = run(ctrl, clock, replace(CREEP, P_CL_mpa=P_pre, v_mps=0.1), 1.0)
+    assert ctrl.v_ref == 0.2 and slow.P_CL_cmd_mpa > P_pre  # too slow: more force
+    fast = run(ctrl, clock, replace(CREEP, P_CL_mpa=P_pre, v_mps=0.3), 0.6)
+    assert fast.P_CL_cmd_mpa < slow.P_CL_cmd_mpa
+
+
+def test_limit_is_t_safe_minus_prediction_error_minus_crossover_rise():
+    ctrl, clock = creeping()
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
+    ctrl.update(inp, clock.tick())
+    s = FLAT.strategy
+    Q = 0.07 * FLAT.CL.k_geom_m3 * 0.6e6 * 100.0 * RPM_TO_RAD_S  # mu k P slip
+    assert ctrl.heat["CL"] == pytest.approx(Q, rel=1e-3)
+    rise = Q * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT) / FLAT.CL.C_plate_j_k
+    assert ctrl.limit("CL") == pytest.approx(s.T_safe_c - s.prediction_error_k - rise, rel=1e-9)
+    assert 0.0 < s.prediction_error_k + rise < 15.0  # no giving up early: the hotter clutch used to within 15 K
+
+
+def test_torque_handover_splits_the_force_and_keeps_speed_control():
+    ctrl, clock = creeping()
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
+    run(ctrl, clock, inp, 0.5)
+    limit = ctrl.limit("CL", 0.0)
+    out = hold_at(ctrl, clock, replace(inp, clutch_in_rpm=50.0, cl_out_rpm=50.0), limit - 0.05, 150.0)
+    assert out.state == "CREEP"  # just under: not yet
+    out = hold_at(ctrl, clock, replace(inp, clutch_in_rpm=50.0, cl_out_rpm=50.0), limit + 0.05, 150.0)
+    assert out.state == "HANDOVER" and out.active_clutch == "CH"
+    F0 = ctrl.F_cmd
+    out = run(ctrl, clock, inp, FLAT.strategy.handover_time_s / 2)
+    x = 0.5
+    assert out.P_CL_cmd_mpa == pytest.approx(ctrl.pressure_for("CL", (1 - x) * ctrl.F_cmd, inp), rel=0.05)
+    assert out.P_CH_cmd_mpa == pytest.approx(ctrl.pressure_for("CH", x * ctrl.F_cmd, inp), rel=0.05)
+    # wheel force from both clutches, by the TCU's own model, is the speed controller's demand
+    wheel = sum(P * 0.07 * c.k_geom_m3 * 1e6 * FLAT.vehicle.eta / c.speed_ratio_m
+                for P, c in ((out.P_CL_cmd_mpa, FLAT.CL), (out.P_CH_cmd_mpa, FLAT.CH)))
+    assert wheel == pytest.approx(ctrl.F_cmd, rel=0.03)
+    out = run(ctrl, clock, replace(inp, v_mps=0.1), 0.2)  # the vehicle slows: the controller still acts
+    assert ctrl.F_cmd > F0 and out.state == "HANDOVER"
+    out = run(ctrl, clock, inp, FLAT.strategy.handover_time_s)
+    assert out.state == "CREEP" and out.active_clutch == "CH" and out.P_CL_cmd_mpa == 0.0 and out.P_CH_cmd_mpa > 0
+
+
+def test_a_plate_kept_just_under_its_limit_is_acted_on_after_the_dwell_time():
+    ctrl, clock = creeping()
+    inp = replace(CREEP, clutch_in_rpm=50.0, cl_out_rpm=50.0, ch_out_rpm=50.0, v_mps=0.2)  # no slip: no heat
+    s = FLAT.strategy
+    limit = ctrl.limit("CL", 0.0)
+    for _ in range(int((s.dwell_time_s - 0.5) / DT)):
+        out = hold_at(ctrl, clock, inp, limit - 0.5 * s.dwell_band_k, 150.0)
+    assert out.state == "CREEP"
+    for _ in range(int(1.0 / DT)):
+        out = hold_at(ctrl, clock, inp, limit - 0.5 * s.dwell_band_k, 150.0)
+    assert out.state == "HANDOVER" and out.active_clutch == "CH"
+    ctrl2, clock2 = creeping()  # further below the band: never
+    for _ in range(int((s.dwell_time_s + 5) / DT)):
+        out = hold_at(ctrl2, clock2, inp, limit - 1.5 * s.dwell_band_k, 150.0)
+    assert out.state == "CREEP"
+
+
+def test_stops_when_neither_can_take_over_but_not_before_the_hotter_is_near_its_limit():
+    ctrl, clock = creeping()
+    inp = replace(CREEP, clutch_in_rpm=50.0, cl_out_rpm=50.0, ch_out_rpm=50.0, v_mps=0.2, P_CL_mpa=0.6)
+    limit = ctrl.limit("CL", 0.0)
+    hot_CH = limit - FLAT.strategy.takeover_headroom_k + 1.0  # CH cannot take over
+    out = hold_at(ctrl, clock, inp, FLAT.strategy.T_safe_c - 15.0, hot_CH)
+    assert out.state == "CREEP" and not out.brake_request  # 15 K under T_safe: keeps creeping on CL
+    P0 = out.P_CL_cmd_mpa
+    out = hold_at(ctrl, clock, inp, limit + 0.01, hot_CH)
+    assert out.state == "STOPPED_OVERHEAT" and out.brake_request and out.active_clutch == "NONE"
+    out = run(ctrl, clock, inp, FLAT.strategy.stop_release_s / 2)
+    assert 0.0 < out.P_CL_cmd_mpa < P0  # torque ramps out while the brake comes in
+    out = run(ctrl, clock, inp, FLAT.strategy.stop_release_s)
+    assert out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0 and out.brake_request
+    out = run(ctrl, clock, inp, 5.0)  # latched while the driver keeps asking
+    assert out.state == "STOPPED_OVERHEAT"
+    out = ctrl.update(replace(inp, creep_request=False), clock.tick())
     assert out.state == "IDLE"
 
 
-def test_engages_cl_first_along_a_ramp_then_tracks_speed():
-    cal = TcuCalibration()
-    ctrl, clock = CreepController(cal), Clock()
-    out = run(ctrl, clock, CREEP, 0.5)
-    assert out.state == "ENGAGE" and out.active_clutch == "CL" and out.P_CH_cmd_mpa == 0.0
-    assert out.P_CL_cmd_mpa == pytest.approx(0.5 * cal.engage_rate_mpa_s, rel=0.05)
-    out = run(ctrl, clock, replace(CREEP, v_mps=0.05), 0.02)  # moving: CREEP with a bumpless PI start
-    assert out.state == "CREEP"
-    P0 = out.P_CL_cmd_mpa
-    out = run(ctrl, clock, replace(CREEP, v_mps=0.05), 0.5)  # too slow: more pressure
-    assert out.P_CL_cmd_mpa > P0
-    P1 = out.P_CL_cmd_mpa
-    out = run(ctrl, clock, replace(CREEP, v_mps=0.2), 0.5)  # too fast: less
-    assert out.P_CL_cmd_mpa < P1
+def test_startup_estimates_plates_from_the_oil_and_waits_before_creeping():
+    ctrl, clock = CreepController(FLAT), Clock()
+    hot = replace(BRAKED, T_oil_CL_c=200.0, T_oil_CH_c=120.0, T_sump_c=90.0)
+    out = ctrl.update(hot, clock.tick())
+    c = FLAT.CL
+    assert out.T_CL_pred_c == pytest.approx(200.0 + c.cooling_w_k / c.K_plate_oil_w_k * 110.0)
+    assert out.T_CH_pred_c == pytest.approx(120.0 + FLAT.CH.cooling_w_k / FLAT.CH.K_plate_oil_w_k * 30.0)
+    window = FLAT.strategy.startup_observer_s
+    out = run(ctrl, clock, replace(hot, creep_request=True, brake_pct=0.0), window - 2 * DT)
+    assert out.state == "IDLE" and out.brake_request and out.P_CL_cmd_mpa == 0.0  # held, not creeping yet
+    out = run(ctrl, clock, replace(hot, creep_request=True, brake_pct=0.0), 3 * DT)
+    assert out.state == "ENGAGE" and out.brake_request and out.P_CL_cmd_mpa > 0.0
+    T = out.T_CL_pred_c  # from now on the predictor: the estimate cools towards the oil with tau = C / K
+    tau = c.C_plate_j_k / c.K_plate_oil_w_k
+    ctrl2, clock2 = CreepController(FLAT), Clock()
+    run(ctrl2, clock2, hot, window + DT)
+    T0 = ctrl2.T_pred["CL"]
+    out = run(ctrl2, clock2, hot, tau)
+    assert out.T_CL_pred_c == pytest.approx(200.0 + (T0 - 200.0) / math.e, abs=0.05) and T > 200.0
 
 
-def test_hands_over_to_ch_at_250_predicted_and_back_then_stops():
-    cal = TcuCalibration()
-    ctrl, clock = CreepController(cal), Clock()
-    run(ctrl, clock, replace(CREEP, v_mps=0.1), 1.0)
-    assert ctrl.state == "CREEP" and ctrl.active == "CL"
-    P_before = ctrl.P_cmd["CL"]
-    ctrl.T_pred["CL"] = 251.0  # the prediction reaches the safety temperature (cools 0.3 K in a cycle)
-    out = ctrl.update(replace(CREEP, v_mps=0.1), clock.tick())
-    assert out.state == "HANDOVER" and out.active_clutch == "CH"
-    out = run(ctrl, clock, replace(CREEP, v_mps=0.1), cal.handover_time_s / 2)
-    assert 0.0 < out.P_CL_cmd_mpa < P_before and out.P_CH_cmd_mpa > 0.0  # crossing over
-    out = run(ctrl, clock, replace(CREEP, v_mps=0.1), cal.handover_time_s)
-    assert out.state == "CREEP" and out.active_clutch == "CH" and out.P_CL_cmd_mpa == 0.0
-    assert out.P_CH_cmd_mpa == pytest.approx(P_before * cal.i_L / cal.i_H, rel=0.1)  # same wheel torque
-    # CH hot, CL cooled enough: back to CL
-    ctrl.T_pred["CH"], ctrl.T_pred["CL"] = 251.0, 205.5
-    out = ctrl.update(replace(CREEP, v_mps=0.1), clock.tick())
-    assert out.state == "HANDOVER" and out.active_clutch == "CL"
-    run(ctrl, clock, replace(CREEP, v_mps=0.1), cal.handover_time_s + 0.1)
-    # CL hot again and CH not cool enough to take over: stop, release both, ask for the brake
-    ctrl.T_pred["CL"], ctrl.T_pred["CH"] = 251.0, cal.T_safe_c - cal.takeover_margin_c + 1.0
-    out = ctrl.update(replace(CREEP, v_mps=0.1), clock.tick())
-    assert out.state == "STOPPED_OVERHEAT" and out.brake_request
-    assert out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0 and out.active_clutch == "NONE"
-    out = run(ctrl, clock, replace(CREEP, v_mps=0.0), 5.0)  # latched while the driver keeps asking
-    assert out.state == "STOPPED_OVERHEAT" and out.brake_request
-    out = ctrl.update(replace(CREEP, creep_request=False), clock.tick())
-    assert out.state == "IDLE" and not out.brake_request
+def test_startup_refuses_to_creep_when_both_plates_are_too_hot():
+    ctrl, clock = CreepController(FLAT), Clock()
+    hot = replace(CREEP, T_oil_CL_c=240.0, T_oil_CH_c=238.0, T_sump_c=150.0)
+    out = run(ctrl, clock, hot, FLAT.strategy.startup_observer_s + 0.05)
+    assert out.state == "STOPPED_OVERHEAT" and out.brake_request and out.P_CL_cmd_mpa == 0.0
 
 
 def test_missing_plant_frames_open_both_clutches():
-    ctrl, clock = CreepController(), Clock()
-    run(ctrl, clock, replace(CREEP, v_mps=0.1), 1.0)
+    ctrl, clock = creeping()
     out = ctrl.update(TcuInputs(plant_valid=False), clock.tick())
     assert out.state == "FAULT" and out.fault_bits & 0x01 and out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0
-    out = ctrl.update(replace(CREEP, creep_request=False), clock.tick())
+    out = ctrl.update(replace(CREEP, creep_request=False, v_mps=0.2), clock.tick())
     assert out.state == "IDLE" and out.fault_bits == 0
 
 
 def test_time_must_advance():
-    ctrl = CreepController()
+    ctrl = CreepController(FLAT)
     ctrl.update(CREEP, 1.0)
     with pytest.raises(ValueError):
         ctrl.update(CREEP, 1.0)
 
 
-def test_temperature_predictor_by_hand():
-    cal = TcuCalibration()
-    Q = heat_estimate(0.5, 100.0, cal)
-    assert Q == pytest.approx(cal.mu_nom * cal.k_geom_m3 * 0.5e6 * 100.0 * 2 * math.pi / 60)
+def test_friction_map_and_plate_step_by_hand():
+    m = FrictionMap((100.0, 200.0), (0.0, 100.0), (0.0, 1.0),
+                    (((0.06, 0.05), (0.08, 0.07)), ((0.07, 0.06), (0.10, 0.09))))  # [T][slip][P]
+    assert friction_coefficient(m, 150.0, 50.0, 0.0) == pytest.approx((0.06 + 0.08 + 0.07 + 0.10) / 4)
+    assert friction_coefficient(m, 150.0, 50.0, 0.5) == pytest.approx((0.06 + 0.08 + 0.07 + 0.10) / 4 - 0.005)
+    assert friction_coefficient(m, 300.0, -500.0, 2.0) == pytest.approx(0.09)  # clamped, |slip|
+    assert friction_coefficient(m, 100.0, 0.0, 0.25) == pytest.approx(0.0575)
+    c = CAL.CL
+    Q = friction_heat(m, c, 100.0, 100.0, 0.5)
+    assert Q == pytest.approx(0.075 * c.k_geom_m3 * 0.5e6 * 100.0 * 2 * math.pi / 60)
     T = 100.0
-    for _ in range(100):
-        T = predict_step(T, Q, 90.0, 1.0, cal)
-    assert T == pytest.approx(90.0 + Q / cal.K_plate_oil_w_k, rel=1e-6)
-    tau = cal.C_plate_j_k / cal.K_plate_oil_w_k
-    assert predict_step(100.0, 0.0, 90.0, tau, cal) == pytest.approx(90.0 + 10.0 / math.e)
+    for _ in range(200):
+        T = plate_step(c, T, Q, 90.0, 1.0)
+    assert T == pytest.approx(90.0 + Q / c.K_plate_oil_w_k, rel=1e-6)
+    tau = c.C_plate_j_k / c.K_plate_oil_w_k
+    assert plate_step(c, 100.0, 0.0, 90.0, tau) == pytest.approx(90.0 + 10.0 / math.e)
 
 
 def test_pid_anti_windup_rate_limit_and_bad_dt():

@@ -1,0 +1,366 @@
+"""Identify the TCU's clutch model from recorded runs: ``python -m ecu_stub.identify run1.log [run2.log ...]``.
+
+Reads candump ``-L`` / ``.asc`` / ``.blf`` logs with python-can, decodes them with the DBC (``dsg_hil.protocol``)
+and fits, from what a gearbox measures plus the simulation-only ``SIM_TRUTH_CL/CH`` frames in the role of a rig's
+thermocouples and torque sensor:
+
+* ``speed_ratio_m`` per clutch: vehicle speed per clutch output speed (median while moving);
+* ``k_geom_m3`` per clutch: torque / (mu P) (median while slipping under pressure);
+* the friction map mu(T, slip, P): regularised least squares over the truth mu samples (trilinear grid, first
+  differences penalised so that cells without data take their neighbours' values);
+* ``cooling_w_k`` per clutch, for the start-up observer: K (T - T_oil_out) = cooling (T_oil_out - T_sump) while
+  no friction heat flows;
+* ``C_plate_j_k`` and ``K_plate_oil_w_k`` per clutch: C dT/dt = Q - K (T - T_oil_out) fitted by output error to
+  the truth plate temperature, driven by the truth heat flux and the measured oil temperature.
+
+Then it replays the TCU's own predictor (``clutch_model``) with the fitted values over every log as the
+controller runs it (start-up observer, then predictor), and prints the prediction error (truth minus
+prediction: its maximum is what the handover margin must cover). ``--write FILE`` writes a calibration: the base
+calibration (``--calibration``, default the shipped one) with the identified entries replaced and
+``prediction_error_k`` set from the replay (worst error times ``ERROR_FACTOR``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import can
+import numpy as np
+
+from dsg_hil.protocol import Codec, FrameError, load_dbc
+
+from .calibration import Clutch, FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
+from .clutch_model import RPM_TO_RAD_S, friction_heat, plate_step
+
+USES = {
+    "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
+    "PLANT_VEHICLE": ("VehicleSpeed",),
+    "PLANT_PRESSURE": ("P_CL", "P_CH"),
+    "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH", "T_Sump"),
+    "SIM_TRUTH_CL": ("T_Plate", "Mu", "Torque", "HeatFlux"),
+    "SIM_TRUTH_CH": ("T_Plate", "Mu", "Torque", "HeatFlux"),
+}
+T_GRID = tuple(float(t) for t in range(20, 321, 10))
+SLIP_GRID = tuple(float(n) for n in range(0, 401, 10))
+P_GRID = (0.0, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5)
+SMOOTHING = 0.02  # weight of the first-difference penalty per grid node (relative to one sample)
+ERROR_FACTOR = 2.0  # prediction_error_k: the replay's worst error times this (conditions between/beyond the runs)
+ERROR_ROUND_K = 0.5  # ... rounded up to this step
+
+
+@dataclass
+class Record:
+    """One log as aligned arrays: a row per PLANT_SPEEDS frame (the 10-ms grid), other signals sample-and-hold."""
+
+    name: str
+    t: np.ndarray
+    signals: dict[str, np.ndarray]
+
+
+def read_log(path: str | Path, codec: Codec) -> Record:
+    """Decode a log; rows at each PLANT_SPEEDS frame, every other signal its last value (NaN before the first).
+    ``SIM_TRUTH_CL.fresh`` / ``SIM_TRUTH_CH.fresh`` mark the rows where a truth frame came since the previous row:
+    there the truth and the pressure are of the same control period (the plant sends the truth after the
+    pressure), so only those rows are used where torque, mu and pressure are combined."""
+    latest: dict[str, float] = {}
+    rows: list[tuple[float, dict[str, float]]] = []
+    try:
+        reader = can.LogReader(str(path))
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot read log: {exc}") from None
+    with reader:
+        for msg in reader:
+            try:
+                frame = codec.decode(msg.arbitration_id, bytes(msg.data))
+            except FrameError:
+                continue
+            for signal in USES[frame.name]:
+                latest[f"{frame.name}.{signal}"] = frame.values[signal]
+            if frame.name.startswith("SIM_TRUTH"):
+                latest[f"{frame.name}.fresh"] = 1.0
+            if frame.name == "PLANT_SPEEDS":
+                rows.append((msg.timestamp, dict(latest)))
+                latest["SIM_TRUTH_CL.fresh"] = latest["SIM_TRUTH_CH.fresh"] = 0.0
+    if len(rows) < 100:
+        raise ValueError(f"{path}: only {len(rows)} PLANT_SPEEDS frames: not a recorded run of this DBC")
+    keys = [f"{m}.{s}" for m, sigs in USES.items() for s in sigs] + ["SIM_TRUTH_CL.fresh", "SIM_TRUTH_CH.fresh"]
+    t = np.array([r[0] for r in rows]) - rows[0][0]
+    return Record(Path(path).name, t, {k: np.array([r[1].get(k, np.nan) for r in rows]) for k in keys})
+
+
+def _clutch_columns(r: Record, c: str) -> dict[str, np.ndarray]:
+    s = r.signals
+    return {"slip": s["PLANT_SPEEDS.ClutchInputSpeed"] - s[f"PLANT_SPEEDS.{c}OutputSpeed"],
+            "out": s[f"PLANT_SPEEDS.{c}OutputSpeed"], "v": s["PLANT_VEHICLE.VehicleSpeed"],
+            "P": s[f"PLANT_PRESSURE.P_{c}"], "T_oil": s[f"PLANT_OIL_TEMP.T_Oil{c}"],
+            "T_sump": s["PLANT_OIL_TEMP.T_Sump"],
+            "T": s[f"SIM_TRUTH_{c}.T_Plate"], "mu": s[f"SIM_TRUTH_{c}.Mu"], "M": s[f"SIM_TRUTH_{c}.Torque"],
+            "Q": s[f"SIM_TRUTH_{c}.HeatFlux"], "fresh": s[f"SIM_TRUTH_{c}.fresh"] == 1.0}
+
+
+def fit_speed_ratio(cols: list[dict]) -> float:
+    v = np.concatenate([d["v"] for d in cols])
+    w = np.concatenate([d["out"] for d in cols]) * RPM_TO_RAD_S
+    ok = np.isfinite(v) & (v > 0.03) & (w > 0.5)
+    if ok.sum() < 10:
+        raise ValueError("speed ratio: the runs never moved (vehicle speed > 0.03 m/s)")
+    return float(np.median(v[ok] / w[ok]))
+
+
+def _slipping(d: dict, P_min: float = 0.1) -> np.ndarray:
+    """Rows with a fresh truth frame while the clutch slips under pressure."""
+    return d["fresh"] & np.isfinite(d["mu"]) & (d["P"] > P_min) & (np.abs(d["slip"]) > 5.0) & (np.abs(d["M"]) > 5.0)
+
+
+def fit_k_geom(cols: list[dict]) -> float:
+    k = [d["M"][m] / (d["mu"][m] * d["P"][m] * 1e6) for d in cols if (m := _slipping(d)).any()]
+    if not k:
+        raise ValueError("k_geom: the clutch never slipped under pressure (P > 0.1 MPa) in these runs")
+    return float(np.median(np.abs(np.concatenate(k))))
+
+
+def _cell(grid: tuple[float, ...], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower grid index and interpolation weight of each x, clamped to the grid."""
+    g = np.asarray(grid)
+    i = np.clip(np.searchsorted(g, x, side="right") - 1, 0, len(g) - 2)
+    return i, np.clip((x - g[i]) / (g[i + 1] - g[i]), 0.0, 1.0)
+
+
+def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
+    """Regularised least squares of the trilinear map; returns it and the RMS of the fit over the samples."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.linalg import spsolve
+
+    pick = [_slipping(d, P_min=0.02) for d in cols]  # low pressures too: the handovers pass through them
+    T, n, P, mu = (np.concatenate([f(d)[m] for d, m in zip(cols, pick)]) for f in (
+        lambda d: d["T"], lambda d: np.abs(d["slip"]), lambda d: d["P"], lambda d: d["mu"]))
+    if len(mu) < 50:
+        raise ValueError("friction map: fewer than 50 slipping samples")
+    shape = (len(T_GRID), len(SLIP_GRID), len(P_GRID))
+    (i, wt), (j, ws), (k, wp) = _cell(T_GRID, T), _cell(SLIP_GRID, n), _cell(P_GRID, P)
+    rows, cols_, vals = [], [], []
+    for di, w_i in ((0, 1 - wt), (1, wt)):
+        for dj, w_j in ((0, 1 - ws), (1, ws)):
+            for dk, w_k in ((0, 1 - wp), (1, wp)):
+                rows.append(np.arange(len(mu)))
+                cols_.append(np.ravel_multi_index((i + di, j + dj, k + dk), shape))
+                vals.append(w_i * w_j * w_k)
+    size = int(np.prod(shape))
+    A = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols_))),
+                   shape=(len(mu), size)).tocsr()
+    lam = math.sqrt(SMOOTHING * len(mu) / size)
+    index = np.arange(size).reshape(shape)
+    pairs = [(index[:-1, :, :], index[1:, :, :]), (index[:, :-1, :], index[:, 1:, :]),
+             (index[:, :, :-1], index[:, :, 1:])]  # first differences: flat, bounded where there is no data
+    lo = np.concatenate([p[0].ravel() for p in pairs])
+    hi = np.concatenate([p[1].ravel() for p in pairs])
+    r = np.arange(len(lo))
+    R = coo_matrix((np.concatenate([-lam * np.ones(len(lo)), lam * np.ones(len(hi))]),
+                    (np.concatenate([r, r]), np.concatenate([lo, hi]))), shape=(len(lo), size)).tocsr()
+    x = spsolve((A.T @ A + R.T @ R).tocsc(), A.T @ mu)  # normal equations: sparse, well posed
+    rms = float(np.sqrt(np.mean((A @ x - mu) ** 2)))
+    grid = np.round(x.reshape(shape), 5)
+    fm = FrictionMap(T_GRID, SLIP_GRID, P_GRID, tuple(tuple(tuple(float(v) for v in cell) for cell in row)
+                                                    for row in grid))
+    return fm, rms
+
+
+def fit_thermal(cols: list[dict], times: list[np.ndarray]) -> tuple[float, float, float]:
+    """C and K of C dT/dt = Q - K (T - T_oil_out), fitted by output error: the plate simulated from the truth
+    heat flux and the measured oil temperature (exact step, as the predictor does), started at the truth, against
+    the truth temperature at every 100-ms truth frame. Returns (C, K, RMS temperature error [K])."""
+    from scipy.optimize import least_squares
+
+    series = []
+    for d, t in zip(cols, times):
+        idx = np.flatnonzero(np.isfinite(d["T"]) & np.isfinite(d["T_oil"]) & np.isfinite(d["Q"]))[::10]
+        if len(idx) > 20:
+            series.append((t[idx], d["T"][idx], d["Q"][idx], d["T_oil"][idx]))
+    if not series:
+        raise ValueError("thermal fit: no plate temperature record in these runs")
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        C, K = np.exp(x)
+        res = []
+        for t, T, Q, To in series:
+            T_sim = np.empty_like(T)
+            T_sim[0] = T[0]
+            decay = np.exp(-K * np.diff(t) / C)
+            for k in range(1, len(T)):
+                T_inf = To[k - 1] + Q[k - 1] / K
+                T_sim[k] = T_inf + (T_sim[k - 1] - T_inf) * decay[k - 1]
+            res.append(T_sim - T)
+        return np.concatenate(res)
+
+    sol = least_squares(residuals, np.log([4000.0, 500.0]), x_scale=1.0)
+    C, K = np.exp(sol.x)
+    return float(C), float(K), float(np.sqrt(np.mean(sol.fun ** 2)))
+
+
+def fit_cooling(cols: list[dict], K: float) -> tuple[float, float] | None:
+    """Cooling flow (rho c_p q) of the start-up observer: the oil balance of a pack K (T - T_out) = cooling
+    (T_out - T_in) with the sump for T_in, least squares through the origin over samples without friction heat.
+    Returns (cooling [W/K], RMS of the plate temperature it implies [K]), or None when the runs have too few such
+    samples (the base calibration's value is then kept)."""
+    x, y = [], []
+    for d in cols:
+        ok = np.isfinite(d["T"]) & np.isfinite(d["T_sump"]) & (d["Q"] <= 0.0) & (d["T_oil"] - d["T_sump"] > 1.0)
+        x.append((d["T_oil"] - d["T_sump"])[ok])
+        y.append((d["T"] - d["T_oil"])[ok])
+    x, y = np.concatenate(x), np.concatenate(y)
+    if len(x) < 20:
+        return None
+    ratio = max(float(x @ y / (x @ x)), 0.0)
+    return ratio * K, float(np.sqrt(np.mean((y - ratio * x) ** 2)))
+
+
+def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
+    """Run the TCU's plate estimate over a log as the controller does: the start-up observer for
+    ``startup_observer_s`` after the first oil temperature, then the predictor. Truth minus estimate per clutch."""
+    out = {}
+    window = cal.strategy.startup_observer_s
+    for c in ("CL", "CH"):
+        d, clutch = _clutch_columns(r, c), cal.clutch(c)
+        t0, T_pred, errs = None, 0.0, []
+        for k in range(len(r.t)):
+            if not (np.isfinite(d["T_oil"][k]) and np.isfinite(d["T"][k])):
+                continue
+            if t0 is None:
+                t0 = r.t[k]
+            if r.t[k] - t0 < window:  # the TCU does not creep yet: the error does not count
+                T_pred = d["T_oil"][k] + clutch.cooling_w_k / clutch.K_plate_oil_w_k * max(
+                    d["T_oil"][k] - d["T_sump"][k], 0.0)
+                continue
+            else:
+                Q = friction_heat(cal.friction, clutch, T_pred, d["slip"][k], d["P"][k])
+                T_pred = plate_step(clutch, T_pred, Q, d["T_oil"][k], r.t[k] - r.t[k - 1])
+            errs.append(d["T"][k] - T_pred)
+        e = np.array(errs)
+        out[c] = {"max_under_k": float(e.max()), "max_over_k": float(-e.min()),
+                  "rms_k": float(np.sqrt(np.mean(e ** 2)))}
+    return out
+
+
+def identify(paths: list[str], base: TcuCalibration, dbc: str | None = None) -> tuple[TcuCalibration, dict]:
+    codec = Codec(load_dbc(dbc), USES)
+    records = [read_log(p, codec) for p in paths]
+    report: dict = {"logs": [r.name for r in records]}
+    clutches = {}
+    for c in ("CL", "CH"):
+        cols = [_clutch_columns(r, c) for r in records]
+        C, K, rms_dTdt = fit_thermal(cols, [r.t for r in records])
+        cooling, rms_obs = fit_cooling(cols, K) or (base.clutch(c).cooling_w_k, math.nan)
+        clutches[c] = replace(base.clutch(c), k_geom_m3=round(fit_k_geom(cols), 6), C_plate_j_k=round(C, 1),
+                              K_plate_oil_w_k=round(K, 2), speed_ratio_m=round(fit_speed_ratio(cols), 6),
+                              cooling_w_k=round(cooling, 2))
+        report[c] = {"thermal_fit_rms_k": rms_dTdt, "observer_fit_rms_k": rms_obs}
+    fmap, mu_rms = fit_friction_map([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
+    report["friction_map_rms"] = mu_rms
+    cal = replace(base, friction=fmap, CL=clutches["CL"], CH=clutches["CH"])
+    report["replay"] = {r.name: replay(r, cal) for r in records}
+    worst = max(e["max_under_k"] for rep in report["replay"].values() for e in rep.values())
+    error_k = max(ERROR_ROUND_K, math.ceil(ERROR_FACTOR * worst / ERROR_ROUND_K) * ERROR_ROUND_K)
+    report["worst_under_prediction_k"] = worst
+    cal = replace(cal, strategy=replace(cal.strategy, prediction_error_k=error_k))
+    return cal, report
+
+
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="python -m ecu_stub.identify", description=__doc__.split("\n\n")[0])
+    parser.add_argument("logs", nargs="+", metavar="LOG", help="recorded runs (candump -L .log, .asc, .blf)")
+    parser.add_argument("--calibration", metavar="FILE", help="base calibration (default: the shipped one)")
+    parser.add_argument("--write", metavar="FILE", help="write the identified calibration here")
+    parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
+    return parser.parse_args(argv)
+
+
+def write_calibration(path: str, cal: TcuCalibration, base: str | None, logs: list[str], rep: dict) -> None:
+    """The base calibration file with the identified entries replaced (source = identified, how = this run)."""
+    raw = raw_sections(base)
+    cmd = "python -m ecu_stub.identify " + " ".join(Path(p).name for p in logs)
+    for c in ("CL", "CH"):
+        k, fit = cal.clutch(c), rep[c]["thermal_fit_rms_k"]
+        for key, how in (("k_geom_m3", "median of truth torque / (truth mu x measured P) while slipping"),
+                         ("C_plate_j_k", "C dT/dt = Q - K (T - T_oil_out) fitted to the truth temperature "
+                                         f"(output error, RMS {fit:.3f} K)"),
+                         ("K_plate_oil_w_k", f"same fit as C_plate_j_k (output error, RMS {fit:.3f} K)"),
+                         ("speed_ratio_m", "median of vehicle speed / clutch output speed while moving"),
+                         ("cooling_w_k", "oil balance K (T - T_oil_out) = cooling (T_oil_out - T_sump) without "
+                                         f"friction heat, least squares (RMS {rep[c]['observer_fit_rms_k']:.2f} K)")):
+            if key == "cooling_w_k" and math.isnan(rep[c]["observer_fit_rms_k"]):
+                continue  # not identifiable from these runs: the base value stays, with its own 'how'
+            raw[f"clutch.{c}"][key] = {**raw[f"clutch.{c}"][key], "value": getattr(k, key), "source": "identified",
+                                       "how": f"{cmd}: {how}"}
+    f = cal.friction
+    how = f"{cmd}: regularised least squares over the truth mu samples (fit RMS {rep['friction_map_rms']:.5f})"
+    raw["friction"] = {
+        "T_grid_c": {"value": list(f.T_grid_c), "unit": "degC", "source": "chosen",
+                     "how": "10 K steps over the plate temperatures of creep (20-320 degC)"},
+        "slip_grid_rpm": {"value": list(f.slip_grid_rpm), "unit": "rpm", "source": "chosen",
+                          "how": "10 r/min steps: (6) falls steeply with slip around 80-230 r/min"},
+        "P_grid_mpa": {"value": list(f.P_grid_mpa), "unit": "MPa", "source": "chosen",
+                       "how": "denser at low pressure, where (6) changes fastest with pressure (handovers)"},
+        "mu": {"value": [[list(cell) for cell in row] for row in f.mu], "unit": "1", "source": "identified",
+               "how": how}}
+    raw["strategy"]["prediction_error_k"] = {
+        **raw["strategy"]["prediction_error_k"], "value": cal.strategy.prediction_error_k, "source": "identified",
+        "how": f"{cmd}: worst truth-minus-prediction of the TCU's predictor replayed over these runs from the "
+               f"start-up observer on ({rep['worst_under_prediction_k']:.2f} K), times {ERROR_FACTOR:g} for conditions "
+               f"between and beyond these runs (chosen), rounded up to {ERROR_ROUND_K} K"}
+    Path(path).write_text(dump_calibration(raw, HEADER), encoding="utf-8")
+
+
+HEADER = """ecu-stub calibration: what the TCU is flashed with (its own numbers, not the plant's).
+Each value: source = identified (python -m ecu_stub.identify on recorded runs), derived (from other values) or
+chosen (engineering choice / vehicle data sheet); 'how' says which. Units: SI, degC, MPa.
+
+Handover margin (ecu_stub/controller.py, CreepController.limit): the active clutch hands over when its predicted
+plate temperature reaches T_safe - prediction_error_k - dT_crossover, where
+  prediction_error_k = worst (truth - estimate) of the plate estimate replayed over the identification runs as the
+                       TCU runs it (start-up observer, then predictor), times 2 for conditions between and beyond
+                       the runs, rounded up to 0.5 K; and
+  dT_crossover = Q * (handover_time_s / 2 + hydraulic_lag_s + one control period) / C_plate
+is the rise still coming into the off-going plate from its present friction power Q while its share ramps out
+linearly, its pressure lags and the decision waits a cycle (cooling neglected: conservative). So the truth stays
+at or below T_safe as long as the prediction error stays within prediction_error_k. Stopping (STOPPED_OVERHEAT)
+ramps the clutch out over stop_release_s <= handover_time_s, so the same margin covers it.
+The identification runs: dsg-hil run --scenario ecu_stub/data/identification/NAME.toml --log NAME.log"""
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse_args(argv)
+    try:
+        base = load_calibration(args.calibration)
+        cal, rep = identify(args.logs, base, args.dbc)
+    except (ValueError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    print(f"logs: {', '.join(rep['logs'])}")
+    for c in ("CL", "CH"):
+        k = cal.clutch(c)
+        print(f"{c}: k_geom = {k.k_geom_m3:.6f} m^3  C_plate = {k.C_plate_j_k:.1f} J/K  K_plate_oil = "
+              f"{k.K_plate_oil_w_k:.2f} W/K (tau {k.C_plate_j_k / k.K_plate_oil_w_k:.2f} s, fit RMS "
+              f"{rep[c]['thermal_fit_rms_k']:.3f} K)  speed_ratio = {k.speed_ratio_m:.6f} m  cooling = "
+              f"{k.cooling_w_k:.1f} W/K (observer RMS {rep[c]['observer_fit_rms_k']:.2f} K)")
+    f = cal.friction
+    print(f"friction map: {len(f.T_grid_c)} x {len(f.slip_grid_rpm)} x {len(f.P_grid_mpa)} nodes, fit RMS "
+          f"{rep['friction_map_rms']:.5f}")
+    print("plate estimate replayed as the TCU runs it, start-up observer then predictor (truth - estimate):")
+    for name, r in rep["replay"].items():
+        print("  " + name + ": " + "; ".join(
+            f"{c} max under {e['max_under_k']:+.2f} K, max over {e['max_over_k']:.2f} K, RMS {e['rms_k']:.2f} K"
+            for c, e in r.items()))
+    print(f"worst under-prediction {rep['worst_under_prediction_k']:.2f} K (x {ERROR_FACTOR:g}) -> "
+          f"prediction_error_k = {cal.strategy.prediction_error_k:g} K")
+    if args.write:
+        write_calibration(args.write, cal, args.calibration, args.logs, rep)
+        print(f"wrote {args.write}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
