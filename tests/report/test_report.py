@@ -18,20 +18,20 @@ from dsg_hil.report.log import read_log
 from dsg_hil.report.paper import PAPER
 from dsg_hil.validation import run_validation
 
-# Both clutches start hot: CL slips up to the limit and hands over to CH within 25 simulated seconds.
+# CL starts near its limit, CH warm: CL slips up to the limit and hands over to CH within 25 simulated seconds.
 HOT = """name = "hot creep (test)"
 duration_s = 25.0
-engine_speed_rpm = 1200.0
 [initial]
-T_clutch_c = 248.0
-T_oil_c = 90.0
+T_CL_c = 225.0
+T_CH_c = 150.0
+T_oil_c = 100.0
 [[driver]]
 t_s = 0.0
 brake = 1.0
 [[driver]]
 t_s = 0.5
 creep_request = true
-desired_speed_mps = 0.1
+desired_speed_mps = 0.2
 """
 FIGURES = ("fig3_temperature", "fig4_torque", "fig5_mu", "fig8_heat_flux", "fig9_plate_temperatures", "fig10_mu",
            "fig11_pressures", "fig12_vehicle_speed")
