@@ -1,7 +1,7 @@
 """Safety sweep: the creep strategy over the documented operating range, judged on the plant's TRUE plate
 temperature (not the TCU's prediction). Prints one line per scenario and the violations (truth above 250 degC).
 
-    python bench/safety_sweep.py [--n 40] [--seed 1] [--duration 300] [--json FILE]
+    python bench/safety_sweep.py [--n 40] [--seed 1] [--duration 300] [--jobs 2] [--json FILE]
 
 The range (README, "The TCU"): grade 0-0.2 rad, start plate 40-150 degC, oil 40-140 degC, vehicle mass +-30 %,
 desired creep speed 0.05-0.4 m/s, idle 700-1300 r/min. The scenarios are the corners that heat fastest and a
@@ -15,6 +15,7 @@ import argparse
 import json
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -81,26 +82,33 @@ def run_case(case: Case, duration_s: float) -> dict:
             "slip_time_s": s["slip_time_s"]}
 
 
+def _print_row(i: int, case: Case, r: dict) -> None:
+    T = r["max_plate_temp_c"]
+    flag = "  <-- ABOVE 250" if max(T.values()) > T_SAFE_C else ""
+    stop = "-" if r["stop_time_s"] is None else f"{r['stop_time_s']:.1f}"
+    print(f"{i:>3} {case.grade_rad:6.3f} {case.T_plate_c:6.1f} {case.T_oil_c:6.1f} {case.mass_factor:5.2f} "
+          f"{case.speed_mps:5.2f} {case.idle_rpm:5.0f} | {T['CL']:8.2f} {T['CH']:8.2f} {r['handovers']:>4} "
+          f"{stop:>7}  {r['stop_reason']}{flag}", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=40, help="number of scenarios (default 40, the first 5 are corners)")
     ap.add_argument("--seed", type=int, default=1, help="Latin hypercube seed (default 1)")
     ap.add_argument("--duration", type=float, default=300.0, metavar="S", help="simulated s each (default 300)")
+    ap.add_argument("--jobs", type=int, default=1, help="scenarios run side by side (processes, default 1)")
     ap.add_argument("--json", metavar="FILE", help="also write every result as JSON")
     args = ap.parse_args(argv)
     results, t0 = [], time.perf_counter()
     header = (f"{'#':>3} {'grade':>6} {'T_pl':>6} {'T_oil':>6} {'mass':>5} {'v':>5} {'idle':>5} | "
               f"{'max T_CL':>8} {'max T_CH':>8} {'hand':>4} {'stop s':>7}  stop")
     print(header)
-    for i, case in enumerate(cases(args.n, args.seed)):
-        r = run_case(case, args.duration)
-        results.append(r)
-        T = r["max_plate_temp_c"]
-        flag = "  <-- ABOVE 250" if max(T.values()) > T_SAFE_C else ""
-        stop = "-" if r["stop_time_s"] is None else f"{r['stop_time_s']:.1f}"
-        print(f"{i:>3} {case.grade_rad:6.3f} {case.T_plate_c:6.1f} {case.T_oil_c:6.1f} "
-              f"{case.mass_factor:5.2f} {case.speed_mps:5.2f} {case.idle_rpm:5.0f} | {T['CL']:8.2f} {T['CH']:8.2f} "
-              f"{r['handovers']:>4} {stop:>7}  {r['stop_reason']}{flag}", flush=True)
+    todo = cases(args.n, args.seed)
+    with ProcessPoolExecutor(max_workers=max(args.jobs, 1)) as pool:
+        runs = pool.map(run_case, todo, [args.duration] * len(todo))
+        for i, (case, r) in enumerate(zip(todo, runs)):
+            results.append(r)
+            _print_row(i, case, r)
     violations = [r for r in results if max(r["max_plate_temp_c"].values()) > T_SAFE_C]
     reached = [r for r in results if max(r["max_plate_temp_c"].values()) > T_SAFE_C - 20.0]
     hottest = max(max(r["max_plate_temp_c"].values()) for r in results)
