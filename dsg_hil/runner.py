@@ -27,6 +27,7 @@ from .physics.friction import RAD_S_TO_RPM
 from .plant import Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
 from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
+from .protocol.errors import RunError
 from .protocol.validity import IGNORED, NEW, REJECTED
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
@@ -40,7 +41,7 @@ RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.
 STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
 
 
-class PeerTimeout(RuntimeError):
+class PeerTimeout(RunError):
     """The TCU did not answer the lock-step presence probe in time."""
 
 

@@ -27,10 +27,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from .errors import InputError
+
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "data" / "creep.toml"
 
 
-class ScenarioError(ValueError):
+class ScenarioError(InputError):
     """A scenario file is missing, unreadable or has a bad value (the message names the key)."""
 
 

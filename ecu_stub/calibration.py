@@ -19,11 +19,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from dsg_hil.protocol.errors import InputError
+
 DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
 SOURCES = ("identified", "derived", "chosen")
 
 
-class CalibrationError(ValueError):
+class CalibrationError(InputError):
     """A calibration file is missing, unreadable, or has a bad, missing or unknown value (the message names it)."""
 
 

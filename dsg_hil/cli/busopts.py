@@ -19,6 +19,7 @@ from ..protocol import Codec, load_dbc
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
 from ..runner import PeerLost, PlantRunner
 from ..scenario import Scenario, load_scenario
+from ..errors import InputError
 from .common import Terminated, params_from, progress
 
 STOP_REASONS = ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"))
@@ -68,7 +69,7 @@ class LogListener:
         try:
             self.writer = can.Logger(path)
         except ValueError as exc:
-            raise ValueError(f"--log {path}: {exc}") from None
+            raise InputError(f"--log {path}: {exc}") from None
         self.channel = channel
 
     def __call__(self, msg: can.Message) -> None:
@@ -98,14 +99,14 @@ def check_output_path(option: str, path: str | None) -> None:
         return
     target = Path(path)
     if target.is_dir():
-        raise ValueError(f"{option} {path}: is a directory")
+        raise InputError(f"{option} {path}: is a directory")
     parent = target.parent
     while not parent.exists():
         parent = parent.parent
     if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{option} {path}: {parent} is not a writable directory")
+        raise InputError(f"{option} {path}: {parent} is not a writable directory")
     if target.exists() and not os.access(target, os.W_OK):
-        raise ValueError(f"{option} {path}: file not writable")
+        raise InputError(f"{option} {path}: file not writable")
 
 
 def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario):

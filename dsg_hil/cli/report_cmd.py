@@ -11,6 +11,7 @@ from ..protocol import load_dbc
 from ..protocol.bus import VIRTUAL_CHANNEL
 from ..validation import run_validation
 from .busopts import drive, finish, start
+from ..errors import InputError
 from .common import add_params_option, params_from, progress
 
 CREEP_LOG = "creep.log"
@@ -43,7 +44,7 @@ def _writable(out: Path) -> None:
         with tempfile.TemporaryFile(dir=out):
             pass
     except OSError as exc:
-        raise ValueError(f"--out {out}: not a writable directory ({exc.strerror or exc})") from None
+        raise InputError(f"--out {out}: not a writable directory ({exc.strerror or exc})") from None
 
 
 def _run_creep(args: argparse.Namespace, out: Path) -> Path:

@@ -12,6 +12,7 @@ from contextlib import ExitStack
 from ..protocol import Codec
 from ..protocol.bus import bus_args, open_bus
 from .busopts import add_bus_options, drive, finish, frames_line, start
+from ..errors import RunError
 from .common import add_params_option, progress
 
 
@@ -68,7 +69,7 @@ def _do_run(args: argparse.Namespace) -> int:
             stack.callback(_stop_process, tcu_proc)
             time.sleep(0.5)
             if tcu_proc.poll() is not None:
-                raise RuntimeError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
+                raise RunError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
             drive(runner, args)
         wall = time.monotonic() - t0
         summary = finish(args, runner, config, scenario)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..reference import TOL_MU, TOL_RISE_C, TOL_TORQUE_REL
 from ..validation import run_validation, validation_json
+from ..errors import InputError
 from .common import add_params_option, params_from, progress
 
 
@@ -36,7 +37,7 @@ def _fmt_row(name: str, sim: float, pub: float, dev: float, ok: bool) -> str:
 def _do_validate(args: argparse.Namespace) -> int:
     params = params_from(args)
     if not args.dt > 0.0:
-        raise ValueError(f"--dt: dt must be positive, got {args.dt}")
+        raise InputError(f"--dt: dt must be positive, got {args.dt}")
     if args.plots:  # fail before the long run, not after it
         from ..plots import require_matplotlib
         require_matplotlib()

@@ -18,11 +18,13 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from ..errors import InputError
+
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
 SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}
 
 
-class ParameterError(ValueError):
+class ParameterError(InputError):
     """A parameter file is missing, unreadable, or has a bad, missing or unknown value."""
 
 

@@ -25,6 +25,8 @@ from typing import Any
 import can
 import can.cli
 
+from .errors import InputError
+
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
 LOG_CHANNEL = "vcan0"  # the channel name written to logs of runs that are not on socketcan (canplayer -I)
@@ -52,7 +54,7 @@ def bus_config(args: argparse.Namespace, fresh_udp: bool = False) -> dict[str, A
     config = resolve_bus_config(context=getattr(args, "config_context", None), **given)
     if config["interface"] == UDP_MULTICAST and config.get("channel") is None:
         if not fresh_udp:
-            raise ValueError(f"-i {UDP_MULTICAST} needs the channel (multicast group) and port of the plant: "
+            raise InputError(f"-i {UDP_MULTICAST} needs the channel (multicast group) and port of the plant: "
                              f"start it with the options 'dsg-hil plant' prints, e.g. -i {UDP_MULTICAST} "
                              "-c 239.255.12.34 --bus-kwargs port=40000")
         config.update(fresh_udp_group())
@@ -67,7 +69,7 @@ def resolve_bus_config(interface: str | None = None, channel: str | None = None,
         config = dict(can.util.load_config(config=given, context=context))
     except can.CanInterfaceNotImplementedError as exc:
         if "interface" in given or "None" not in str(exc):
-            raise ValueError(f"interface: {exc}") from None
+            raise InputError(f"interface: {exc}") from None
         config = {**extra, "interface": None, "channel": given.get("channel", os.environ.get("CAN_CHANNEL"))}
     if not config.get("interface"):
         if vcan0_present():
@@ -103,7 +105,7 @@ def bus_args(config: dict[str, Any]) -> list[str]:
         elif isinstance(value, (bool, int, float, str)) and str(value) and not any(c.isspace() for c in str(value)):
             kwargs.append(f"{key}={value}")
         else:
-            raise ValueError(f"bus option {key}={value!r} cannot be passed on the command line")
+            raise InputError(f"bus option {key}={value!r} cannot be passed on the command line")
     return argv + (["--bus-kwargs", *kwargs] if kwargs else [])
 
 
@@ -133,8 +135,8 @@ def vcan0_present() -> bool:
 
 
 def open_bus(config: dict[str, Any]) -> can.BusABC:
-    """Open a bus from a resolved configuration; a failure is one readable ValueError."""
+    """Open a bus from a resolved configuration; a failure is one readable InputError."""
     try:
         return can.Bus(**{**config, "receive_own_messages": False})
     except (can.CanError, OSError, ValueError, ImportError) as exc:
-        raise ValueError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None
+        raise InputError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None

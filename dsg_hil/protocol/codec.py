@@ -18,11 +18,12 @@ import cantools
 from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
+from .errors import InputError
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
 
-class ProtocolError(ValueError):
+class ProtocolError(InputError):
     """The DBC is missing, unreadable, or lacks a message or signal the code needs."""
 
 

@@ -20,7 +20,7 @@ from typing import Callable, Iterable
 import can
 from cantools.database.can import Database, Message, Signal
 
-from ..protocol.e2e import COUNTER, CRC, Protection
+from ..e2e import COUNTER, CRC, Protection
 from .spec import FaultSpec, check_against_dbc
 
 

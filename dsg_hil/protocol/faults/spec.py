@@ -26,6 +26,8 @@ from typing import Any, Mapping
 
 from cantools.database.can import Database
 
+from ..errors import InputError
+
 KINDS = {
     "drop": "the frame is not sent",
     "delay": "the frame is held for delay_s, then sent",
@@ -42,7 +44,7 @@ SIGNAL_KINDS = {"stuck", "offset", "out_of_range"}
 _ALIASES = {"p": "probability", "delay": "delay_s", "id": "frame_id", "start": "start_s", "end": "end_s"}
 
 
-class FaultError(ValueError):
+class FaultError(InputError):
     """A fault specification is malformed or names something the DBC does not have."""
 
 
