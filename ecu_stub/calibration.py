@@ -209,6 +209,8 @@ def load_calibration(path: str | Path | None = None) -> TcuCalibration:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise CalibrationError(f"{path}: cannot read calibration: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise CalibrationError(f"{path}: not UTF-8 text (byte {exc.start}): not a calibration TOML") from None
     try:
         return parse_calibration(text, str(path))
     except CalibrationError as exc:

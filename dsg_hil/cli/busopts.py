@@ -16,6 +16,7 @@ from ..loop import plant_for
 from ..plant import Plant
 from ..plant_io import PLANT_USES
 from ..protocol import Codec, load_dbc
+from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
 from ..runner import PeerLost, PlantRunner
 from ..scenario import Scenario, load_scenario
@@ -44,6 +45,8 @@ def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
     parser.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
                         help="lockstep: wall-clock seconds to wait for the TCU to answer the presence probe "
                              "before tick 0 (default 60)")
+    add_fault_arguments(parser, "the frames the plant sends (side=tcu: the TCU's, 'dsg-hil run' only), besides "
+                                "the scenario's [[fault]] tables")
     parser.add_argument("-v", "--verbose", action="store_true", help="log protocol events (rejected frames ...)")
 
 
@@ -125,6 +128,7 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
     """Open the plant's bus (and log) from the options; everything is closed by ``stack``."""
     config = bus_config(args, fresh_udp=True)
     db = load_dbc(args.dbc)
+    args.faults_by_side = check_faults([*scenario.faults, *faults_from_args(args)], db)
     bus = open_bus(config)
     stack.callback(bus.shutdown)
     listeners = ()
@@ -133,6 +137,9 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
         stack.callback(listener.stop)
         listeners = (listener,)
     runner = PlantRunner(make_plant(args, scenario), scenario, Codec(db, PLANT_USES), bus, listeners, progress)
+    runner.inject(args.faults_by_side["plant"], args.fault_seed)
+    if runner.bus is not bus:
+        stack.callback(runner.bus.shutdown)
     return runner, config
 
 
@@ -156,6 +163,7 @@ def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario
     summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode, bus_name(config),
                                      scenario.duration_s)
     summary["sim_time_s"] = round(runner.plant.state.t, 3)  # where the run ended (< duration_s if cut short)
+    summary["faults"] = runner.fault_summary()
     summary.update(extra)
     if args.summary:
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)

@@ -298,4 +298,6 @@ def load_params(path: str | Path | None = None) -> Params:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ParameterError(f"{path}: cannot read parameter file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}): not a parameter TOML") from None
     return parse_params(text, str(path))

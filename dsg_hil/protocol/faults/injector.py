@@ -21,7 +21,7 @@ import can
 from cantools.database.can import Database, Message, Signal
 
 from ..e2e import COUNTER, CRC, Protection
-from .spec import FaultSpec, check_against_dbc
+from .spec import FaultError, FaultSpec, check_against_dbc
 
 
 def outside_range(signal: Signal) -> float:
@@ -33,7 +33,7 @@ def outside_range(signal: Signal) -> float:
         return min(signal.maximum + abs(scale), top)
     if signal.minimum is not None and bottom < signal.minimum - abs(scale) / 2:
         return max(signal.minimum - abs(scale), bottom)
-    raise ValueError(f"{signal.name}: its {length} bits cannot carry a value outside [{signal.minimum}, "
+    raise FaultError(f"{signal.name}: its {length} bits cannot carry a value outside [{signal.minimum}, "
                      f"{signal.maximum}]")
 
 
@@ -43,14 +43,17 @@ class FaultInjector:
     def __init__(self, db: Database, specs: Iterable[FaultSpec], seed: int = 0) -> None:
         self.specs = tuple(specs)
         for i, spec in enumerate(self.specs):
-            check_against_dbc(spec, db, f"fault {i} ({spec.describe()})")
+            check_against_dbc(spec, db, spec.origin)
         self._messages = {m.frame_id: m for m in db.messages}
         self._by_id: dict[int, list[int]] = {}
         for i, spec in enumerate(self.specs):
             if spec.kind == "flood":
                 continue
             if spec.kind == "out_of_range":  # fail at start-up, not mid-run, if the bits cannot carry it
-                outside_range(db.get_message_by_name(spec.message).get_signal_by_name(spec.signal))
+                try:
+                    outside_range(db.get_message_by_name(spec.message).get_signal_by_name(spec.signal))
+                except FaultError as exc:
+                    raise FaultError(f"{spec.origin}: {exc}") from None
             self._by_id.setdefault(db.get_message_by_name(spec.message).frame_id, []).append(i)
         self._rng = random.Random(seed)
         self._frozen: dict[int, int] = {}
