@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
 import sys
 from contextlib import ExitStack
 from pathlib import Path
@@ -21,7 +20,7 @@ from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name,
 from ..runner import PeerLost, PlantRunner
 from ..scenario import Scenario, load_scenario
 from ..errors import InputError
-from .common import Terminated, params_from, progress
+from .common import Terminated, check_output_path, params_from, positive_number, progress
 
 STOP_REASONS = ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"))
 
@@ -40,9 +39,9 @@ def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
                              "seconds from 0 (so the 'Begin Triggerblock' line of an .asc log reads 1970); in "
                              f"real time, wall-clock time. Runs not on socketcan are logged on channel {LOG_CHANNEL}, "
                              "so 'canplayer -I FILE' replays them onto vcan0 with no mapping")
-    parser.add_argument("--reply-timeout", type=float, default=5.0, metavar="S",
+    parser.add_argument("--reply-timeout", type=positive_number, default=5.0, metavar="S",
                         help="lockstep: wall-clock seconds to wait for the TCU's answer to a tick (default 5)")
-    parser.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
+    parser.add_argument("--startup-timeout", type=positive_number, default=60.0, metavar="S",
                         help="lockstep: wall-clock seconds to wait for the TCU to answer the presence probe "
                              "before tick 0 (default 60)")
     add_fault_arguments(parser, "the frames the plant sends (side=tcu: the TCU's, 'dsg-hil run' only), besides "
@@ -93,23 +92,6 @@ def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantR
     stack.push(_summary_on_abort(args, runner, config, scenario))
     progress(f"{what}: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on {bus_name(config)}")
     return runner, config, scenario
-
-
-def check_output_path(option: str, path: str | None) -> None:
-    """Fail before the run, not after it, when ``path`` cannot be written: a directory, or a parent that is
-    not a writable directory (missing parents are created at the end: the nearest existing one counts)."""
-    if path is None:
-        return
-    target = Path(path)
-    if target.is_dir():
-        raise InputError(f"{option} {path}: is a directory")
-    parent = target.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{option} {path}: {parent} is not a writable directory")
-    if target.exists() and not os.access(target, os.W_OK):
-        raise InputError(f"{option} {path}: file not writable")
 
 
 def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario):

@@ -16,6 +16,7 @@ Nothing of our own on top, except
 from __future__ import annotations
 
 import argparse
+import configparser
 import os
 import random
 import socket
@@ -29,6 +30,7 @@ from .errors import InputError
 
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
+DEFAULT_CHANNELS = {"virtual": VIRTUAL_CHANNEL, "socketcan": "vcan0"}  # a channel given by no option
 LOG_CHANNEL = "vcan0"  # the channel name written to logs of runs that are not on socketcan (canplayer -I)
 _FROM_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
 
@@ -65,6 +67,9 @@ def resolve_bus_config(interface: str | None = None, channel: str | None = None,
                        context: str | None = None, **extra: Any) -> dict[str, Any]:
     """The python-can configuration to open, with the given values overriding every other source."""
     given = {k: v for k, v in (("interface", interface), ("channel", channel)) if v is not None} | extra
+    if context is not None and not _has_config_section(context):
+        raise InputError(f"--config-context {context}: no section [{context}] in the python-can config file "
+                         f"({', '.join(can.util.CONFIG_FILES)})")
     try:
         config = dict(can.util.load_config(config=given, context=context))
     except can.CanInterfaceNotImplementedError as exc:
@@ -77,8 +82,17 @@ def resolve_bus_config(interface: str | None = None, channel: str | None = None,
         else:
             config.update(interface="virtual", channel=config.get("channel") or VIRTUAL_CHANNEL)
     if config.get("channel") is None and config["interface"] != UDP_MULTICAST:
-        config["channel"] = VIRTUAL_CHANNEL if config["interface"] == "virtual" else "vcan0"
+        if config["interface"] not in DEFAULT_CHANNELS:
+            raise InputError(f"-i {config['interface']}: needs a channel (-c CHANNEL, as python-can names it for "
+                             f"that interface)")
+        config["channel"] = DEFAULT_CHANNELS[config["interface"]]
     return config
+
+
+def _has_config_section(section: str) -> bool:
+    parser = configparser.ConfigParser()
+    parser.read([os.path.expanduser(path) for path in can.util.CONFIG_FILES])
+    return parser.has_section(section)
 
 
 def fresh_udp_group() -> dict[str, Any]:

@@ -20,21 +20,22 @@ from typing import Callable, Iterable
 import can
 from cantools.database.can import Database, Message, Signal
 
+from ..codec import raw_range, signal_range
 from ..e2e import COUNTER, CRC, Protection
 from .spec import FaultError, FaultSpec, check_against_dbc
 
 
 def outside_range(signal: Signal) -> float:
     """A value the signal's bits can carry that lies just outside its DBC range [minimum, maximum]."""
-    length, scale, offset = signal.length, signal.scale, signal.offset
-    raw_lo, raw_hi = (-(1 << (length - 1)), (1 << (length - 1)) - 1) if signal.is_signed else (0, (1 << length) - 1)
-    top, bottom = raw_hi * scale + offset, raw_lo * scale + offset
-    if signal.maximum is not None and top > signal.maximum + abs(scale) / 2:
-        return min(signal.maximum + abs(scale), top)
-    if signal.minimum is not None and bottom < signal.minimum - abs(scale) / 2:
-        return max(signal.minimum - abs(scale), bottom)
-    raise FaultError(f"{signal.name}: its {length} bits cannot carry a value outside [{signal.minimum}, "
-                     f"{signal.maximum}]")
+    bottom, top = raw_range(signal)
+    minimum, maximum = signal_range(signal)
+    step = abs(signal.scale)
+    if top > maximum + step / 2:
+        return min(maximum + step, top)
+    if bottom < minimum - step / 2:
+        return max(minimum - step, bottom)
+    raise FaultError(f"{signal.name}: its {signal.length} bits cannot carry a value outside [{minimum:g}, "
+                     f"{maximum:g}]")
 
 
 class FaultInjector:
