@@ -14,8 +14,8 @@ import sys
 import threading
 
 from .. import __version__
-from . import calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
 from ..errors import EXIT_RUN_FAILED, EXIT_SIGINT, EXIT_SIGTERM, exit_code
+from . import calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
 from .common import Terminated, raise_terminated
 
 COMMANDS = (run, plant_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)

@@ -11,15 +11,15 @@ from pathlib import Path
 
 import can
 
+from ..errors import InputError
 from ..loop import plant_for
 from ..plant import Plant
 from ..plant_io import PLANT_USES
 from ..protocol import Codec, load_dbc
-from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
+from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
 from ..runner import PeerLost, PlantRunner
 from ..scenario import Scenario, load_scenario
-from ..errors import InputError
 from .common import Terminated, check_output_path, params_from, positive_number, progress
 
 STOP_REASONS = ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"))

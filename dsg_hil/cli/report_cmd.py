@@ -7,11 +7,11 @@ import tempfile
 from contextlib import ExitStack
 from pathlib import Path
 
+from ..errors import InputError
 from ..protocol import load_dbc
 from ..protocol.bus import VIRTUAL_CHANNEL
 from ..validation import run_validation
 from .busopts import drive, finish, start
-from ..errors import InputError
 from .common import add_params_option, params_from, progress
 
 CREEP_LOG = "creep.log"

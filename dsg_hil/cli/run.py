@@ -9,13 +9,13 @@ import threading
 import time
 from contextlib import ExitStack
 
+from ..errors import RunError
+from ..loop import answer_at_once
 from ..protocol import Codec
 from ..protocol.bus import bus_args, open_bus
 from ..protocol.faults import with_faults
-from ..loop import answer_at_once
 from ..runner import PlantRunner
 from .busopts import add_bus_options, drive, finish, frames_line, start
-from ..errors import RunError
 from .common import add_params_option, progress
 
 

@@ -26,7 +26,7 @@ from typing import Any
 import can
 import can.cli
 
-from .errors import InputError
+from .errors import InputError, RunError
 
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
@@ -149,8 +149,9 @@ def vcan0_present() -> bool:
 
 
 def open_bus(config: dict[str, Any]) -> can.BusABC:
-    """Open a bus from a resolved configuration; a failure is one readable InputError."""
+    """Open a bus from a resolved configuration; a failure is one readable RunError (the options were well
+    formed, the interface or channel could not be had here: exit 1)."""
     try:
         return can.Bus(**{**config, "receive_own_messages": False})
     except (can.CanError, OSError, ValueError, ImportError) as exc:
-        raise InputError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None
+        raise RunError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None
