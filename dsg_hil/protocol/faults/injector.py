@@ -43,7 +43,7 @@ class FaultInjector:
 
     def __init__(self, db: Database, specs: Iterable[FaultSpec], seed: int = 0) -> None:
         self.specs = tuple(specs)
-        for i, spec in enumerate(self.specs):
+        for spec in self.specs:
             check_against_dbc(spec, db, spec.origin)
         self._messages = {m.frame_id: m for m in db.messages}
         self._by_id: dict[int, list[int]] = {}
