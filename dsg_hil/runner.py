@@ -83,6 +83,7 @@ class PlantRunner:
         self._running = False  # set once the run proper starts (after the lock-step handshake)
         self.injectors: dict[str, FaultInjector | None] = {}  # by side, see ``inject``
         self.fault_seed = 0
+        self.faults_in_tcu: list[str] = []  # faults passed on to a TCU process, which counts them itself
 
     def clock(self) -> float:
         """The plant's time for the frames it sends (fault windows): simulated time, which is run time in real
@@ -95,8 +96,12 @@ class PlantRunner:
         self.fault_seed = seed
 
     def fault_summary(self) -> dict:
-        """The summary's ``faults``: frames each fault hit (re-sends included), by side and in all."""
-        return fault_counts(self.injectors, self.fault_seed)
+        """The summary's ``faults``: frames each fault hit (re-sends included), by side and in all; and those
+        passed on to a TCU process (``in_tcu_process``: counted in its output)."""
+        counts = fault_counts(self.injectors, self.fault_seed)
+        if self.faults_in_tcu:
+            counts["in_tcu_process"] = self.faults_in_tcu
+        return counts
 
     # ---- frames --------------------------------------------------------------------------------------------
     def _emit(self, msg: can.Message) -> None:

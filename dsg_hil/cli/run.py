@@ -78,6 +78,7 @@ def _do_run(args: argparse.Namespace) -> int:
             if faults:
                 faults += ["--fault-seed", str(args.fault_seed)]
                 progress("faults on the TCU's frames: passed to ecu-stub, which counts them (see its output)")
+                runner.faults_in_tcu = [spec.describe() for spec in args.faults_by_side["tcu"]]
             cmd = [sys.executable, "-m", "ecu_stub", *bus_args(config), "--idle-exit", "2", *faults]
             tcu_proc = subprocess.Popen(cmd)
             stack.callback(_stop_process, tcu_proc)
