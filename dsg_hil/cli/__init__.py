@@ -15,10 +15,10 @@ import threading
 
 from .. import __version__
 from ..errors import EXIT_RUN_FAILED, EXIT_SIGINT, EXIT_SIGTERM, exit_code
-from . import calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
+from . import bridge_cmd, calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
 from .common import Terminated, raise_terminated
 
-COMMANDS = (run, plant_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)
+COMMANDS = (run, plant_cmd, bridge_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)
 EXIT_ERROR = EXIT_RUN_FAILED
 
 

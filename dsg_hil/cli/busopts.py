@@ -119,7 +119,7 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
         stack.callback(listener.stop)
         listeners = (listener,)
     runner = PlantRunner(make_plant(args, scenario), scenario, Codec(db, PLANT_USES), bus, listeners, progress)
-    runner.inject(args.faults_by_side["plant"], args.fault_seed)
+    runner.inject(args.faults_by_side["plant"], getattr(args, "fault_seed", 0))
     if runner.bus is not bus:
         stack.callback(runner.bus.shutdown)
     return runner, config

@@ -57,7 +57,7 @@ def _run_creep(args: argparse.Namespace, out: Path) -> Path:
                                   summary=str(out / "summary.json"), reply_timeout=5.0, startup_timeout=60.0)
     with ExitStack() as stack:
         runner, config, scenario = start(run_args, stack, "creep run")
-        tcu = _tcu_in_process(config, runner.codec.db)
+        tcu = _tcu_in_process(config, runner.codec.db, runner, run_args)
         stack.callback(tcu.bus.shutdown)
         drive(runner, run_args, pump=tcu.pump)
         finish(run_args, runner, config, scenario)

@@ -38,7 +38,7 @@ def _tcu_in_process(bus_config: dict, dbc, runner: PlantRunner, args: argparse.N
     from ecu_stub.runner import TCU_USES, TcuRunner
     inner = open_bus(bus_config)
     tcu_side: list = []  # its bus's fault clock reads the TCU's time
-    bus, runner.injectors["tcu"] = with_faults(inner, dbc, args.faults_by_side["tcu"], args.fault_seed,
+    bus, runner.injectors["tcu"] = with_faults(inner, dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0),
                                                lambda: tcu_side[0].now)
     tcu_side.append(TcuRunner(Codec(dbc, TCU_USES), bus))
     return tcu_side[0]

@@ -24,7 +24,7 @@ def add_fault_arguments(parser: argparse.ArgumentParser, whose: str) -> None:
 
 
 def faults_from_args(args: argparse.Namespace) -> list[FaultSpec]:
-    return [parse_fault(text) for text in args.fault]
+    return [parse_fault(text) for text in getattr(args, "fault", None) or ()]  # (a Namespace built in code: none)
 
 
 def with_faults(bus: can.BusABC, db: Database, specs: Iterable[FaultSpec], seed: int,
