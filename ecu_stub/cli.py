@@ -88,8 +88,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{c['received']}, rejected {c['rejected']}, lost {c['lost']}, duplicates {c['duplicates']}",
                   file=sys.stderr, flush=True)
             if injector is not None:
-                hits = ", ".join(f"{spec.describe()} {injector.counts[spec.describe()]}" for spec in injector.specs)
-                print(f"ecu-stub: faults injected (frames hit): {hits}", file=sys.stderr, flush=True)
+                print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)
     except KeyboardInterrupt:
         return EXIT_OK  # the TCU stops on Ctrl-C and SIGTERM as asked: a normal end
     except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors

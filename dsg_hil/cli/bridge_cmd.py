@@ -65,7 +65,6 @@ def _do_bridge(args: argparse.Namespace) -> int:
             forward, back = bridge(source, sink, injector, clock,
                                    lambda: args.duration is not None and clock() >= args.duration)
         finally:
-            hits = ", ".join(f"{s.describe()} {injector.counts[s.describe()]}" for s in injector.specs) or "none"
-            progress(f"bridge: faults injected (frames hit): {hits}")
+            progress(f"bridge: faults injected (frames hit): {injector.hits()}")
     progress(f"bridge: forwarded {forward} frames, {back} back")
     return 0

@@ -92,6 +92,10 @@ class FaultInjector:
     def injected(self) -> int:
         return sum(self.counts.values())
 
+    def hits(self) -> str:
+        """One line for the user: each specification and the frames it hit."""
+        return ", ".join(f"{s.describe()} {self.counts[s.describe()]}" for s in self.specs) or "none"
+
     # ---- one fault on one frame ---------------------------------------------------------------------------------
     def _hit(self, spec: FaultSpec) -> bool:
         return spec.probability >= 1.0 or self._rng.random() < spec.probability
