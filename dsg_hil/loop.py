@@ -10,7 +10,7 @@ from __future__ import annotations
 import itertools
 import os
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 import can
 from cantools.database.can import Database
@@ -20,6 +20,7 @@ from .physics.thermal import NODES
 from .plant import Plant
 from .plant_io import PLANT_USES
 from .protocol import Codec, load_dbc
+from .protocol.faults import FaultSpec, check_faults, with_faults
 from .runner import PlantRunner
 from .scenario import Scenario
 
@@ -29,6 +30,12 @@ _channels = itertools.count()
 def plant_for(scenario: Scenario, params: Params, dt: float = 1e-3) -> Plant:
     """A plant in the scenario's initial state (plate and oil temperatures, vehicle speed)."""
     return Plant(params, dt=dt, T_init=scenario.initial_temperatures(NODES), v_init=scenario.v_mps)
+
+
+def answer_at_once(runner: PlantRunner) -> None:
+    """An in-process TCU has answered when ``pump()`` returns: re-send a late tick at once instead of waiting
+    on the wall clock (a fault that loses answers then costs no wall time, and no silence toward PeerLost)."""
+    runner.retry_first_s = runner.retry_max_s = 0.0
 
 
 @dataclass
@@ -44,11 +51,16 @@ class LoopResult:
 def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Database | None = None,
                     tcu_factory: Callable[[Database, can.BusABC], Any] | None = None, capture: bool = False,
                     listeners: tuple[Callable[[can.Message], None], ...] = (),
-                    progress: Callable[[str], None] | None = None) -> LoopResult:
+                    progress: Callable[[str], None] | None = None, faults: Iterable[FaultSpec] | None = None,
+                    fault_seed: int = 0) -> LoopResult:
     """Run ``scenario`` to its end with the plant and the TCU in lockstep on a private ``virtual`` channel.
 
     ``tcu_factory(db, bus)`` builds the TCU (default: ecu-stub's ``TcuRunner``); it must offer ``pump()``,
-    which handles every frame already waiting. ``capture`` keeps every frame the plant sent or accepted."""
+    which handles every frame already waiting, and a ``now`` attribute (its time for the fault windows).
+    ``capture`` keeps every frame the plant sent or accepted (as sent: faults on the plant's frames are not in
+    it). ``faults`` (default: the scenario's ``[[fault]]`` tables) go on the bus of the side whose frames they
+    change, each side drawing from its own generator seeded ``fault_seed``; the summary's ``faults`` counts the
+    frames each hit."""
     params = params or load_params()
     db = db or load_dbc()
     if tcu_factory is None:
@@ -60,16 +72,23 @@ def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Dat
     frames: list[can.Message] = []
     if capture:
         listeners = (*listeners, frames.append)
-    plant_bus = can.Bus(interface="virtual", channel=channel)
-    tcu_bus = can.Bus(interface="virtual", channel=channel)
+    by_side = check_faults(scenario.faults if faults is None else faults, db)
+    buses = [can.Bus(interface="virtual", channel=channel), can.Bus(interface="virtual", channel=channel)]
     try:
-        runner = PlantRunner(plant_for(scenario, params), scenario, Codec(db, PLANT_USES), plant_bus, listeners,
+        runner = PlantRunner(plant_for(scenario, params), scenario, Codec(db, PLANT_USES), buses[0], listeners,
                              progress)
-        tcu = tcu_factory(db, tcu_bus)
-        summary = runner.run_lockstep(pump=tcu.pump)
+        runner.inject(by_side["plant"], fault_seed)
+        tcu_side: list[Any] = []  # the TCU, once built: its bus's fault clock reads its time
+        tcu_bus, runner.injectors["tcu"] = with_faults(buses[1], db, by_side["tcu"], fault_seed,
+                                                       lambda: tcu_side[0].now)
+        buses += [runner.bus, tcu_bus]
+        tcu_side.append(tcu_factory(db, tcu_bus))
+        answer_at_once(runner)
+        summary = runner.run_lockstep(pump=tcu_side[0].pump)
     finally:
-        plant_bus.shutdown()
-        tcu_bus.shutdown()
+        for bus in reversed(buses):
+            bus.shutdown()
     data = summary.as_json(runner.frames(), scenario.name, "lockstep", f"virtual:{channel}", scenario.duration_s)
+    data["faults"] = runner.fault_summary()
     return LoopResult(data, runner, frames)
 

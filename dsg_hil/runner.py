@@ -27,6 +27,8 @@ from .physics.friction import RAD_S_TO_RPM
 from .plant import Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
 from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
+from .protocol.errors import RunError
+from .protocol.faults import FaultInjector, fault_counts, with_faults
 from .protocol.validity import IGNORED, NEW, REJECTED
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
@@ -40,7 +42,7 @@ RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.
 STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
 
 
-class PeerTimeout(RuntimeError):
+class PeerTimeout(RunError):
     """The TCU did not answer the lock-step presence probe in time."""
 
 
@@ -78,6 +80,28 @@ class PlantRunner:
         self._held: list[can.Message] | None = None  # lock-step: frames taken, logged when the answer is complete
         self._silent_s = 0.0  # lock-step: wall time waited in vain on ticks given up since the TCU was last heard
         self._cmd_on_bus: float | None = None
+        self._running = False  # set once the run proper starts (after the lock-step handshake)
+        self.injectors: dict[str, FaultInjector | None] = {}  # by side, see ``inject``
+        self.fault_seed = 0
+        self.faults_in_tcu: list[str] = []  # faults passed on to a TCU process, which counts them itself
+
+    def clock(self) -> float:
+        """The plant's time for the frames it sends (fault windows): simulated time, which is run time in real
+        time; -1 before the run starts, so the lock-step handshake is never faulted."""
+        return round(self.plant.state.t, 9) if self._running else -1.0
+
+    def inject(self, specs, seed: int = 0) -> None:
+        """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock."""
+        self.bus, self.injectors["plant"] = with_faults(self.bus, self.codec.db, specs, seed, self.clock)
+        self.fault_seed = seed
+
+    def fault_summary(self) -> dict:
+        """The summary's ``faults``: frames each fault hit (re-sends included), by side and in all; and those
+        passed on to a TCU process (``in_tcu_process``: counted in its output)."""
+        counts = fault_counts(self.injectors, self.fault_seed)
+        if self.faults_in_tcu:
+            counts["in_tcu_process"] = self.faults_in_tcu
+        return counts
 
     # ---- frames --------------------------------------------------------------------------------------------
     def _emit(self, msg: can.Message) -> None:
@@ -166,6 +190,7 @@ class PlantRunner:
         for ``reply_timeout`` wall-clock seconds ends the run with :class:`PeerLost` (stop reason
         ``peer_lost``), the summary being valid up to that point."""
         self._handshake(startup_timeout, pump)
+        self._running = True
         t0 = time.monotonic()
         try:
             for self.tick in range(self.n_periods):
@@ -289,6 +314,7 @@ class PlantRunner:
         Command validity is judged on the clock (a dead TCU is dead in wall time); a machine too slow to keep
         up makes the run late, which is counted and reported as ``realtime_factor``."""
         start = clock()
+        self._running = True
         dt = self.plant.dt
         n_steps = int(round(self.scenario.duration_s / dt))
         for k in range(n_steps):

@@ -16,6 +16,11 @@ t_s = 0.0
 creep_request = false
 brake = 1.0                  # 0..1
 desired_speed_mps = 0.0
+[[fault]]                    # optional, any number: see dsg_hil.protocol.faults.spec
+kind = "drop"
+target = "TCU_CMD"
+start_s = 10.0
+end_s = 12.0
 ```
 """
 
@@ -27,10 +32,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from .errors import InputError
+from .protocol.faults import FaultError, FaultSpec, fault_from_mapping
+
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "data" / "creep.toml"
 
 
-class ScenarioError(ValueError):
+class ScenarioError(InputError):
     """A scenario file is missing, unreadable or has a bad value (the message names the key)."""
 
 
@@ -54,6 +62,7 @@ class Scenario:
     T_CH_c: float
     v_mps: float
     driver: tuple[DriverInput, ...]
+    faults: tuple[FaultSpec, ...] = ()  # checked against the DBC when the run starts
 
     def initial_temperatures(self, nodes: tuple[str, ...]) -> dict[str, float]:
         """Start temperature of each thermal node [degC]: the plates CL and CH their own, every other T_oil_c."""
@@ -70,8 +79,8 @@ class Scenario:
         return current
 
     def with_duration(self, duration_s: float) -> "Scenario":
-        if not duration_s > 0.0:
-            raise ScenarioError(f"duration must be positive, got {duration_s}")
+        if not 1e-3 <= duration_s <= 1e6:  # as duration_s in a scenario file (and no NaN, no inf)
+            raise ScenarioError(f"--duration: must be within [0.001, 1e6] s, got {duration_s}")
         return replace(self, duration_s=duration_s)
 
 
@@ -93,10 +102,10 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{origin}: not valid TOML: {exc}") from None
-    known = {"name", "duration_s", "grade_rad", "engine_speed_rpm", "initial", "driver"}
+    known = {"name", "duration_s", "grade_rad", "engine_speed_rpm", "initial", "driver", "fault"}
     unknown = set(data) - known
     if unknown:
-        raise ScenarioError(f"{sorted(unknown)[0]}: unknown key")
+        raise ScenarioError(f"{origin}: {sorted(unknown)[0]}: unknown key")
     initial = data.get("initial", {})
     if not isinstance(initial, dict):
         raise ScenarioError("initial: must be a table")
@@ -110,6 +119,8 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
     driver = []
     for i, ev in enumerate(events):
         where = f"driver[{i}]."
+        if not isinstance(ev, dict):
+            raise ScenarioError(f"driver[{i}]: must be a table ([[driver]]), got {ev!r}")
         extra = set(ev) - {"t_s", "creep_request", "brake", "desired_speed_mps"}
         if extra:
             raise ScenarioError(f"{where}{sorted(extra)[0]}: unknown key")
@@ -120,6 +131,13 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
                                   _number(ev, "desired_speed_mps", where, 0.0, 5.0, 0.0)))
     if any(b.t_s < a.t_s for a, b in zip(driver, driver[1:])):
         raise ScenarioError("driver: events must be in time order")
+    tables = data.get("fault", [])
+    if not isinstance(tables, list) or not all(isinstance(table, dict) for table in tables):
+        raise ScenarioError("fault: must be [[fault]] tables")
+    try:
+        faults = tuple(fault_from_mapping(table, f"fault[{i}]") for i, table in enumerate(tables))
+    except FaultError as exc:
+        raise ScenarioError(str(exc)) from None
     name = data.get("name", Path(origin).stem)
     return Scenario(
         name=str(name),
@@ -132,6 +150,7 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
         T_CH_c=_number(initial, "T_CH_c", "initial.", -40.0, 300.0, T_clutch),
         v_mps=_number(initial, "v_mps", "initial.", -5.0, 5.0, 0.0),
         driver=tuple(driver),
+        faults=faults,
     )
 
 
@@ -141,4 +160,6 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read scenario ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}): not a scenario TOML") from None
     return parse_scenario(text, str(path))

@@ -19,11 +19,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from dsg_hil.protocol.errors import InputError
+
 DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
 SOURCES = ("identified", "derived", "chosen")
 
 
-class CalibrationError(ValueError):
+class CalibrationError(InputError):
     """A calibration file is missing, unreadable, or has a bad, missing or unknown value (the message names it)."""
 
 
@@ -207,6 +209,8 @@ def load_calibration(path: str | Path | None = None) -> TcuCalibration:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise CalibrationError(f"{path}: cannot read calibration: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise CalibrationError(f"{path}: not UTF-8 text (byte {exc.start}): not a calibration TOML") from None
     try:
         return parse_calibration(text, str(path))
     except CalibrationError as exc:

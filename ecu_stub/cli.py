@@ -11,6 +11,8 @@ from importlib import metadata
 
 from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.bus import add_bus_arguments, bus_config, bus_name, open_bus, per_process_warning
+from dsg_hil.protocol.errors import EXIT_OK, InputError, exit_code
+from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
 
 from .calibration import load_calibration
 from .controller import CreepController
@@ -40,6 +42,7 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--calibration", metavar="FILE",
                         help="TCU calibration TOML (default: ecu_stub/data/calibration.toml)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: never)")
+    add_fault_arguments(parser, "the frames the TCU sends")
     parser.add_argument("--idle-exit", type=float, metavar="S",
                         help="stop when the plant has been silent for S seconds after having been heard")
     parser.add_argument("-v", "--verbose", action="store_true", help="log protocol events")
@@ -52,14 +55,26 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
+        for option in ("duration", "idle_exit"):
+            value = getattr(args, option)
+            if value is not None and not 0.0 < value < float("inf"):
+                raise InputError(f"--{option.replace('_', '-')}: must be a positive number of seconds, got {value}")
         controller = CreepController(load_calibration(args.calibration))
         config = bus_config(args)
-        codec = Codec(load_dbc(args.dbc), TCU_USES)
-        bus = open_bus(config)
+        db = load_dbc(args.dbc)
+        codec = Codec(db, TCU_USES)
+        faults = check_faults(faults_from_args(args), db)
+        if faults["plant"]:
+            raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
+                             f"side=tcu")
+        inner = open_bus(config)
+        tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
+        bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
         print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
         if warning := per_process_warning(config):
             print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
         tcu = TcuRunner(codec, bus, controller)
+        tcu_side.append(tcu)
         stop = threading.Event()  # SIGTERM: stop serving, report, exit 0 (like Ctrl-C)
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
@@ -72,11 +87,13 @@ def main(argv: list[str] | None = None) -> int:
                   f"{c['incomplete_answers']} on incomplete plant frames); received "
                   f"{c['received']}, rejected {c['rejected']}, lost {c['lost']}, duplicates {c['duplicates']}",
                   file=sys.stderr, flush=True)
+            if injector is not None:
+                print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)
     except KeyboardInterrupt:
-        return 0
+        return EXIT_OK  # the TCU stops on Ctrl-C and SIGTERM as asked: a normal end
     except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors
         if args.debug:
             raise
         print(f"error: {exc}", file=sys.stderr)
-        return 1
-    return 0
+        return exit_code(exc)  # as dsg-hil: 1 run failed, 2 bad input (dsg_hil.protocol.errors)
+    return EXIT_OK

@@ -71,6 +71,7 @@ class TcuRunner:
             raise ValueError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
         self.lockstep = False
         self._sim_now = 0.0  # lock-step: the time of the last tick answered [s]
+        self.now = -1.0  # the TCU's time of the frames it sends (fault windows): tick time, or run time; < 0 before
         self.heard_plant_at: float | None = None
         self.last: TcuOutputs | None = None
         self._answered: int | None = None  # lock-step: the tick last answered (SYNC_PROBE: the probe) ...
@@ -115,6 +116,7 @@ class TcuRunner:
     def control(self, now: float, echo: int = 0) -> list[can.Message]:
         """One controller cycle at ``now``: compute, then send TCU_STATUS when due and TCU_CMD, last (in lock-step
         it completes the answer to the tick); returns the frames sent."""
+        self.now = now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
         values = {
@@ -208,7 +210,7 @@ class TcuRunner:
         self._answer = [self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF})]
         self._answered, self._answer_sends = SYNC_PROBE, 0
         self._pending, self._pending_sights = None, 0
-        self._sim_now = -self.cycle  # the next tick is tick 0
+        self._sim_now = self.now = -self.cycle  # the next tick is tick 0
 
     def frame_counts(self) -> dict:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost

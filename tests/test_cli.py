@@ -59,13 +59,13 @@ def test_plots_without_matplotlib_is_one_clear_error(tmp_path, monkeypatch, caps
 
 @pytest.mark.parametrize("argv, message", [
     (["params", "--params", "/nonexistent/params.toml"], "cannot read parameter file"),
-    (["validate", "--dt", "0"], "dt must be positive"),
+    (["validate", "--dt", "0"], "argument --dt: must be a positive finite number, got 0"),
 ])
 def test_errors_are_one_line_without_traceback(argv, message):
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", *argv], capture_output=True, text=True)
-    assert proc.returncode == 1
+    assert proc.returncode == 2  # bad input or usage
     lines = proc.stderr.strip().splitlines()
-    assert lines[-1].startswith("error: ") and message in lines[-1]
+    assert "error: " in lines[-1] and message in lines[-1]
     assert "Traceback" not in proc.stderr
 
 
@@ -74,7 +74,7 @@ def test_garbled_parameter_file(tmp_path):
     bad.write_text("[friction]\nA_stribeck = { value = 0.03 }\n")
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "params", "--params", str(bad)],
                           capture_output=True, text=True)
-    assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "friction.A_stribeck" in proc.stderr
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "friction.A_stribeck" in proc.stderr
 
 
 def test_help_explains_every_command():
@@ -141,4 +141,4 @@ def test_run_with_bad_scenario_is_one_line(tmp_path):
     bad.write_text("duration_s = 10\n[[driver]]\nt_s = 0\nbrake = 7\n")
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "--scenario", str(bad)],
                           capture_output=True, text=True)
-    assert proc.returncode == 1 and "driver[0].brake" in proc.stderr and "Traceback" not in proc.stderr
+    assert proc.returncode == 2 and "driver[0].brake" in proc.stderr and "Traceback" not in proc.stderr

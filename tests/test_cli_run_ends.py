@@ -65,7 +65,7 @@ def test_unwritable_outputs_fail_before_the_run(tmp_path, option, path, message)
     (tmp_path / "afile").write_text("a file, not a directory")
     proc = subprocess.run([*DSG_HIL, "run", "--interface", "virtual", "--duration", "1000", option, path],
                           capture_output=True, text=True, cwd=tmp_path, timeout=60)
-    assert proc.returncode == 1
+    assert proc.returncode == 2  # bad input
     assert proc.stderr.strip().splitlines() == [f"error: {option} {path}: {message}"]  # before the run starts
 
 

@@ -62,7 +62,7 @@ def test_bus_args_reproduce_the_resolved_config():
 def test_tcu_without_the_group_says_what_to_pass():
     proc = subprocess.run([sys.executable, "-m", "ecu_stub", "-i", UDP_MULTICAST, "--duration", "0.1"],
                           capture_output=True, text=True)
-    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith("error: ") and "--bus-kwargs port=" in proc.stderr
 
 

@@ -1,7 +1,9 @@
 """Command line: ``dsg-hil <command>``. Each command is a module with ``add_subparser`` and ``_do``.
 
-Errors reach the user as one line ``error: ...`` and a non-zero exit (``--debug`` shows the traceback): 1 for an
-error, 130 for Ctrl-C (SIGINT), 143 for SIGTERM (128 + the signal number, as a shell reports a killed process).
+Errors reach the user as one line ``error: ...`` (``--debug`` shows the traceback) and an exit status, the same
+for ``ecu-stub`` (:mod:`dsg_hil.errors`): 0 ok, 1 the run failed (peer lost ...), 2 bad input or usage (the line
+names the file, key or option), 3 a result outside its band (``dsg-hil validate``), 130 Ctrl-C (SIGINT), 143
+SIGTERM (128 + the signal number, as a shell reports a killed process).
 """
 
 from __future__ import annotations
@@ -12,12 +14,12 @@ import sys
 import threading
 
 from .. import __version__
-from . import calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
+from ..errors import EXIT_RUN_FAILED, EXIT_SIGINT, EXIT_SIGTERM, exit_code
+from . import bridge_cmd, calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
 from .common import Terminated, raise_terminated
 
-COMMANDS = (run, plant_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)
-EXIT_ERROR = 1
-EXIT_SIGINT, EXIT_SIGTERM = 128 + signal.SIGINT, 128 + signal.SIGTERM
+COMMANDS = (run, plant_cmd, bridge_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)
+EXIT_ERROR = EXIT_RUN_FAILED
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -52,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_ERROR
+        return exit_code(exc)
     finally:
         if main_thread:
             signal.signal(signal.SIGTERM, previous)

@@ -5,21 +5,22 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
 import sys
 from contextlib import ExitStack
 from pathlib import Path
 
 import can
 
+from ..errors import InputError
 from ..loop import plant_for
 from ..plant import Plant
 from ..plant_io import PLANT_USES
 from ..protocol import Codec, load_dbc
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
+from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
 from ..runner import PeerLost, PlantRunner
 from ..scenario import Scenario, load_scenario
-from .common import Terminated, params_from, progress
+from .common import Terminated, check_output_path, params_from, positive_number, progress
 
 STOP_REASONS = ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"))
 
@@ -38,11 +39,13 @@ def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
                              "seconds from 0 (so the 'Begin Triggerblock' line of an .asc log reads 1970); in "
                              f"real time, wall-clock time. Runs not on socketcan are logged on channel {LOG_CHANNEL}, "
                              "so 'canplayer -I FILE' replays them onto vcan0 with no mapping")
-    parser.add_argument("--reply-timeout", type=float, default=5.0, metavar="S",
+    parser.add_argument("--reply-timeout", type=positive_number, default=5.0, metavar="S",
                         help="lockstep: wall-clock seconds to wait for the TCU's answer to a tick (default 5)")
-    parser.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
+    parser.add_argument("--startup-timeout", type=positive_number, default=60.0, metavar="S",
                         help="lockstep: wall-clock seconds to wait for the TCU to answer the presence probe "
                              "before tick 0 (default 60)")
+    add_fault_arguments(parser, "the frames the plant sends (side=tcu: the TCU's, 'dsg-hil run' only), besides "
+                                "the scenario's [[fault]] tables")
     parser.add_argument("-v", "--verbose", action="store_true", help="log protocol events (rejected frames ...)")
 
 
@@ -68,7 +71,7 @@ class LogListener:
         try:
             self.writer = can.Logger(path)
         except ValueError as exc:
-            raise ValueError(f"--log {path}: {exc}") from None
+            raise InputError(f"--log {path}: {exc}") from None
         self.channel = channel
 
     def __call__(self, msg: can.Message) -> None:
@@ -91,23 +94,6 @@ def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantR
     return runner, config, scenario
 
 
-def check_output_path(option: str, path: str | None) -> None:
-    """Fail before the run, not after it, when ``path`` cannot be written: a directory, or a parent that is
-    not a writable directory (missing parents are created at the end: the nearest existing one counts)."""
-    if path is None:
-        return
-    target = Path(path)
-    if target.is_dir():
-        raise ValueError(f"{option} {path}: is a directory")
-    parent = target.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{option} {path}: {parent} is not a writable directory")
-    if target.exists() and not os.access(target, os.W_OK):
-        raise ValueError(f"{option} {path}: file not writable")
-
-
 def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario):
     """An exit handler (ExitStack.push) that writes the summary so far when the run ends early: Ctrl-C,
     SIGTERM or a lost peer (stop reasons interrupted, terminated, peer_lost)."""
@@ -124,6 +110,7 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
     """Open the plant's bus (and log) from the options; everything is closed by ``stack``."""
     config = bus_config(args, fresh_udp=True)
     db = load_dbc(args.dbc)
+    args.faults_by_side = check_faults([*scenario.faults, *faults_from_args(args)], db)
     bus = open_bus(config)
     stack.callback(bus.shutdown)
     listeners = ()
@@ -132,6 +119,9 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
         stack.callback(listener.stop)
         listeners = (listener,)
     runner = PlantRunner(make_plant(args, scenario), scenario, Codec(db, PLANT_USES), bus, listeners, progress)
+    runner.inject(args.faults_by_side["plant"], getattr(args, "fault_seed", 0))
+    if runner.bus is not bus:
+        stack.callback(runner.bus.shutdown)
     return runner, config
 
 
@@ -155,6 +145,7 @@ def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario
     summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode, bus_name(config),
                                      scenario.duration_s)
     summary["sim_time_s"] = round(runner.plant.state.t, 3)  # where the run ended (< duration_s if cut short)
+    summary["faults"] = runner.fault_summary()
     summary.update(extra)
     if args.summary:
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)

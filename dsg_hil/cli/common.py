@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
+from ..errors import InputError
 from ..physics.params import Params, load_params
 
 
@@ -14,6 +17,17 @@ class Terminated(BaseException):
 
 def raise_terminated(signum, frame) -> None:
     raise Terminated
+
+
+def positive_number(text: str) -> float:
+    """An argparse type: a finite number > 0 (else a usage error, exit 2)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
 
 
 def add_params_option(parser: argparse.ArgumentParser) -> None:
@@ -27,3 +41,25 @@ def params_from(args: argparse.Namespace) -> Params:
 
 def progress(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
+
+
+def check_output_path(option: str, path: str | None, directory: bool = False) -> None:
+    """Fail before the run, not after it, when ``path`` (a file; ``directory``: a directory to write into)
+    cannot be written: a directory (a file), or a parent that is not a writable directory (missing parents
+    are created at the end: the nearest existing one counts)."""
+    if path is None:
+        return
+    target = Path(path)
+    if directory and target.exists():
+        if not target.is_dir() or not os.access(target, os.W_OK | os.X_OK):
+            raise InputError(f"{option} {path}: not a writable directory")
+        return
+    if not directory and target.is_dir():
+        raise InputError(f"{option} {path}: is a directory")
+    parent = target.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{option} {path}: {parent} is not a writable directory")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise InputError(f"{option} {path}: file not writable")

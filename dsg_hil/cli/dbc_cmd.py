@@ -6,6 +6,7 @@ import argparse
 
 from ..protocol import load_dbc
 from ..protocol.busload import bus_load, frame_bits
+from .common import positive_number
 
 LOAD_LIMIT = 0.30
 
@@ -15,7 +16,7 @@ def add_subparser(sub) -> None:
                             description="List every message of the DBC with its ID, sender, cycle time and "
                                         "worst-case bus load (bit stuffing included). Exit 3 above 30 %%.")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the shipped dbc/dsg_hil.dbc)")
-    parser.add_argument("--bitrate", type=float, default=500_000.0, help="bit/s (default 500000)")
+    parser.add_argument("--bitrate", type=positive_number, default=500_000.0, help="bit/s (default 500000)")
     parser.set_defaults(func=_do_dbc)
 
 

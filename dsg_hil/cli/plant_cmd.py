@@ -7,6 +7,7 @@ import shlex
 from contextlib import ExitStack
 
 from ..protocol.bus import bus_args, per_process_warning
+from ..protocol.faults import FaultError
 from ..runner import PeerTimeout
 from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
@@ -30,6 +31,9 @@ def add_subparser(sub) -> None:
 def _do_plant(args: argparse.Namespace) -> int:
     with ExitStack() as stack:
         runner, config, scenario = start(args, stack, "plant")
+        if args.faults_by_side["tcu"]:
+            raise FaultError(f"{args.faults_by_side['tcu'][0].origin}: changes the TCU's frames: give it to "
+                             f"ecu-stub (--fault), not to the plant")
         warning = per_process_warning(config)
         progress(f"warning: {warning}" if warning else f"TCU: ecu-stub {shlex.join(bus_args(config))}")
         try:

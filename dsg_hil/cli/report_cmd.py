@@ -7,6 +7,7 @@ import tempfile
 from contextlib import ExitStack
 from pathlib import Path
 
+from ..errors import InputError
 from ..protocol import load_dbc
 from ..protocol.bus import VIRTUAL_CHANNEL
 from ..validation import run_validation
@@ -43,7 +44,7 @@ def _writable(out: Path) -> None:
         with tempfile.TemporaryFile(dir=out):
             pass
     except OSError as exc:
-        raise ValueError(f"--out {out}: not a writable directory ({exc.strerror or exc})") from None
+        raise InputError(f"--out {out}: not a writable directory ({exc.strerror or exc})") from None
 
 
 def _run_creep(args: argparse.Namespace, out: Path) -> Path:
@@ -56,7 +57,7 @@ def _run_creep(args: argparse.Namespace, out: Path) -> Path:
                                   summary=str(out / "summary.json"), reply_timeout=5.0, startup_timeout=60.0)
     with ExitStack() as stack:
         runner, config, scenario = start(run_args, stack, "creep run")
-        tcu = _tcu_in_process(config, runner.codec.db)
+        tcu = _tcu_in_process(config, runner.codec.db, runner, run_args)
         stack.callback(tcu.bus.shutdown)
         drive(runner, run_args, pump=tcu.pump)
         finish(run_args, runner, config, scenario)

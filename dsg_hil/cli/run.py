@@ -9,8 +9,12 @@ import threading
 import time
 from contextlib import ExitStack
 
+from ..errors import RunError
+from ..loop import answer_at_once
 from ..protocol import Codec
 from ..protocol.bus import bus_args, open_bus
+from ..protocol.faults import with_faults
+from ..runner import PlantRunner
 from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
@@ -29,9 +33,15 @@ def add_subparser(sub) -> None:
     parser.set_defaults(func=_do_run)
 
 
-def _tcu_in_process(bus_config: dict, dbc):
-    from ecu_stub.runner import TCU_USES, TcuRunner  # the TCU side, in this process (virtual bus only)
-    return TcuRunner(Codec(dbc, TCU_USES), open_bus(bus_config))
+def _tcu_in_process(bus_config: dict, dbc, runner: PlantRunner, args: argparse.Namespace):
+    """The TCU side in this process (virtual bus only), its frames through the TCU-side faults."""
+    from ecu_stub.runner import TCU_USES, TcuRunner
+    inner = open_bus(bus_config)
+    tcu_side: list = []  # its bus's fault clock reads the TCU's time
+    bus, runner.injectors["tcu"] = with_faults(inner, dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0),
+                                               lambda: tcu_side[0].now)
+    tcu_side.append(TcuRunner(Codec(dbc, TCU_USES), bus))
+    return tcu_side[0]
 
 
 def _do_run(args: argparse.Namespace) -> int:
@@ -39,9 +49,10 @@ def _do_run(args: argparse.Namespace) -> int:
         runner, config, scenario = start(args, stack, "run")
         t0 = time.monotonic()
         if config["interface"] == "virtual":
-            tcu = _tcu_in_process(config, runner.codec.db)
+            tcu = _tcu_in_process(config, runner.codec.db, runner, args)
             stack.callback(tcu.bus.shutdown)
             if args.mode == "lockstep":
+                answer_at_once(runner)
                 drive(runner, args, pump=tcu.pump)
             else:
                 errors: list[BaseException] = []
@@ -63,12 +74,17 @@ def _do_run(args: argparse.Namespace) -> int:
                 if errors:
                     raise errors[0]
         else:
-            cmd = [sys.executable, "-m", "ecu_stub", *bus_args(config), "--idle-exit", "2"]
+            faults = [arg for spec in args.faults_by_side["tcu"] for arg in ("--fault", spec.as_option())]
+            if faults:
+                faults += ["--fault-seed", str(args.fault_seed)]
+                progress("faults on the TCU's frames: passed to ecu-stub, which counts them (see its output)")
+                runner.faults_in_tcu = [spec.describe() for spec in args.faults_by_side["tcu"]]
+            cmd = [sys.executable, "-m", "ecu_stub", *bus_args(config), "--idle-exit", "2", *faults]
             tcu_proc = subprocess.Popen(cmd)
             stack.callback(_stop_process, tcu_proc)
             time.sleep(0.5)
             if tcu_proc.poll() is not None:
-                raise RuntimeError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
+                raise RunError(f"ecu-stub exited at start (status {tcu_proc.returncode})")
             drive(runner, args)
         wall = time.monotonic() - t0
         summary = finish(args, runner, config, scenario)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..reference import TOL_MU, TOL_RISE_C, TOL_TORQUE_REL
 from ..validation import run_validation, validation_json
-from .common import add_params_option, params_from, progress
+from .common import add_params_option, check_output_path, params_from, positive_number, progress
 
 
 def add_subparser(sub) -> None:
@@ -20,7 +20,7 @@ def add_subparser(sub) -> None:
                     f"(rise +-{TOL_RISE_C:g} degC, torque +-{TOL_TORQUE_REL:.0%}, mu +-{TOL_MU:g}).")
     parser.add_argument("--json", metavar="FILE", help="write the results as JSON {\"cases\": [...]}")
     parser.add_argument("--plots", metavar="DIR", help="write PNG figures like the paper's Figs. 3-5 into DIR")
-    parser.add_argument("--dt", type=float, default=1e-3, help="step [s] (default: 0.001, the plant's step)")
+    parser.add_argument("--dt", type=positive_number, default=1e-3, help="step [s] (default: 0.001, the plant's step)")
     add_params_option(parser)
     parser.set_defaults(func=_do_validate)
 
@@ -34,9 +34,9 @@ def _fmt_row(name: str, sim: float, pub: float, dev: float, ok: bool) -> str:
 
 
 def _do_validate(args: argparse.Namespace) -> int:
+    check_output_path("--json", args.json)
+    check_output_path("--plots", args.plots, directory=True)
     params = params_from(args)
-    if not args.dt > 0.0:
-        raise ValueError(f"--dt: dt must be positive, got {args.dt}")
     if args.plots:  # fail before the long run, not after it
         from ..plots import require_matplotlib
         require_matplotlib()

@@ -18,17 +18,21 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from ..errors import InputError
+
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
 SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}
 
 
-class ParameterError(ValueError):
+class ParameterError(InputError):
     """A parameter file is missing, unreadable, or has a bad, missing or unknown value."""
 
 
-def p(unit: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> Any:
-    """Declare a parameter field with its unit and allowed range [lo, hi] (lo excluded if ``lo_open``)."""
-    return field(metadata={"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open})
+def p(unit: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False,
+      whole: bool = False) -> Any:
+    """Declare a parameter field with its unit and allowed range [lo, hi] (lo excluded if ``lo_open``);
+    ``whole``: a count, its value a whole number."""
+    return field(metadata={"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "whole": whole})
 
 
 def positive(unit: str) -> Any:
@@ -56,7 +60,7 @@ class Friction:
 class ClutchGeometry:
     """One wet multi-plate clutch, equation (5), and its plate pack's heat capacity."""
 
-    N: float = positive("1")  # number of friction surfaces
+    N: float = p("1", 0.0, None, lo_open=True, whole=True)  # number of friction surfaces
     R_i: float = positive("m")
     R_o: float = positive("m")
     A_f: float = positive("m^2")  # piston area
@@ -232,6 +236,8 @@ def _entry(key: str, raw: Any, meta: Mapping[str, Any], provenance: dict) -> flo
     reason = raw.get(SOURCES[source])
     if not isinstance(reason, str) or not reason.strip():
         raise ParameterError(f"{key}: source {source!r} needs a non-empty {SOURCES[source]!r}")
+    if meta.get("whole") and value != int(value):
+        raise ParameterError(f"{key}: must be a whole number (a count), got {value!r}")
     lo, hi = meta["lo"], meta["hi"]
     if lo is not None and (value < lo or (meta["lo_open"] and value == lo)):
         raise ParameterError(f"{key}: {value} is out of range (must be {'>' if meta['lo_open'] else '>='} {lo})")
@@ -296,4 +302,6 @@ def load_params(path: str | Path | None = None) -> Params:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ParameterError(f"{path}: cannot read parameter file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}): not a parameter TOML") from None
     return parse_params(text, str(path))

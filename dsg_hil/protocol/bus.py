@@ -16,6 +16,7 @@ Nothing of our own on top, except
 from __future__ import annotations
 
 import argparse
+import configparser
 import os
 import random
 import socket
@@ -25,8 +26,11 @@ from typing import Any
 import can
 import can.cli
 
+from .errors import InputError, RunError
+
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
+DEFAULT_CHANNELS = {"virtual": VIRTUAL_CHANNEL, "socketcan": "vcan0"}  # a channel given by no option
 LOG_CHANNEL = "vcan0"  # the channel name written to logs of runs that are not on socketcan (canplayer -I)
 _FROM_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
 
@@ -52,7 +56,7 @@ def bus_config(args: argparse.Namespace, fresh_udp: bool = False) -> dict[str, A
     config = resolve_bus_config(context=getattr(args, "config_context", None), **given)
     if config["interface"] == UDP_MULTICAST and config.get("channel") is None:
         if not fresh_udp:
-            raise ValueError(f"-i {UDP_MULTICAST} needs the channel (multicast group) and port of the plant: "
+            raise InputError(f"-i {UDP_MULTICAST} needs the channel (multicast group) and port of the plant: "
                              f"start it with the options 'dsg-hil plant' prints, e.g. -i {UDP_MULTICAST} "
                              "-c 239.255.12.34 --bus-kwargs port=40000")
         config.update(fresh_udp_group())
@@ -63,11 +67,14 @@ def resolve_bus_config(interface: str | None = None, channel: str | None = None,
                        context: str | None = None, **extra: Any) -> dict[str, Any]:
     """The python-can configuration to open, with the given values overriding every other source."""
     given = {k: v for k, v in (("interface", interface), ("channel", channel)) if v is not None} | extra
+    if context is not None and not _has_config_section(context):
+        raise InputError(f"--config-context {context}: no section [{context}] in the python-can config file "
+                         f"({', '.join(can.util.CONFIG_FILES)})")
     try:
         config = dict(can.util.load_config(config=given, context=context))
     except can.CanInterfaceNotImplementedError as exc:
         if "interface" in given or "None" not in str(exc):
-            raise ValueError(f"interface: {exc}") from None
+            raise InputError(f"interface: {exc}") from None
         config = {**extra, "interface": None, "channel": given.get("channel", os.environ.get("CAN_CHANNEL"))}
     if not config.get("interface"):
         if vcan0_present():
@@ -75,8 +82,17 @@ def resolve_bus_config(interface: str | None = None, channel: str | None = None,
         else:
             config.update(interface="virtual", channel=config.get("channel") or VIRTUAL_CHANNEL)
     if config.get("channel") is None and config["interface"] != UDP_MULTICAST:
-        config["channel"] = VIRTUAL_CHANNEL if config["interface"] == "virtual" else "vcan0"
+        if config["interface"] not in DEFAULT_CHANNELS:
+            raise InputError(f"-i {config['interface']}: needs a channel (-c CHANNEL, as python-can names it for "
+                             f"that interface)")
+        config["channel"] = DEFAULT_CHANNELS[config["interface"]]
     return config
+
+
+def _has_config_section(section: str) -> bool:
+    parser = configparser.ConfigParser()
+    parser.read([os.path.expanduser(path) for path in can.util.CONFIG_FILES])
+    return parser.has_section(section)
 
 
 def fresh_udp_group() -> dict[str, Any]:
@@ -103,7 +119,7 @@ def bus_args(config: dict[str, Any]) -> list[str]:
         elif isinstance(value, (bool, int, float, str)) and str(value) and not any(c.isspace() for c in str(value)):
             kwargs.append(f"{key}={value}")
         else:
-            raise ValueError(f"bus option {key}={value!r} cannot be passed on the command line")
+            raise InputError(f"bus option {key}={value!r} cannot be passed on the command line")
     return argv + (["--bus-kwargs", *kwargs] if kwargs else [])
 
 
@@ -133,8 +149,9 @@ def vcan0_present() -> bool:
 
 
 def open_bus(config: dict[str, Any]) -> can.BusABC:
-    """Open a bus from a resolved configuration; a failure is one readable ValueError."""
+    """Open a bus from a resolved configuration; a failure is one readable RunError (the options were well
+    formed, the interface or channel could not be had here: exit 1)."""
     try:
         return can.Bus(**{**config, "receive_own_messages": False})
     except (can.CanError, OSError, ValueError, ImportError) as exc:
-        raise ValueError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None
+        raise RunError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None

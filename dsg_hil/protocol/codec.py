@@ -15,14 +15,15 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 import cantools
-from cantools.database.can import Database, Message
+from cantools.database.can import Database, Message, Signal
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
+from .errors import InputError
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
 
-class ProtocolError(ValueError):
+class ProtocolError(InputError):
     """The DBC is missing, unreadable, or lacks a message or signal the code needs."""
 
 
@@ -51,6 +52,21 @@ def load_dbc(path: str | Path | None = None) -> Database:
         raise ProtocolError(f"{path or DEFAULT_DBC}: DBC file not found") from None
     except Exception as exc:  # cantools raises several types for a bad file
         raise ProtocolError(f"{path or DEFAULT_DBC}: cannot load DBC ({exc})") from None
+
+
+def raw_range(signal: Signal) -> tuple[float, float]:
+    """The physical values the signal's bits can carry (scale and offset applied), low to high."""
+    lo, hi = (-(1 << (signal.length - 1)), (1 << (signal.length - 1)) - 1) if signal.is_signed \
+        else (0, (1 << signal.length) - 1)
+    a, b = lo * signal.scale + signal.offset, hi * signal.scale + signal.offset
+    return min(a, b), max(a, b)
+
+
+def signal_range(signal: Signal) -> tuple[float, float]:
+    """The signal's DBC range [minimum, maximum]; a bound the DBC leaves open (the common "no range" [0|0],
+    which cantools reads as None) is the one its bits can carry."""
+    lo, hi = raw_range(signal)
+    return (lo if signal.minimum is None else signal.minimum, hi if signal.maximum is None else signal.maximum)
 
 
 class Codec:
@@ -105,10 +121,11 @@ class Codec:
             if signal.name in (COUNTER, CRC):
                 continue
             value = values.get(signal.name)
-            default = signal.initial if signal.initial is not None else max(signal.minimum or 0.0, 0.0)
+            lo, hi = signal_range(signal)
+            default = signal.initial if signal.initial is not None else min(max(0.0, lo), hi)
             if value is None or not math.isfinite(value):
                 value = default
-            data[signal.name] = min(max(float(value), signal.minimum), signal.maximum)
+            data[signal.name] = min(max(float(value), lo), hi)
         protection = self._protection[message.frame_id]
         data[COUNTER] = counter % protection.counter_modulus
         data[CRC] = 0
@@ -129,9 +146,9 @@ class Codec:
             raise FrameError("malformed", f"{message.name}: {exc}") from None
         for signal in message.signals:
             v = values[signal.name]
-            if not (signal.minimum - 1e-9 <= v <= signal.maximum + 1e-9):
-                raise FrameError("range", f"{message.name}.{signal.name} = {v} outside "
-                                          f"[{signal.minimum}, {signal.maximum}]")
+            lo, hi = signal_range(signal)
+            if not (lo - 1e-9 <= v <= hi + 1e-9):
+                raise FrameError("range", f"{message.name}.{signal.name} = {v} outside [{lo:g}, {hi:g}]")
         counter = int(values.pop(COUNTER))
         values.pop(CRC)
         return DecodedFrame(message.name, {k: float(v) for k, v in values.items()}, counter)

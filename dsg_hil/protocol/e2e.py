@@ -23,12 +23,13 @@ from dataclasses import dataclass
 from cantools.database.can import Message
 
 from .crc import crc8_j1850
+from .errors import InputError
 
 COUNTER, CRC = "Counter", "CRC"
 MAX_DELTA = 7  # largest counter step accepted (half the 4-bit range): 6 frames lost in a row
 
 
-class ProtectionError(ValueError):
+class ProtectionError(InputError):
     """A DBC message's Counter or CRC signal cannot carry this contract's protection."""
 
 

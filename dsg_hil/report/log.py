@@ -19,6 +19,7 @@ from cantools.database.can import Database
 
 from ..physics.friction import RAD_S_TO_RPM
 from ..protocol import Codec, FrameError
+from ..protocol.errors import InputError
 from ..summary import CreepMetrics
 
 NAN = float("nan")
@@ -84,7 +85,7 @@ GRID_MESSAGE = "TCU_CMD"  # the sampling period: the control period of the DBC
 INDEX = {name: i for i, name in enumerate(LogSample._fields)}
 
 
-class LogError(ValueError):
+class LogError(InputError):
     """A log that cannot be read or holds no frame of the DBC (the message names the file)."""
 
 

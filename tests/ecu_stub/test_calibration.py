@@ -55,5 +55,5 @@ def test_missing_key_and_bad_map_shape():
 def test_cli_reports_a_bad_calibration_file(tmp_path, capsys):
     bad = tmp_path / "cal.toml"
     bad.write_text(TEXT.replace("[vehicle]", "[vehicle]\nm_kg = 1\n"), encoding="utf-8")
-    assert main(["--calibration", str(bad), "--interface", "virtual", "--duration", "0.01"]) == 1
+    assert main(["--calibration", str(bad), "--interface", "virtual", "--duration", "0.01"]) == 2
     assert "error:" in capsys.readouterr().err

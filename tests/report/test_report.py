@@ -154,7 +154,7 @@ def test_bad_log_is_one_error_line_before_any_run(tmp_path, name, content, messa
     if content is not None:
         log.write_text(content)
     proc = _cli("--from-log", str(log), "--out", str(tmp_path / "out"))
-    assert proc.returncode == 1
+    assert proc.returncode == 2  # bad input
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("error: ") and message in proc.stderr
     assert str(log) in proc.stderr
 
@@ -163,5 +163,5 @@ def test_unwritable_out_is_checked_before_the_run(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
     proc = _cli("--out", str(blocker / "sub"))
-    assert proc.returncode == 1 and proc.stderr.count("\n") == 1
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
     assert proc.stderr.startswith("error: --out ") and "not a writable directory" in proc.stderr

@@ -20,21 +20,22 @@ from typing import Callable, Iterable
 import can
 from cantools.database.can import Database, Message, Signal
 
-from ..protocol.e2e import COUNTER, CRC, Protection
-from .spec import FaultSpec, check_against_dbc
+from ..codec import raw_range, signal_range
+from ..e2e import COUNTER, CRC, Protection
+from .spec import FaultError, FaultSpec, check_against_dbc
 
 
 def outside_range(signal: Signal) -> float:
     """A value the signal's bits can carry that lies just outside its DBC range [minimum, maximum]."""
-    length, scale, offset = signal.length, signal.scale, signal.offset
-    raw_lo, raw_hi = (-(1 << (length - 1)), (1 << (length - 1)) - 1) if signal.is_signed else (0, (1 << length) - 1)
-    top, bottom = raw_hi * scale + offset, raw_lo * scale + offset
-    if signal.maximum is not None and top > signal.maximum + abs(scale) / 2:
-        return min(signal.maximum + abs(scale), top)
-    if signal.minimum is not None and bottom < signal.minimum - abs(scale) / 2:
-        return max(signal.minimum - abs(scale), bottom)
-    raise ValueError(f"{signal.name}: its {length} bits cannot carry a value outside [{signal.minimum}, "
-                     f"{signal.maximum}]")
+    bottom, top = raw_range(signal)
+    minimum, maximum = signal_range(signal)
+    step = abs(signal.scale)
+    if top > maximum + step / 2:
+        return min(maximum + step, top)
+    if bottom < minimum - step / 2:
+        return max(minimum - step, bottom)
+    raise FaultError(f"{signal.name}: its {signal.length} bits cannot carry a value outside [{minimum:g}, "
+                     f"{maximum:g}]")
 
 
 class FaultInjector:
@@ -42,15 +43,18 @@ class FaultInjector:
 
     def __init__(self, db: Database, specs: Iterable[FaultSpec], seed: int = 0) -> None:
         self.specs = tuple(specs)
-        for i, spec in enumerate(self.specs):
-            check_against_dbc(spec, db, f"fault {i} ({spec.describe()})")
+        for spec in self.specs:
+            check_against_dbc(spec, db, spec.origin)
         self._messages = {m.frame_id: m for m in db.messages}
         self._by_id: dict[int, list[int]] = {}
         for i, spec in enumerate(self.specs):
             if spec.kind == "flood":
                 continue
             if spec.kind == "out_of_range":  # fail at start-up, not mid-run, if the bits cannot carry it
-                outside_range(db.get_message_by_name(spec.message).get_signal_by_name(spec.signal))
+                try:
+                    outside_range(db.get_message_by_name(spec.message).get_signal_by_name(spec.signal))
+                except FaultError as exc:
+                    raise FaultError(f"{spec.origin}: {exc}") from None
             self._by_id.setdefault(db.get_message_by_name(spec.message).frame_id, []).append(i)
         self._rng = random.Random(seed)
         self._frozen: dict[int, int] = {}
@@ -87,6 +91,10 @@ class FaultInjector:
     @property
     def injected(self) -> int:
         return sum(self.counts.values())
+
+    def hits(self) -> str:
+        """One line for the user: each specification and the frames it hit."""
+        return ", ".join(f"{s.describe()} {self.counts[s.describe()]}" for s in self.specs) or "none"
 
     # ---- one fault on one frame ---------------------------------------------------------------------------------
     def _hit(self, spec: FaultSpec) -> bool:

@@ -8,6 +8,7 @@ One fault is a :class:`FaultSpec`. It comes from a scenario TOML table, a comman
     start_s = 10.0                              # window [start_s, end_s) in the sender's time (simulated in lockstep)
     end_s = 12.0
     probability = 0.5                           # share of the frames in the window that are hit (default 1)
+    side = "tcu"                                # whose frames: "plant" or "tcu" (default: the message's DBC sender)
 
     --fault 'drop:TCU_CMD@10-12,probability=0.5'           # the same on the command line
     --fault 'stuck:PLANT_VEHICLE.VehicleSpeed@40-45,value=0'
@@ -15,16 +16,19 @@ One fault is a :class:`FaultSpec`. It comes from a scenario TOML table, a comman
 
 Keys besides kind, target and the window: ``probability`` (all kinds), ``delay_s`` (delay), ``value`` (stuck: the
 value held; offset: what is added, in the signal's DBC unit), ``dlc`` (wrong_dlc, default 7), ``rate`` (flood:
-unknown-ID frames per frame the node sends, default 10), ``frame_id`` (flood, default 0x5A5; must not be in the DBC).
+unknown-ID frames per frame the node sends, default 10), ``frame_id`` (flood, default 0x5A5; must not be in the DBC),
+``side`` (the node whose sent frames are changed; default: the DBC sender of the target message, "plant" for flood).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any, Iterable, Mapping
 
 from cantools.database.can import Database
+
+from ..errors import InputError
 
 KINDS = {
     "drop": "the frame is not sent",
@@ -39,10 +43,11 @@ KINDS = {
     "flood": "each frame the node sends is followed by `rate` frames of an unknown ID with random data",
 }
 SIGNAL_KINDS = {"stuck", "offset", "out_of_range"}
+SIDES = {"PLANT": "plant", "TCU": "tcu"}  # DBC node -> side
 _ALIASES = {"p": "probability", "delay": "delay_s", "id": "frame_id", "start": "start_s", "end": "end_s"}
 
 
-class FaultError(ValueError):
+class FaultError(InputError):
     """A fault specification is malformed or names something the DBC does not have."""
 
 
@@ -58,6 +63,8 @@ class FaultSpec:
     dlc: int = 7
     rate: int = 10
     frame_id: int = 0x5A5
+    side: str | None = None  # "plant" | "tcu"; None: the target's DBC sender (see :func:`fault_side`)
+    origin: str = field(default="fault", compare=False)  # where it was given, for error messages
 
     @property
     def message(self) -> str | None:
@@ -75,6 +82,13 @@ class FaultSpec:
         end = "" if math.isinf(self.end_s) else f"{self.end_s:g}"
         return f"{self.kind}{where}@{self.start_s:g}-{end}"
 
+    def as_option(self) -> str:
+        """The ``--fault`` text that gives this specification back (e.g. to pass it on to ecu-stub)."""
+        keys = [f"{f.name}={getattr(self, f.name)!r}" for f in fields(self)
+                if f.name not in ("kind", "target", "start_s", "end_s", "origin")
+                and getattr(self, f.name) != f.default]
+        return ",".join([self.describe(), *(k.replace("'", "") for k in keys)])
+
 
 def _number(key: str, raw: Any, where: str) -> float:
     if isinstance(raw, bool):
@@ -90,7 +104,7 @@ def _number(key: str, raw: Any, where: str) -> float:
 
 def fault_from_mapping(table: Mapping[str, Any], where: str = "fault") -> FaultSpec:
     """A :class:`FaultSpec` from a TOML table or parsed command-line keys; checks types and ranges."""
-    known = {f.name for f in fields(FaultSpec)}
+    known = {f.name for f in fields(FaultSpec)} - {"origin"}
     items = {_ALIASES.get(k, k): v for k, v in table.items()}
     unknown = sorted(set(items) - known)
     if unknown:
@@ -101,7 +115,10 @@ def fault_from_mapping(table: Mapping[str, Any], where: str = "fault") -> FaultS
     target = items.get("target")
     if target is not None and (not isinstance(target, str) or not target):
         raise FaultError(f"{where}: target must be MESSAGE or MESSAGE.Signal, got {target!r}")
-    values: dict[str, Any] = {"kind": kind, "target": target}
+    side = items.get("side")
+    if side is not None and side not in SIDES.values():
+        raise FaultError(f"{where}: side must be one of {', '.join(SIDES.values())}, got {side!r}")
+    values: dict[str, Any] = {"kind": kind, "target": target, "side": side, "origin": where}
     for key in ("start_s", "end_s", "probability", "delay_s", "value"):
         if key in items:
             values[key] = _number(key, items[key], where)
@@ -158,6 +175,28 @@ def parse_fault(text: str) -> FaultSpec:
             raise FaultError(f"{where}: options are key=value, got {option!r}")
         table[key.strip()] = value.strip()
     return fault_from_mapping(table, where)
+
+
+def fault_side(spec: FaultSpec, db: Database) -> str:
+    """Whose frames the fault changes: ``spec.side``, else the DBC sender of its message ("plant" for flood)."""
+    if spec.side is not None:
+        return spec.side
+    if spec.kind == "flood":
+        return "plant"
+    senders = db.get_message_by_name(spec.message).senders
+    side = SIDES.get(senders[0]) if senders else None
+    if side is None:
+        raise FaultError(f"{spec.origin}: the DBC names no sender PLANT or TCU for {spec.message}: give side")
+    return side
+
+
+def check_faults(specs: Iterable[FaultSpec], db: Database) -> dict[str, list[FaultSpec]]:
+    """Check every specification against the DBC; the specifications by side ("plant", "tcu")."""
+    by_side: dict[str, list[FaultSpec]] = {"plant": [], "tcu": []}
+    for spec in specs:
+        check_against_dbc(spec, db, spec.origin)
+        by_side[fault_side(spec, db)].append(spec)
+    return by_side
 
 
 def check_against_dbc(spec: FaultSpec, db: Database, where: str = "fault") -> None:

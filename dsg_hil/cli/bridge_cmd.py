@@ -1,0 +1,70 @@
+"""``dsg-hil bridge``: forward frames between two buses, with faults on the way (e.g. a real ECU on can0 and the
+plant on vcan0: the ECU's frames reach the plant through the injector, the plant's reach the ECU unchanged)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from contextlib import ExitStack
+from typing import Callable
+
+import can
+
+from ..protocol import load_dbc
+from ..protocol.bus import bus_name, open_bus, resolve_bus_config
+from ..protocol.faults import FaultInjector, add_fault_arguments, bridge_step, faults_from_args
+from .common import positive_number, progress
+
+
+def add_subparser(sub) -> None:
+    parser = sub.add_parser(
+        "bridge", help="forward frames between two buses, injecting faults into one direction",
+        description="Forward every frame from the --from bus to the --to bus through the faults given (times: "
+                    "seconds since the bridge started), and every frame from --to back to --from unchanged. "
+                    "For a node whose software cannot be changed: put it alone on --from (e.g. a real ECU on "
+                    "can0) and the plant on --to (e.g. vcan0, dsg-hil plant in real time).")
+    for end in ("from", "to"):
+        parser.add_argument(f"--{end}-interface", required=True, metavar="INTERFACE",
+                            help=f"python-can interface of the {end} bus")
+        parser.add_argument(f"--{end}-channel", required=True, metavar="CHANNEL",
+                            help=f"channel of the {end} bus")
+    parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
+    parser.add_argument("--duration", type=positive_number, metavar="S", help="stop after S seconds (default: "
+                        "never; Ctrl-C)")
+    add_fault_arguments(parser, "the frames going from --from to --to (side is not used: every fault applies)")
+    parser.set_defaults(func=_do_bridge)
+
+
+def bridge(source: can.BusABC, sink: can.BusABC, injector: FaultInjector, clock: Callable[[], float],
+           should_stop: Callable[[], bool]) -> tuple[int, int]:
+    """Forward source -> sink through ``injector`` at ``clock()`` and sink -> source unchanged until
+    ``should_stop()``; returns how many frames went each way."""
+    forward = back = 0
+    while not should_stop():
+        forward += bridge_step(source, sink, injector, clock(), timeout=0.001)
+        while (msg := sink.recv(timeout=0.0)) is not None:
+            source.send(msg)
+            back += 1
+    return forward, back
+
+
+def _do_bridge(args: argparse.Namespace) -> int:
+    db = load_dbc(args.dbc)
+    injector = FaultInjector(db, faults_from_args(args), args.fault_seed)
+    configs = [resolve_bus_config(getattr(args, f"{end}_interface"), getattr(args, f"{end}_channel"))
+               for end in ("from", "to")]
+    with ExitStack() as stack:
+        source, sink = (open_bus(config) for config in configs)
+        stack.callback(source.shutdown)
+        stack.callback(sink.shutdown)
+        progress(f"bridge: {bus_name(configs[0])} -> {bus_name(configs[1])} through "
+                 f"{len(injector.specs)} fault(s); back unchanged")
+        start = time.monotonic()
+        clock = lambda: time.monotonic() - start  # noqa: E731
+        try:
+            forward, back = bridge(source, sink, injector, clock,
+                                   lambda: args.duration is not None and clock() >= args.duration)
+        finally:
+            progress(f"bridge: faults injected (frames hit): {injector.hits()}")
+    progress(f"bridge: forwarded {forward} frames, {back} back")
+    return 0

@@ -1,0 +1,53 @@
+"""Faults from the command line and onto a node's bus: the one way ``dsg-hil run``, ``dsg-hil plant``,
+``ecu-stub`` and :func:`dsg_hil.loop.run_closed_loop` put an injector between a node and its bus."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Callable, Iterable
+
+import can
+from cantools.database.can import Database
+
+from .injector import FaultInjector, FaultyBus
+from .spec import FaultSpec, parse_fault
+
+
+def add_fault_arguments(parser: argparse.ArgumentParser, whose: str) -> None:
+    parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                        help=f"inject a fault into {whose}, repeatable: KIND[:MESSAGE[.Signal]][@START-[END]]"
+                             "[,key=value ...], e.g. 'drop:TCU_CMD@10-12' or 'stuck:PLANT_VEHICLE.VehicleSpeed@5-8,"
+                             "value=0' (kinds and keys: README, 'Fault injection'); times in the sender's seconds "
+                             "(simulated in lockstep)")
+    parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
+                        help="seed of the draws of faults with probability < 1 (default 0)")
+
+
+def faults_from_args(args: argparse.Namespace) -> list[FaultSpec]:
+    return [parse_fault(text) for text in getattr(args, "fault", None) or ()]  # (a Namespace built in code: none)
+
+
+def with_faults(bus: can.BusABC, db: Database, specs: Iterable[FaultSpec], seed: int,
+                clock: Callable[[], float]) -> tuple[can.BusABC, FaultInjector | None]:
+    """``bus`` behind an injector of ``specs`` (checked against the DBC now), or ``bus`` itself if there are
+    none. ``clock()`` is the sender's time: simulated in lockstep, its run time in real time; negative before
+    the run starts (the lockstep handshake is never faulted)."""
+    specs = list(specs)
+    if not specs:
+        return bus, None
+    injector = FaultInjector(db, specs, seed)
+    return FaultyBus(bus, injector, clock), injector
+
+
+def fault_counts(injectors: dict[str, FaultInjector | None], seed: int) -> dict:
+    """The summary's ``faults``: frames each specification hit (lockstep re-sends included) per side, and the
+    seed; ``injected`` adds the sides up."""
+    out: dict = {"seed": seed, "injected": {}}
+    for side, injector in injectors.items():
+        if injector is None:
+            continue
+        counts = {spec.describe(): injector.counts[spec.describe()] for spec in injector.specs}
+        out[side] = counts
+        for key, n in counts.items():
+            out["injected"][key] = out["injected"].get(key, 0) + n
+    return out
