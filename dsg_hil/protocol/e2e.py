@@ -9,11 +9,12 @@ covers a data ID instead of the CAN ID):
   data byte except the CRC's own, in byte order. The ``CRC`` signal must be 8 bits, unsigned and byte aligned.
 * Counter: the ``Counter`` signal (unsigned, up to 8 bits; 4 bits here), +1 per frame of that message, wrapping
   at 2^length; 0 in the first frame after start-up or after the lockstep presence probe.
-* Receiver: a frame whose CRC does not match is rejected ("crc"); the first frame, and the first after the
-  message timed out (3 cycle times without a valid frame), is accepted whatever its counter (resynchronisation);
-  otherwise a counter step of 0 is a repeat and rejected ("counter"), a step of 1 is normal, a step of 2 to
-  ``MAX_DELTA`` is accepted with step - 1 frames counted lost, and a larger step (a frame from the past, or a
-  frozen-then-jumping sender) is rejected ("counter").
+* Receiver: a frame whose CRC does not match is rejected ("crc"); a counter step of 0 is a repeat and rejected
+  ("counter") always, even after a timeout, so a sender whose counter froze never gets through; the first frame,
+  and the first after the message timed out (3 cycle times without a valid frame), is otherwise accepted whatever
+  its counter (resynchronisation); while the message is valid a step of 1 is normal, a step of 2 to ``MAX_DELTA``
+  is accepted with step - 1 frames counted lost, and a larger step (a frame from the past) is rejected
+  ("counter"). A byte-identical repeat of the last frame taken is a duplicate (a retransmission): counted, ignored.
 """
 
 from __future__ import annotations

@@ -44,13 +44,14 @@ class RxState:
 
     def update(self, now: float, frame: DecodedFrame, data: bytes = b"") -> str | None:
         """Take a decoded frame; returns why it was not taken (repeated or out-of-order counter), else None."""
-        if self.last_counter is not None and (self.last_time is None or self.valid(now)):
+        if self.last_counter is not None:
             step = (frame.counter - self.last_counter) % self.counter_modulus
-            if step == 0:
+            if step == 0:  # also after a timeout: a sender whose counter froze never resynchronises
                 return f"counter {frame.counter} repeated"
-            if step > MAX_DELTA:
+            resync = self.last_time is not None and not self.valid(now)  # timed out: any other step is taken
+            if step > MAX_DELTA and not resync:
                 return f"counter {frame.counter} after {self.last_counter}: out of order (step {step})"
-            if step != 1:
+            if step != 1 and not resync:
                 self.counter_jumps += 1
                 self.lost += step - 1
         self.last_counter = frame.counter

@@ -95,3 +95,11 @@ def test_sender_counter_wraps_at_the_dbc_width():
     tx = TxScheduler(codec, ["TCU_CMD"])
     counters = [codec.decode(0x200, bytes(tx.frame("TCU_CMD", {}).data)).counter for _ in range(18)]
     assert counters == list(range(16)) + [0, 1]
+
+
+def test_a_repeated_counter_is_refused_even_after_a_timeout():
+    codec = Codec(load_dbc(), {"TCU_CMD": ("P_CL_Cmd",)})
+    rx = RxMonitor(codec, ["TCU_CMD"])
+    first, frozen = _frames(codec, [5, 5], period=1.0)  # same counter, other values, after the 30-ms deadline
+    assert rx.receive(first, first.timestamp) is not None
+    assert rx.receive(frozen, frozen.timestamp) is None and rx.rejected["counter"] == 1
