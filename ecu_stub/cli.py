@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
         tcu = TcuRunner(codec, bus, controller)
         tcu_side.append(tcu)
-        stop = threading.Event()  # SIGTERM: stop serving, report, exit 0 (like Ctrl-C)
+        stop = threading.Event()  # SIGTERM: stop serving, report its counts, exit 143
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
         try:
@@ -90,10 +90,10 @@ def main(argv: list[str] | None = None) -> int:
             if injector is not None:
                 print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)
     except KeyboardInterrupt:
-        return EXIT_OK  # the TCU stops on Ctrl-C and SIGTERM as asked: a normal end
+        return 128 + signal.SIGINT  # as dsg-hil: 130
     except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors
         if args.debug:
             raise
         print(f"error: {exc}", file=sys.stderr)
         return exit_code(exc)  # as dsg-hil: 1 run failed, 2 bad input (dsg_hil.protocol.errors)
-    return EXIT_OK
+    return 128 + signal.SIGTERM if stop.is_set() else EXIT_OK  # as dsg-hil: 143 when ended by SIGTERM

@@ -175,3 +175,17 @@ def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
     assert summary["stop_reason"] == "peer_lost" and 10.0 <= summary["sim_time_s"] < 1000.0
     assert summary["frames"]["by_message"]["SIM_SYNC"]["retries"] > 0
 
+
+
+@pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_ecu_stub_ends_on_a_signal_with_the_same_codes_as_dsg_hil(sig, status):
+    tcu = subprocess.Popen([*ECU_STUB, "--interface", "udp_multicast", "--channel", multicast_group()],
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        assert "listening on udp_multicast" in tcu.stderr.readline()
+        tcu.send_signal(sig)
+        err = tcu.communicate(timeout=60)[1]
+    finally:
+        if tcu.poll() is None:
+            tcu.kill()
+    assert tcu.returncode == status and "ecu-stub: sent 0 frames" in err, err
