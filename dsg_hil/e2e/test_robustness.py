@@ -1,0 +1,237 @@
+"""Robustness on a real SocketCAN vcan0: a flood of random frames during a creep, a TCU killed and restarted under
+a real-time plant, a plant killed under a TCU. Judged on the processes' own records (the plant's log, summary and
+warnings; candump's kernel timestamps), by causality and cycle times, never on wall-clock figures."""
+
+from __future__ import annotations
+
+import inspect
+import json
+import re
+import shutil
+import signal
+import subprocess
+import time
+from itertools import pairwise
+
+import pytest
+
+from dsg_hil.loop import plant_for
+from dsg_hil.plant_io import PLANT_USES
+from dsg_hil.protocol import Codec
+
+from .conftest import BUS, Candump, by_id, console, parse_candump
+
+pytestmark = pytest.mark.vcan
+FLOOD_FRAMES = 100_000
+FLOOD_BATCH = 10_000  # cangen runs in batches until the creep ends: frames counted are whole batches
+FALLBACK = re.compile(r"t=([0-9.]+) s: TCU_CMD missing")
+RESUMED = re.compile(r"t=([0-9.]+) s: valid TCU_CMD again")
+
+
+@pytest.fixture(scope="module")
+def cangen():
+    path = shutil.which("cangen")
+    if path is None:
+        pytest.fail("cangen (can-utils) is missing")
+    return path
+
+
+def wait_for(predicate, timeout: float, what: str) -> None:
+    """Orchestration only (when to inject a fault); nothing is judged on these waits."""
+    end = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < end, f"gave up waiting for {what}"
+        time.sleep(0.05)
+
+
+def grows(path) -> bool:
+    return path.exists() and path.stat().st_size > 0
+
+
+def start_plant(outdir, name, mode, duration, *extra):
+    log, summary = outdir / f"{name}.plant.log", outdir / f"{name}.summary.json"
+    proc = subprocess.Popen([console("dsg-hil"), "plant", *BUS, "--mode", mode, "--duration", str(duration),
+                             "--log", str(log), "--summary", str(summary), *extra],
+                            stderr=subprocess.PIPE, text=True)
+    return proc, log, summary
+
+
+def start_tcu(*extra):
+    tcu = subprocess.Popen([console("ecu-stub"), *BUS, *extra], stderr=subprocess.PIPE, text=True)
+    assert "listening on socketcan:vcan0" in tcu.stderr.readline()
+    return tcu
+
+
+def stop(proc, timeout: float = 60.0) -> str:
+    try:
+        return proc.communicate(timeout=timeout)[1] or ""
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def plant_times(frames):
+    """Frames of the plant's log in the plant's time [s from its first frame] (its stamps: start + step time)."""
+    t0 = frames[0][0]
+    return [(t - t0, ident, data) for t, ident, data in frames]
+
+
+# ---- a flood of random frames during a lock-step creep ------------------------------------------------------------
+@pytest.fixture(scope="module")
+def flood(outdir, duration, cangen, lockstep):
+    """The lock-step creep of the ``lockstep`` run again, with cangen sending random IDs, DLCs and data as fast as
+    it can (``-g 0``, ENOBUFS ignored) from the first tick to the end."""
+    tcu = start_tcu("--idle-exit", "3")
+    plant, log, summary = start_plant(outdir, "flood", "lockstep", duration, "--reply-timeout", "60")
+    batches = 0
+    try:
+        wait_for(lambda: grows(log) or plant.poll() is not None, 600, "the plant's first tick")
+        while plant.poll() is None:
+            gen = subprocess.run([cangen, "vcan0", "-g", "0", "-I", "r", "-L", "r", "-D", "r", "-i",
+                                  "-n", str(FLOOD_BATCH)], capture_output=True, text=True, timeout=600)
+            assert gen.returncode == 0, gen.stderr
+            batches += plant.poll() is None  # whole batches sent while the creep ran
+        plant_err = stop(plant)
+        tcu_err = stop(tcu)
+    finally:
+        for proc in (plant, tcu):
+            if proc.poll() is None:
+                proc.kill()
+    (outdir / "flood.plant.stderr").write_text(plant_err)
+    (outdir / "flood.tcu.stderr").write_text(tcu_err)
+    return {"plant_rc": plant.returncode, "tcu_rc": tcu.returncode, "plant_err": plant_err, "tcu_err": tcu_err,
+            "injected": batches * FLOOD_BATCH, "summary": json.loads(summary.read_text()), "log": log}
+
+
+def test_flood_neither_process_fails(flood):
+    assert flood["injected"] >= FLOOD_FRAMES, (f"only {flood['injected']} random frames while the creep ran: "
+                                               f"give a longer --duration")
+    assert flood["plant_rc"] == 0, flood["plant_err"]
+    assert flood["tcu_rc"] == 0, flood["tcu_err"]
+    frames = flood["summary"]["frames"]
+    assert frames["unanswered_ticks"] == 0 and flood["summary"]["command_fallback"]["events"] == 0
+
+
+def test_flood_rejects_are_counted_by_cause(flood):
+    frames = flood["summary"]["frames"]
+    causes = {name: m["rejected"] for name, m in frames["by_message"].items() if m["rejected"]}
+    assert frames["rejected"] == sum(sum(c.values()) for c in causes.values()) > 0, causes
+    assert set(causes) <= {"TCU_CMD", "TCU_STATUS"}  # the plant judges only what it reads
+
+
+def test_flood_no_corrupt_command_taken(db, flood):
+    """Every TCU_CMD the plant took (its log) carries a valid CRC, the next counter and the tick's echo; and the
+    plant's log is the one of the undisturbed lock-step run, byte for byte: no random frame was taken."""
+    cmd = db.get_message_by_name("TCU_CMD")
+    frames = plant_times(parse_candump(flood["log"]))
+    commands = [data for _, ident, data in frames if ident == cmd.frame_id]
+    assert len(commands) == flood["summary"]["frames"]["by_message"]["SIM_SYNC"]["sent"] > 100
+    codec = Codec(db, PLANT_USES)
+    first = codec.decode(cmd.frame_id, commands[0]).counter
+    for tick, data in enumerate(commands):
+        frame = codec.decode(cmd.frame_id, data)  # the plant's own checks: raises FrameError on a CRC/DLC fault
+        assert int(frame.values["SyncEcho"]) == tick & 0xFF and frame.counter == (first + tick) % 16, tick
+    assert flood["log"].read_bytes() == (flood["log"].parent / "lockstep.plant.log").read_bytes()
+
+
+# ---- the TCU killed and restarted under a real-time plant ---------------------------------------------------------
+@pytest.fixture(scope="module")
+def tcu_killed(outdir, duration):
+    """A real-time creep whose TCU is killed (SIGKILL) once commands flow, and started again a while later."""
+    dump = Candump(outdir / "tcu_kill.candump.log")
+    tcu = start_tcu()
+    plant, log, summary = start_plant(outdir, "tcu_kill", "realtime", max(duration, 8.0))
+    second = None
+    try:
+        time.sleep(2.0)  # commands flow (the TCU free-runs 1 s after it first hears the plant)
+        tcu.send_signal(signal.SIGKILL)
+        tcu.wait(timeout=30)
+        time.sleep(1.0)
+        second = start_tcu("--idle-exit", "2")
+        plant_err = stop(plant, timeout=600)
+        stop(second)
+    finally:
+        for proc in (plant, tcu, second):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+        recorded = dump.stop()
+    (outdir / "tcu_kill.plant.stderr").write_text(plant_err)
+    assert plant.returncode == 0, plant_err
+    return json.loads(summary.read_text()), plant_times(parse_candump(log)), plant_err, recorded
+
+
+def test_tcu_kill_detected_within_3_cycles_then_recovers(db, tcu_killed):
+    """In the plant's own time (its log's stamps and its warnings): the fallback comes within 3 TCU_CMD cycle
+    times (+ one plant step, its check granularity) of the last command taken; the pressures decay towards 0 while
+    it lasts; valid commands come again (the restarted TCU) and the fallback ends."""
+    summary, frames, err, _ = tcu_killed
+    cycle = db.get_message_by_name("TCU_CMD").cycle_time / 1000.0
+    dt = inspect.signature(plant_for).parameters["dt"].default  # the plant's fixed step: its check granularity
+    fallbacks = [float(t) for t in FALLBACK.findall(err)]
+    resumed = [float(t) for t in RESUMED.findall(err)]
+    assert fallbacks and resumed, err
+    # the kill: the fallback with the longest outage until control resumed
+    pairs = [(f, next((r for r in resumed if r >= f), None)) for f in fallbacks]
+    start, end = max(pairs, key=lambda p: (p[1] if p[1] is not None else float("inf")) - p[0])
+    assert end is not None, "control never resumed after the TCU was started again"
+    cmd_id = db.get_message_by_name("TCU_CMD").frame_id
+    last_cmd = max(t for t, ident, _ in frames if ident == cmd_id and t <= start)
+    detection = start - last_cmd
+    print(f"fallback {detection * 1000:.1f} ms = {detection / cycle:.2f} cycles after the last command; "
+          f"resumed after {end - start:.2f} s; fallback events {summary['command_fallback']['events']}")
+    assert cycle < detection <= 3 * cycle + dt + 1e-6, f"{detection / cycle:.2f} cycle times"
+    pressure = db.get_message_by_name("PLANT_PRESSURE")
+    during = [pressure.decode(data) for t, ident, data in frames if ident == pressure.frame_id and start <= t < end]
+    assert len(during) > 5
+    for key in ("P_CL", "P_CH"):
+        values = [p[key] for p in during]
+        assert all(b <= a + 1e-9 for a, b in pairwise(values)), f"{key} rose in the fallback: {values}"
+    peak = max(during[0]["P_CL"], during[0]["P_CH"])
+    assert peak > 0.05, "the kill came before the clutches were pressurised"
+    assert max(during[-1]["P_CL"], during[-1]["P_CH"]) < 0.05 * peak  # decayed (tau 50 ms, outage > 1 s)
+    after = [t for t, ident, _ in frames if ident == cmd_id and t > end]
+    assert len(after) > 10, "too few commands after the TCU came back"
+
+
+# ---- the plant killed under a TCU ---------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def plant_killed(outdir, duration):
+    dump = Candump(outdir / "plant_kill.candump.log")
+    tcu = start_tcu("--idle-exit", "3")
+    plant, _, _ = start_plant(outdir, "plant_kill", "realtime", max(duration, 8.0))
+    try:
+        time.sleep(3.0)  # commands and statuses flow
+        plant.send_signal(signal.SIGKILL)
+        plant.wait(timeout=30)
+        tcu_err = stop(tcu, timeout=120)
+    finally:
+        for proc in (plant, tcu):
+            if proc.poll() is None:
+                proc.kill()
+        recorded = dump.stop()
+    assert tcu.returncode == 0, tcu_err
+    return sorted(recorded, key=lambda f: f[0])
+
+
+def test_plant_kill_tcu_reports_fault(db, plant_killed):
+    """On candump's timestamps: after the plant's last frame the TCU keeps sending TCU_STATUS, reports FAULT at the
+    latest in its third status (cycle-counted: no uniform pace assumed), and commands no pressure from then on."""
+    frames = plant_killed
+    status, cmd = db.get_message_by_name("TCU_STATUS"), db.get_message_by_name("TCU_CMD")
+    plant_ids = {m.frame_id for m in db.messages if m.senders == ["PLANT"]}
+    last_plant = max(t for t, ident, _ in frames if ident in plant_ids)
+    states = [(t, status.decode(data)["State"]) for t, ident, data in frames
+              if ident == status.frame_id and t > last_plant]
+    assert any(str(s) != "FAULT" for t, s in
+               [(t, status.decode(data)["State"]) for t, ident, data in frames if ident == status.frame_id
+                and t <= last_plant]), "no TCU_STATUS before the kill"
+    faults = [i for i, (_, s) in enumerate(states) if str(s) == "FAULT"]
+    assert faults, f"no FAULT after the plant's last frame: {states[:5]}"
+    first = faults[0]
+    cycle = status.cycle_time / 1000.0
+    print(f"FAULT in status #{first + 1} after the plant's last frame, "
+          f"{(states[first][0] - last_plant) / cycle:.2f} TCU_STATUS cycles later")
+    assert first < 3 and all(str(s) == "FAULT" for _, s in states[first:])
+    commands = [cmd.decode(data) for t, ident, data in frames if ident == cmd.frame_id and t > states[first][0]]
+    assert commands and all(c["P_CL_Cmd"] == 0 and c["P_CH_Cmd"] == 0 for c in commands)
+    assert by_id(frames)[cmd.frame_id]
