@@ -70,6 +70,18 @@ def stop(proc, timeout: float = 60.0) -> str:
             proc.kill()
 
 
+def creeping(db, dump: Candump) -> bool:
+    """Whether candump has recorded a TCU_CMD engaging a clutch (its file lags by a buffer: fine here)."""
+    cmd = db.get_message_by_name("TCU_CMD")
+    for line in dump.path.read_text().splitlines():
+        parts = line.split()
+        if len(parts) >= 3 and parts[2].startswith(f"{cmd.frame_id:03X}#") and len(parts[2]) == 20:
+            values = cmd.decode(bytes.fromhex(parts[2][4:]))
+            if max(values["P_CL_Cmd"], values["P_CH_Cmd"]) > 0.1:
+                return True
+    return False
+
+
 def plant_times(frames):
     """Frames of the plant's log in the plant's time [s from its first frame] (its stamps: start + step time)."""
     t0 = frames[0][0]
@@ -136,14 +148,14 @@ def test_flood_no_corrupt_command_taken(db, flood):
 
 # ---- the TCU killed and restarted under a real-time plant ---------------------------------------------------------
 @pytest.fixture(scope="module")
-def tcu_killed(outdir, duration):
-    """A real-time creep whose TCU is killed (SIGKILL) once commands flow, and started again a while later."""
+def tcu_killed(db, outdir, duration):
+    """A real-time creep whose TCU is killed (SIGKILL) once it engages a clutch, and started again a while later."""
     dump = Candump(outdir / "tcu_kill.candump.log")
     tcu = start_tcu()
-    plant, log, summary = start_plant(outdir, "tcu_kill", "realtime", max(duration, 8.0))
+    plant, log, summary = start_plant(outdir, "tcu_kill", "realtime", max(duration, 12.0))
     second = None
     try:
-        time.sleep(2.0)  # commands flow (the TCU free-runs 1 s after it first hears the plant)
+        wait_for(lambda: creeping(db, dump) or plant.poll() is not None, 600, "a command engaging a clutch")
         tcu.send_signal(signal.SIGKILL)
         tcu.wait(timeout=30)
         time.sleep(1.0)
@@ -162,7 +174,8 @@ def tcu_killed(outdir, duration):
 
 def test_tcu_kill_detected_within_3_cycles_then_recovers(db, tcu_killed):
     """In the plant's own time (its log's stamps and its warnings): the fallback comes within 3 TCU_CMD cycle
-    times (+ one plant step, its check granularity) of the last command taken; the pressures decay towards 0 while
+    times (+ one plant step, its check granularity) of the last command taken (the plant judges silence on its
+    clock: a plant slower than real time sees it sooner in its own time); the pressures decay towards 0 while
     it lasts; valid commands come again (the restarted TCU) and the fallback ends."""
     summary, frames, err, _ = tcu_killed
     cycle = db.get_message_by_name("TCU_CMD").cycle_time / 1000.0
@@ -179,7 +192,7 @@ def test_tcu_kill_detected_within_3_cycles_then_recovers(db, tcu_killed):
     detection = start - last_cmd
     print(f"fallback {detection * 1000:.1f} ms = {detection / cycle:.2f} cycles after the last command; "
           f"resumed after {end - start:.2f} s; fallback events {summary['command_fallback']['events']}")
-    assert cycle < detection <= 3 * cycle + dt + 1e-6, f"{detection / cycle:.2f} cycle times"
+    assert 0 < detection <= 3 * cycle + dt + 1e-6, f"{detection / cycle:.2f} cycle times"
     pressure = db.get_message_by_name("PLANT_PRESSURE")
     during = [pressure.decode(data) for t, ident, data in frames if ident == pressure.frame_id and start <= t < end]
     assert len(during) > 5
@@ -195,12 +208,14 @@ def test_tcu_kill_detected_within_3_cycles_then_recovers(db, tcu_killed):
 
 # ---- the plant killed under a TCU ---------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def plant_killed(outdir, duration):
+def plant_killed(db, outdir, duration):
+    """A real-time creep whose plant is killed (SIGKILL) once the TCU engages a clutch."""
     dump = Candump(outdir / "plant_kill.candump.log")
     tcu = start_tcu("--idle-exit", "3")
-    plant, _, _ = start_plant(outdir, "plant_kill", "realtime", max(duration, 8.0))
+    plant, _, _ = start_plant(outdir, "plant_kill", "realtime", max(duration, 12.0))
     try:
-        time.sleep(3.0)  # commands and statuses flow
+        wait_for(lambda: creeping(db, dump) or plant.poll() is not None, 600, "a command engaging a clutch")
+        time.sleep(0.5)  # statuses of the creep on the bus
         plant.send_signal(signal.SIGKILL)
         plant.wait(timeout=30)
         tcu_err = stop(tcu, timeout=120)
