@@ -22,7 +22,8 @@ from dsg_hil.protocol.codec import DEFAULT_DBC
 from dsg_hil.vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
 
 BUS = ["--interface", "socketcan", "--channel", "vcan0"]
-DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
+DBC = Path(str(DEFAULT_DBC))
+RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]  # the DBC inside the installed package, for 'cantools decode'
 
 
 def pytest_configure(config):
@@ -77,7 +78,10 @@ class Candump:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.file = path.open("w")
-        self.proc = subprocess.Popen(["candump", "-L", "vcan0"], stdout=self.file, stderr=subprocess.PIPE)
+        # a receive buffer for ~8000 frames: a starved candump (emulation, a busy machine) would otherwise drop
+        # frames from the recording when a sender catches up in a burst (canplayer does); root may force it
+        self.proc = subprocess.Popen(["candump", "-L", "-r", str(RCVBUF), "vcan0"], stdout=self.file,
+                                     stderr=subprocess.PIPE)
         time.sleep(0.3)
 
     def stop(self) -> list[tuple[float, int, bytes]]:
