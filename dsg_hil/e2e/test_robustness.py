@@ -13,6 +13,7 @@ import subprocess
 import time
 from itertools import pairwise
 
+import can
 import pytest
 
 from dsg_hil.loop import plant_for
@@ -44,8 +45,13 @@ def wait_for(predicate, timeout: float, what: str) -> None:
         time.sleep(0.05)
 
 
-def grows(path) -> bool:
-    return path.exists() and path.stat().st_size > 0
+def first_tick(db, plant, timeout: float = 600.0) -> None:
+    """Wait until the lock-step run proper has begun: the first PLANT_ENGINE frame (after the presence handshake)."""
+    engine = db.get_message_by_name("PLANT_ENGINE").frame_id
+    with can.Bus(interface="socketcan", channel="vcan0", can_filters=[{"can_id": engine, "can_mask": 0x7FF}]) as bus:
+        end = time.monotonic() + timeout
+        while bus.recv(timeout=1.0) is None:
+            assert plant.poll() is None and time.monotonic() < end, "the plant never started its run"
 
 
 def start_plant(outdir, name, mode, duration, *extra):
@@ -83,14 +89,14 @@ def plant_times(frames):
 
 # ---- a flood of random frames during a lock-step creep ------------------------------------------------------------
 @pytest.fixture(scope="module")
-def flood(outdir, duration, cangen, lockstep):
+def flood(db, outdir, duration, cangen, lockstep):
     """The lock-step creep of the ``lockstep`` run again, with cangen sending random IDs, DLCs and data as fast as
     it can (``-g 0``, ENOBUFS ignored) from the first tick to the end."""
     tcu = start_tcu("--idle-exit", "3")
     plant, log, summary = start_plant(outdir, "flood", "lockstep", duration, "--reply-timeout", "60")
     batches = 0
     try:
-        wait_for(lambda: grows(log) or plant.poll() is not None, 600, "the plant's first tick")
+        first_tick(db, plant)
         while plant.poll() is None:
             gen = subprocess.run([cangen, "vcan0", "-g", "0", "-I", "r", "-L", "r", "-D", "r", "-i",
                                   "-n", str(FLOOD_BATCH)], capture_output=True, text=True, timeout=600)
