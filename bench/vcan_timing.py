@@ -4,6 +4,7 @@ recorded by candump. Prints, per cyclic message, the deviation of its period fro
 step that uses it), the real-time factor, and the lockstep closed loop over vcan0 in simulated s per wall s.
 
 Needs vcan0; anywhere:  dsg-hil vcan -- python bench/vcan_timing.py [--duration 10]
+On a busy machine:      dsg-hil vcan --load 4 -- python bench/vcan_timing.py
 """
 
 from __future__ import annotations
@@ -91,6 +92,10 @@ def main() -> None:
     wall = summary["wall_time_s"]
     say(f"lockstep closed loop over vcan0 ({where}), plant and ecu-stub as processes: {args.duration:g} simulated "
           f"s in {wall:.2f} s wall = {args.duration / wall:.2f} simulated s per wall s")
+    f = summary["frames"]
+    say(f"lockstep re-sends {f['retries']} (per message: "
+        f"{ {name: m['retries'] for name, m in f['by_message'].items() if m['retries']} }), duplicates "
+        f"{f['duplicates']}, unanswered ticks {f['unanswered_ticks']}, presence probes {f['probes']}")
     out = Path(os.environ.get(ENV_OUTDIR) or work) / "vcan_timing.txt"
     out.write_text("\n".join(lines) + "\n")
     print(f"(logs in {work}; table in {out})")

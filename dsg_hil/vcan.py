@@ -68,6 +68,17 @@ def _tool(name: str, hint: str) -> str:
     return found
 
 
+def with_load(command: list[str], workers: int) -> list[str]:
+    """``command`` run beside ``stress-ng --cpu workers`` (a busy machine), where it runs (natively or in the VM);
+    the hog (its scratch files in /tmp: the VM's working directory is read-only) is stopped when the command
+    ends, whose exit status is kept."""
+    hog = _tool("stress-ng", "apt-get install stress-ng (for --load)")
+    script = (f'{shlex.quote(hog)} --cpu {int(workers)} --temp-path /tmp --quiet & hog=$!; sleep 1; '
+              'kill -0 $hog 2>/dev/null || { echo "error: stress-ng did not start" >&2; exit 1; }; "$@"; rc=$?; '
+              'kill $hog 2>/dev/null; wait $hog 2>/dev/null; exit $rc')
+    return ["sh", "-c", script, "sh", *command]
+
+
 @dataclass(frozen=True)
 class VmPlan:
     argv: list[str]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
 
 import pytest
 
@@ -33,3 +34,28 @@ def test_missing_tools_are_named(monkeypatch, tmp_path):
     monkeypatch.setattr(vcan.sys, "executable", str(tmp_path / "python"))
     with pytest.raises(vcan.VcanError, match="vng not found: pip install virtme-ng"):
         vcan.vm_plan(["true"], tmp_path, tmp_path / "k", {}, tmp_path)
+
+
+def test_load_runs_the_command_beside_cpu_hogs_and_keeps_its_status(tmp_path, monkeypatch):
+    hog = tmp_path / "stress-ng"  # a stand-in that records its arguments and runs until killed
+    hog.write_text(f"#!/bin/sh\necho \"$@\" > {tmp_path / 'hog.args'}\nexec sleep 30\n")
+    hog.chmod(0o755)
+    monkeypatch.setattr(vcan, "_tool", lambda name, hint: str(hog))
+    wrapped = vcan.with_load(["sh", "-c", "sleep 0.2; exit 3"], 4)
+    assert subprocess.run(wrapped, timeout=20).returncode == 3
+    assert (tmp_path / "hog.args").read_text().split() == ["--cpu", "4", "--temp-path", "/tmp", "--quiet"]
+
+
+def test_missing_stress_ng_is_named(monkeypatch, tmp_path):
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    monkeypatch.setattr(vcan.sys, "executable", str(tmp_path / "python"))
+    with pytest.raises(vcan.VcanError, match="stress-ng not found: apt-get install stress-ng"):
+        vcan.with_load(["true"], 2)
+
+
+def test_load_that_cannot_start_fails_the_run(tmp_path, monkeypatch):
+    hog = tmp_path / "stress-ng"
+    hog.write_text("#!/bin/sh\necho 'aborting' >&2\nexit 1\n")
+    hog.chmod(0o755)
+    monkeypatch.setattr(vcan, "_tool", lambda name, hint: str(hog))
+    assert subprocess.run(vcan.with_load(["true"], 2), timeout=20).returncode == 1

@@ -31,6 +31,9 @@ def add_subparser(sub) -> None:
     parser.add_argument("--duration", type=float, default=10.0, metavar="S",
                         help="simulated seconds of each end-to-end scenario (default 10; Python runs ~10x "
                              "slower under emulation)")
+    parser.add_argument("--load", type=int, default=0, metavar="N",
+                        help="run COMMAND on a busy machine: beside 'stress-ng --cpu N' (N CPU hogs where the "
+                             "command runs, in the VM or natively; needs stress-ng; default 0: idle)")
     parser.add_argument("--kernel", metavar="FILE", help="kernel image for the VM (default: newest /boot/vmlinuz-*)")
     parser.add_argument("--outdir", metavar="DIR", help="writable directory for logs and results (default: a "
                         "temporary one, kept when the command fails)")
@@ -45,9 +48,15 @@ def _do_vcan(args: argparse.Namespace) -> int:
         command[0] = sys.executable
     if not args.duration > 0.0:
         raise ValueError(f"--duration must be positive, got {args.duration}")
+    if args.load < 0:
+        raise ValueError(f"--load must be >= 0, got {args.load}")
+    if args.load:
+        command = vcan.with_load(command, args.load)
     outdir = Path(args.outdir or tempfile.mkdtemp(prefix="dsg-hil-vcan-")).resolve()
     outdir.mkdir(parents=True, exist_ok=True)
     env = {vcan.ENV_REQUIRE: "1", vcan.ENV_DURATION: f"{args.duration:g}", vcan.ENV_OUTDIR: str(outdir)}
+    if os.environ.get("PYTHONPATH"):  # the caller's, forwarded into the VM (e.g. a checkout other than the venv's)
+        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
     native = False
     if not args.vm:
         if vcan.vcan_present():
@@ -70,5 +79,6 @@ def _do_vcan(args: argparse.Namespace) -> int:
         tail = vcan.output_tail(outdir)
         if tail:  # the console interleaves and garbles; repeat the end cleanly (full: output.txt)
             print(f"--- end of the command's output in the VM ({outdir / 'output.txt'}) ---\n{tail}", flush=True)
-    progress(f"{'native' if native else 'VM'} vcan run finished with status {rc}; logs in {outdir}")
+    load = f" beside {args.load} CPU hogs" if args.load else ""
+    progress(f"{'native' if native else 'VM'} vcan run{load} finished with status {rc}; logs in {outdir}")
     return rc

@@ -5,12 +5,14 @@ They need vcan0 and can-utils. Where those are missing they are skipped, unless 
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import pytest
@@ -19,7 +21,9 @@ from dsg_hil.protocol import load_dbc
 from dsg_hil.protocol.codec import DEFAULT_DBC
 from dsg_hil.vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
 
-DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
+BUS = ["--interface", "socketcan", "--channel", "vcan0"]
+DBC = Path(str(DEFAULT_DBC))
+RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]  # the DBC inside the installed package, for 'cantools decode'
 
 
 def pytest_configure(config):
@@ -74,7 +78,10 @@ class Candump:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.file = path.open("w")
-        self.proc = subprocess.Popen(["candump", "-L", "vcan0"], stdout=self.file, stderr=subprocess.PIPE)
+        # a receive buffer for ~8000 frames: a starved candump (emulation, a busy machine) would otherwise drop
+        # frames from the recording when a sender catches up in a burst (canplayer does); root may force it
+        self.proc = subprocess.Popen(["candump", "-L", "-r", str(RCVBUF), "vcan0"], stdout=self.file,
+                                     stderr=subprocess.PIPE)
         time.sleep(0.3)
 
     def stop(self) -> list[tuple[float, int, bytes]]:
@@ -97,3 +104,77 @@ def parse_candump(path: Path) -> list[tuple[float, int, bytes]]:
         ident, data = parts[2].split("#", 1)
         frames.append((float(parts[0].strip("()")), int(ident, 16), bytes.fromhex(data)))
     return frames
+
+
+def run_pair(outdir, name, mode, duration, extra=()):
+    """Start candump and ecu-stub, run the plant to the end, stop both; returns (summary, frames, log path).
+
+    ``frames`` are candump's, in timestamp order (its file order is delivery order, which on several CPUs can put
+    a reply before the frame it answers); in lockstep, from the start of the run (see ``lockstep_run``)."""
+    dump = Candump(outdir / f"{name}.candump.log")
+    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "3"], stderr=subprocess.PIPE, text=True)
+    summary = outdir / f"{name}.summary.json"
+    try:
+        plant = subprocess.run([console("dsg-hil"), "plant", *BUS, "--mode", mode, "--duration", str(duration),
+                                "--reply-timeout", "60", "--summary", str(summary), *extra],
+                               capture_output=True, text=True, timeout=600 + 30 * duration)
+        assert plant.returncode == 0, plant.stderr
+        tcu_err = tcu.communicate(timeout=60)[1]
+        assert tcu.returncode == 0, tcu_err
+    finally:
+        if tcu.poll() is None:
+            tcu.kill()
+        frames = dump.stop()
+    (outdir / f"{name}.plant.stderr").write_text(plant.stderr)
+    frames = sorted(frames, key=lambda f: f[0])
+    return json.loads(summary.read_text()), lockstep_run(frames) if mode == "lockstep" else frames, dump.path
+
+
+def lockstep_run(frames):
+    """The frames of the run proper: a lockstep plant first probes for the TCU (SIM_SYNC Tick 0xFFFFFFFF,
+    answered with SyncEcho 255; documented in the DBC) and sends its first data frame only when answered. So the
+    run starts at the first PLANT_ENGINE frame; the probes and the probe answer (repeated identically when the
+    TCU heard several probes) are left out."""
+    start = next(t for t, ident, _ in frames if ident == 0x100)
+    probe_answer = next((data for t, ident, data in frames if ident == 0x200 and t <= start), None)
+    tick255 = next((t for t, ident, data in frames if ident == 0x7F0 and data[:4] == bytes((255, 0, 0, 0))),
+                   float("inf"))
+    return [(t, ident, data) for t, ident, data in frames if t >= start
+            and not (ident == 0x7F0 and data[:4] == b"\xff" * 4)
+            and not (ident == 0x200 and data == probe_answer and t < tick255)]
+
+
+def first_transmissions(frames):
+    """Without lockstep retransmissions: a frame byte-identical to the previous one of its ID is a re-send (a
+    retry after a late answer), counted by the plant and the TCU, never logged by the plant."""
+    last, kept = {}, []
+    for t, ident, data in frames:
+        if last.get(ident) != data:
+            kept.append((t, ident, data))
+        last[ident] = data
+    return kept
+
+
+def by_id(frames):
+    groups = defaultdict(list)
+    for t, ident, data in frames:
+        groups[ident].append((t, data))
+    return groups
+
+
+def assert_counters_increment(db, frames):
+    for ident, items in by_id(frames).items():
+        m = db.get_message_by_frame_id(ident)
+        counters = [m.decode(data, decode_choices=False)["Counter"] for _, data in items]
+        steps = {(b - a) % 16 for a, b in zip(counters, counters[1:])}
+        assert steps == {1}, f"{m.name}: counter steps {steps}"
+
+
+@pytest.fixture(scope="session")
+def lockstep(outdir, duration):
+    return run_pair(outdir, "lockstep", "lockstep", duration, extra=("--log", str(outdir / "lockstep.plant.log")))
+
+
+@pytest.fixture(scope="session")
+def realtime(outdir, duration):
+    return run_pair(outdir, "realtime", "realtime", min(duration, 6.0))
