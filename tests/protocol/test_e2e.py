@@ -103,3 +103,21 @@ def test_a_repeated_counter_is_refused_even_after_a_timeout():
     first, frozen = _frames(codec, [5, 5], period=1.0)  # same counter, other values, after the 30-ms deadline
     assert rx.receive(first, first.timestamp) is not None
     assert rx.receive(frozen, frozen.timestamp) is None and rx.rejected["counter"] == 1
+
+
+def test_the_readme_shows_the_codecs_worked_examples():
+    """The contract's worked example frames in README.md are what the codec encodes (skipped without a checkout:
+    an installed package has no README)."""
+    from pathlib import Path
+
+    from dsg_hil.protocol.examples import example_frames
+
+    readme = Path(__file__).resolve().parents[2] / "README.md"
+    if not readme.exists():
+        pytest.skip("no README.md beside the tests (installed package)")
+    text = readme.read_text(encoding="utf-8")
+    db = load_dbc()
+    frames = example_frames(db)
+    assert {name for name, *_ in frames} == {m.name for m in db.messages}  # every message has its example
+    for name, frame_id, _, data in frames:
+        assert f"| 0x{frame_id:03X} | {name} |" in text and f"`{data.hex(' ').upper()}`" in text, name
