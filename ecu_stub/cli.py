@@ -70,15 +70,15 @@ def main(argv: list[str] | None = None) -> int:
         inner = open_bus(config)
         tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
         bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
-        print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
-        if warning := per_process_warning(config):
-            print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
-        tcu = TcuRunner(codec, bus, controller)
-        tcu_side.append(tcu)
         stop = threading.Event()  # SIGTERM: stop serving, report its counts, exit 143
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
-        try:
+        tcu = TcuRunner(codec, bus, controller)
+        tcu_side.append(tcu)
+        try:  # 'listening' inside: a signal from then on still reaches the counts below
+            print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
+            if warning := per_process_warning(config):
+                print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
             tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
         finally:
             bus.shutdown()
