@@ -12,4 +12,5 @@ from .protocol.errors import (  # noqa: F401
                               ResultError,
                               RunError,
                               exit_code,
+                              read_input_file,
 )

@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from .errors import InputError
+from .errors import InputError, read_input_file
 from .protocol.faults import FaultError, FaultSpec, fault_from_mapping
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "data" / "creep.toml"
@@ -156,10 +156,5 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
 
 def load_scenario(path: str | Path | None = None) -> Scenario:
     path = Path(path) if path is not None else DEFAULT_SCENARIO
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read scenario ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}): not a scenario TOML") from None
+    text = read_input_file(path, "scenario", ScenarioError)
     return parse_scenario(text, str(path))

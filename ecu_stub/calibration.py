@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from dsg_hil.protocol.errors import InputError
+from dsg_hil.protocol.errors import InputError, read_input_file
 
 DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
 SOURCES = ("identified", "derived", "chosen")
@@ -205,12 +205,7 @@ def parse_calibration(text: str, origin: str = "<string>") -> TcuCalibration:
 
 def load_calibration(path: str | Path | None = None) -> TcuCalibration:
     path = Path(path) if path is not None else DEFAULT_CALIBRATION
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise CalibrationError(f"{path}: cannot read calibration: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise CalibrationError(f"{path}: not UTF-8 text (byte {exc.start}): not a calibration TOML") from None
+    text = read_input_file(path, "calibration", CalibrationError)
     try:
         return parse_calibration(text, str(path))
     except CalibrationError as exc:

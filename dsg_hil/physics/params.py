@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from ..errors import InputError
+from ..errors import InputError, read_input_file
 
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
 SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}
@@ -298,10 +298,5 @@ def parse_params(text: str, origin: str = "<string>") -> Params:
 def load_params(path: str | Path | None = None) -> Params:
     """Load a parameter file (default: the one shipped with the package)."""
     path = Path(path) if path is not None else DEFAULT_PARAMS_PATH
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ParameterError(f"{path}: cannot read parameter file ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}): not a parameter TOML") from None
+    text = read_input_file(path, "parameter file", ParameterError)
     return parse_params(text, str(path))

@@ -11,6 +11,7 @@ Here in the protocol layer so that ecu-stub, which may import only :mod:`dsg_hil
 from __future__ import annotations
 
 import signal
+from pathlib import Path
 
 EXIT_OK, EXIT_RUN_FAILED, EXIT_BAD_INPUT, EXIT_OUT_OF_BAND = 0, 1, 2, 3
 EXIT_SIGINT, EXIT_SIGTERM = 128 + signal.SIGINT, 128 + signal.SIGTERM  # as a shell reports a killed process
@@ -43,3 +44,13 @@ class ResultError(DsgHilError):
 def exit_code(exc: BaseException) -> int:
     """The exit status for an error that ends a command: the hierarchy's, else 1 (an unexpected error)."""
     return exc.exit_code if isinstance(exc, DsgHilError) else EXIT_RUN_FAILED
+
+
+def read_input_file(path: Path, what: str, error: type[InputError]) -> str:
+    """The UTF-8 text of an input file (scenario, parameters, calibration), or one ``error`` naming the file."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what} ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: not UTF-8 text (byte {exc.start}): not a {what} TOML") from None
