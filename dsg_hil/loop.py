@@ -48,6 +48,22 @@ class LoopResult:
     frames: list[can.Message]
 
 
+def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Iterable[FaultSpec], fault_seed: int,
+               tcu_factory: Callable[[Database, can.BusABC], Any] | None = None) -> tuple[Any, can.BusABC]:
+    """A TCU in this process on ``bus``, its frames through the TCU-side ``faults`` (windows in the TCU's own time,
+    its ``now``); the injector is registered on ``runner`` for the summary. Returns the TCU and its (wrapped) bus.
+    Default TCU: the bundled ecu-stub, which knows the plant only by the DBC."""
+    if tcu_factory is None:
+        from ecu_stub.runner import TCU_USES, TcuRunner
+
+        def tcu_factory(tcu_db: Database, tcu_bus: can.BusABC) -> Any:
+            return TcuRunner(Codec(tcu_db, TCU_USES), tcu_bus)
+    built: list[Any] = []  # the TCU, once built: the fault clock reads its time
+    tcu_bus, runner.injectors["tcu"] = with_faults(bus, db, faults, fault_seed, lambda: built[0].now)
+    built.append(tcu_factory(db, tcu_bus))
+    return built[0], tcu_bus
+
+
 def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Database | None = None,
                     tcu_factory: Callable[[Database, can.BusABC], Any] | None = None, capture: bool = False,
                     listeners: tuple[Callable[[can.Message], None], ...] = (),
@@ -63,11 +79,6 @@ def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Dat
     frames each hit."""
     params = params or load_params()
     db = db or load_dbc()
-    if tcu_factory is None:
-        from ecu_stub.runner import TCU_USES, TcuRunner  # the bundled TCU; it knows the plant only by the DBC
-
-        def tcu_factory(tcu_db: Database, bus: can.BusABC) -> Any:
-            return TcuRunner(Codec(tcu_db, TCU_USES), bus)
     channel = f"dsg_hil_loop_{os.getpid()}_{next(_channels)}"
     frames: list[can.Message] = []
     if capture:
@@ -78,13 +89,10 @@ def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Dat
         runner = PlantRunner(plant_for(scenario, params), scenario, Codec(db, PLANT_USES), buses[0], listeners,
                              progress)
         runner.inject(by_side["plant"], fault_seed)
-        tcu_side: list[Any] = []  # the TCU, once built: its bus's fault clock reads its time
-        tcu_bus, runner.injectors["tcu"] = with_faults(buses[1], db, by_side["tcu"], fault_seed,
-                                                       lambda: tcu_side[0].now)
+        tcu, tcu_bus = attach_tcu(runner, buses[1], db, by_side["tcu"], fault_seed, tcu_factory)
         buses += [runner.bus, tcu_bus]
-        tcu_side.append(tcu_factory(db, tcu_bus))
         answer_at_once(runner)
-        summary = runner.run_lockstep(pump=tcu_side[0].pump)
+        summary = runner.run_lockstep(pump=tcu.pump)
     finally:
         for bus in reversed(buses):
             bus.shutdown()

@@ -10,10 +10,8 @@ import time
 from contextlib import ExitStack
 
 from ..errors import RunError
-from ..loop import answer_at_once
-from ..protocol import Codec
+from ..loop import answer_at_once, attach_tcu
 from ..protocol.bus import bus_args, open_bus
-from ..protocol.faults import with_faults
 from ..runner import PlantRunner
 from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
@@ -35,13 +33,8 @@ def add_subparser(sub) -> None:
 
 def _tcu_in_process(bus_config: dict, dbc, runner: PlantRunner, args: argparse.Namespace):
     """The TCU side in this process (virtual bus only), its frames through the TCU-side faults."""
-    from ecu_stub.runner import TCU_USES, TcuRunner
-    inner = open_bus(bus_config)
-    tcu_side: list = []  # its bus's fault clock reads the TCU's time
-    bus, runner.injectors["tcu"] = with_faults(inner, dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0),
-                                               lambda: tcu_side[0].now)
-    tcu_side.append(TcuRunner(Codec(dbc, TCU_USES), bus))
-    return tcu_side[0]
+    tcu, _ = attach_tcu(runner, open_bus(bus_config), dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0))
+    return tcu
 
 
 def _do_run(args: argparse.Namespace) -> int:
