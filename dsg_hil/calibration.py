@@ -24,8 +24,9 @@ from scipy.optimize import least_squares, minimize_scalar
 from .creep_model import CreepResult, creep_speed_for_slip, operating_point, simulate_creep
 from .physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
 from .physics.params import Params
-from .reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C, CREEP_T_ONCOMING_AT_STOP_C,
-                        CREEP_T_START_C, CREEP_TIME_S, RIG_CASES, RIG_DURATION_S, RIG_T_START_C,
+from .reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C,
+                        CREEP_T_ONCOMING_AT_STOP_C, CREEP_T_START_C, CREEP_TIME_S, RIG_CASES, RIG_DURATION_S,
+                        RIG_T_START_C,
                         SAFETY_TEMPERATURE_C, TOL_CREEP_MU, TOL_CREEP_P_MPA, TOL_CREEP_T_C, TOL_CREEP_TIME_REL,
                         TOL_SLIP_TIME_REL)
 from .rig import RigCase, run_rig
@@ -69,7 +70,8 @@ def calibrate_stribeck(params: Params) -> StribeckFit:
 def with_h_plate_oil(params: Params, h: float) -> Params:
     """The parameters with the rig's test clutch h_plate_oil set to h."""
     cool = params.thermal.clutch
-    return replace(params, thermal=replace(params.thermal, clutch=replace(cool, test=replace(cool.test, h_plate_oil=h))))
+    return replace(params, thermal=replace(params.thermal,
+                                           clutch=replace(cool, test=replace(cool.test, h_plate_oil=h))))
 
 
 def rise_residuals(params: Params, dt: float = 1e-3) -> list[float]:
@@ -132,8 +134,10 @@ def timeline_checks(r: CreepResult) -> list[Check]:
     return [
         Check("creep_time_s", r.creep_time if r.stopped else float("inf"), CREEP_TIME_S,
               TOL_CREEP_TIME_REL * CREEP_TIME_S),
-        Check("slip_time_CL_s", r.slip_time["CL"], CREEP_SLIP_TIME_S["CL"], TOL_SLIP_TIME_REL * CREEP_SLIP_TIME_S["CL"]),
-        Check("slip_time_CH_s", r.slip_time["CH"], CREEP_SLIP_TIME_S["CH"], TOL_SLIP_TIME_REL * CREEP_SLIP_TIME_S["CH"]),
+        Check("slip_time_CL_s", r.slip_time["CL"], CREEP_SLIP_TIME_S["CL"],
+              TOL_SLIP_TIME_REL * CREEP_SLIP_TIME_S["CL"]),
+        Check("slip_time_CH_s", r.slip_time["CH"], CREEP_SLIP_TIME_S["CH"],
+              TOL_SLIP_TIME_REL * CREEP_SLIP_TIME_S["CH"]),
         Check("T_CL_at_first_CH_limit_c", r.T_CL_at_first_CH_limit, CREEP_T_CL_AT_FIRST_CH_LIMIT_C, TOL_CREEP_T_C),
         Check("T_oncoming_CL_at_stop_c", r.T_oncoming_at_stop, CREEP_T_ONCOMING_AT_STOP_C, TOL_CREEP_T_C),
     ]

@@ -22,8 +22,8 @@ import numpy as np
 from .physics import engine, hydraulics
 from .physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_step, torque_per_mu
 from .physics.params import Params
-from .physics.powertrain import (IDX, N_DOF, N_SPRING, N_STATE, Discrete, Model, build_model, contact_velocities, road_load,
-                                 solve_contacts, vehicle_speed)
+from .physics.powertrain import (IDX, N_DOF, N_SPRING, N_STATE, Discrete, Model, build_model, contact_velocities,
+                                 road_load, solve_contacts, vehicle_speed)
 from .physics.powertrain import discretize as discretize_powertrain
 from .physics.thermal import NODES, gearbox_network, heat_sources
 from .physics.thermal import discretize as discretize_network

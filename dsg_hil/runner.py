@@ -19,7 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter as Tally
-from typing import Callable
+from collections.abc import Callable
 
 import can
 
@@ -42,7 +42,7 @@ RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.
 STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
 
 
-class PeerTimeout(RunError):
+class PeerTimeout(RunError):  # noqa: N818 - public name, kept
     """The TCU did not answer the lock-step presence probe in time."""
 
 
@@ -54,7 +54,7 @@ class PlantRunner:
     def __init__(self, plant: Plant, scenario: Scenario, codec: Codec, bus: can.BusABC,
                  listeners: tuple[Callable[[can.Message], None], ...] = (),
                  progress: Callable[[str], None] | None = None) -> None:
-        for name, signals in PLANT_USES.items():  # resolved at start-up by the codec; fail here if not
+        for name in PLANT_USES:  # resolved at start-up by the codec; fail here if not
             codec.message(name)
         self.plant, self.scenario, self.codec, self.bus = plant, scenario, codec, bus
         self.listeners = listeners
@@ -193,7 +193,7 @@ class PlantRunner:
         self._running = True
         t0 = time.monotonic()
         try:
-            for self.tick in range(self.n_periods):
+            for self.tick in range(self.n_periods):  # noqa: B020 - the tick is kept on self on purpose
                 t = self.tick * self.period
                 self._period.clear()
                 self._publish_due(t, stamp=t)

@@ -78,7 +78,7 @@ class Scenario:
                 break
         return current
 
-    def with_duration(self, duration_s: float) -> "Scenario":
+    def with_duration(self, duration_s: float) -> Scenario:
         if not 1e-3 <= duration_s <= 1e6:  # as duration_s in a scenario file (and no NaN, no inf)
             raise ScenarioError(f"--duration: must be within [0.001, 1e6] s, got {duration_s}")
         return replace(self, duration_s=duration_s)
@@ -127,7 +127,8 @@ def parse_scenario(text: str, origin: str = "<string>") -> Scenario:
         creep = ev.get("creep_request", False)
         if not isinstance(creep, bool):
             raise ScenarioError(f"{where}creep_request: must be true or false")
-        driver.append(DriverInput(_number(ev, "t_s", where, 0.0, 1e6), creep, _number(ev, "brake", where, 0.0, 1.0, 0.0),
+        driver.append(DriverInput(_number(ev, "t_s", where, 0.0, 1e6), creep,
+                                  _number(ev, "brake", where, 0.0, 1.0, 0.0),
                                   _number(ev, "desired_speed_mps", where, 0.0, 5.0, 0.0)))
     if any(b.t_s < a.t_s for a, b in zip(driver, driver[1:])):
         raise ScenarioError("driver: events must be in time order")

@@ -32,7 +32,8 @@ class CaseResult:
         """(quantity, simulated, published, deviation, within the issue's band) for each published number."""
         r, t = self.reference, self.trace
         rows = [("temperature_rise_c", t.temperature_rise, r.temperature_rise_c,
-                 t.temperature_rise - r.temperature_rise_c, abs(t.temperature_rise - r.temperature_rise_c) <= TOL_RISE_C)]
+                 t.temperature_rise - r.temperature_rise_c,
+                 abs(t.temperature_rise - r.temperature_rise_c) <= TOL_RISE_C)]
         for name, sim, pub in (("torque_start_nm", t.torque[0], r.torque_start_nm),
                                ("torque_end_nm", t.torque[-1], r.torque_end_nm)):
             if pub is not None:

@@ -36,7 +36,8 @@ def vcan_present() -> bool:
 
 def create_vcan() -> str | None:
     """Try ``modprobe vcan`` and ``ip link add``; returns None on success, else why it failed."""
-    steps = (["modprobe", "vcan"], ["ip", "link", "add", "dev", VCAN, "type", "vcan"], ["ip", "link", "set", "up", VCAN])
+    steps = (["modprobe", "vcan"], ["ip", "link", "add", "dev", VCAN, "type", "vcan"],
+             ["ip", "link", "set", "up", VCAN])
     for cmd in steps:
         if shutil.which(cmd[0]) is None:
             return f"{cmd[0]} not found"

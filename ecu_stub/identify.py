@@ -33,7 +33,7 @@ import numpy as np
 
 from dsg_hil.protocol import Codec, FrameError, load_dbc
 
-from .calibration import Clutch, FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
+from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
 from .clutch_model import RPM_TO_RAD_S, friction_heat, plate_step
 
 USES = {

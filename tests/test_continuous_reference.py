@@ -3,7 +3,6 @@ the same equations: plate temperature within 0.1 degC and speeds within 0.5 % ov
 
 from __future__ import annotations
 
-from dataclasses import replace
 
 import numpy as np
 import pytest

@@ -27,7 +27,8 @@ def test_locked_creep_steady_state_by_hand(params):
     ratio = pt.i_a * pt.i_L * pt.i_1 * pt.i_b
     v = params.engine.omega_idle / ratio * veh.r_w
     assert out.v == pytest.approx(v, rel=1e-3)
-    force = veh.m * veh.g * (math.sin(veh.beta) + veh.f * math.cos(veh.beta)) + 0.5 * veh.rho_air * veh.C_D * veh.A * v**2
+    force = (veh.m * veh.g * (math.sin(veh.beta) + veh.f * math.cos(veh.beta))
+             + 0.5 * veh.rho_air * veh.C_D * veh.A * v**2)
     M_e = force * veh.r_w / (ratio * pt.eta_a * pt.eta_L * pt.eta_1 * pt.eta_b)
     assert out.M_e == pytest.approx(M_e, rel=2e-3)
     assert out.Q_CL == 0.0
@@ -114,7 +115,8 @@ def test_fast_thermal_path_equals_the_network_step(params):
     rng = np.random.default_rng(11)
     for _ in range(10):
         T = rng.uniform(20.0, 250.0, len(NODES))
-        Q_CL, Q_CH, P_CL, P_CH = rng.uniform(0.0, 2e4), rng.uniform(0.0, 2e4), rng.uniform(0, 1.5e6), rng.uniform(0, 1.5e6)
+        Q_CL, Q_CH = rng.uniform(0.0, 2e4), rng.uniform(0.0, 2e4)
+        P_CL, P_CH = rng.uniform(0, 1.5e6), rng.uniform(0, 1.5e6)
         fast = plant.thermal.Phi @ T + plant._T_const + plant._T_src @ np.array([Q_CL, Q_CH, P_CL, P_CH])
         np.testing.assert_allclose(fast, plant.thermal.step(T, heat_sources(params, Q_CL, Q_CH, P_CL, P_CH)),
                                    rtol=1e-12, atol=1e-9)

@@ -201,7 +201,7 @@ def test_ticks_given_up_run_on_the_dbc_fallback():
         pair.tcu_bus.send = lossy
         summary = pair.run()
         results[n_lost] = (pair.runner.frames(), summary)
-    for n_lost, (f, summary) in results.items():
+    for n_lost, (f, _) in results.items():
         assert f["unanswered_ticks"] == n_lost and f["by_message"]["SIM_SYNC"]["retries"] == 2 * n_lost
         assert f["rejected"] == 0
     assert results[2][1].fallback_events == 0

@@ -49,5 +49,6 @@ def _do_calibrate(args: argparse.Namespace) -> int:
     for key, new, old in zip(VEHICLE_THERMAL_KEYS, fitted, vehicle_thermal(params)):
         print(f"{key:<32} fitted {new:.4g}  file {old:.4g}")
     result = reduced_creep(with_vehicle_thermal(params, *fitted), scenario)
-    _print_checks("reduced model with the fitted values (Section V.B):", timeline_checks(result) + friction_checks(result))
+    _print_checks("reduced model with the fitted values (Section V.B):",
+                  timeline_checks(result) + friction_checks(result))
     return 0

@@ -22,8 +22,8 @@ from dsg_hil.protocol.codec import DEFAULT_DBC
 from dsg_hil.vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
 
 BUS = ["--interface", "socketcan", "--channel", "vcan0"]
-DBC = Path(str(DEFAULT_DBC))
-RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]  # the DBC inside the installed package, for 'cantools decode'
+DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
+RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]
 
 
 def pytest_configure(config):

@@ -8,5 +8,5 @@ from .crc import crc8_j1850
 from .e2e import MAX_DELTA, Protection, ProtectionError
 from .validity import RxMonitor, RxState, TxScheduler
 
-__all__ = ["MAX_DELTA", "Codec", "DecodedFrame", "FrameError", "Protection", "ProtectionError", "ProtocolError", "RxMonitor", "RxState", "TxScheduler",
-           "crc8_j1850", "load_dbc"]
+__all__ = ["MAX_DELTA", "Codec", "DecodedFrame", "FrameError", "Protection", "ProtectionError", "ProtocolError",
+           "RxMonitor", "RxState", "TxScheduler", "crc8_j1850", "load_dbc"]

@@ -9,10 +9,10 @@ rejects (never clamps) a frame with a wrong DLC, CRC or a value outside its rang
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import cantools
 from cantools.database.can import Database, Message, Signal

@@ -44,7 +44,7 @@ class Protection:
     counter_modulus: int
 
     @classmethod
-    def of(cls, message: Message) -> "Protection":
+    def of(cls, message: Message) -> Protection:
         try:
             crc, counter = message.get_signal_by_name(CRC), message.get_signal_by_name(COUNTER)
         except KeyError as exc:

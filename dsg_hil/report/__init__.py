@@ -7,8 +7,8 @@ Entry point: :func:`write_report`. The creep part always comes from a decoded bu
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from ..validation import CaseResult, validation_json
 from .log import CreepRecord

@@ -9,9 +9,10 @@ the TCU's handovers are absent). The simulation-only truth frames (SIM_*) are us
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, NamedTuple
+from typing import NamedTuple
 
 import can
 import numpy as np

@@ -15,7 +15,7 @@ def _fmt(x: float | None, unit: str) -> str:
 
 def write_page(path: Path, report: dict, figures: list[Path]) -> Path:
     m = report
-    lines = [f"# dsg-hil report: paper vs dsg-hil", "",
+    lines = ["# dsg-hil report: paper vs dsg-hil", "",
              f"Creep log: `{m['log']['path']}` ({m['log']['frames']['decoded']} frames decoded, "
              f"{m['log']['frames']['rejected']} rejected, {m['log']['frames']['unknown']} unknown IDs; "
              f"TCU_STATUS {'present' if m['log']['tcu_status'] else 'absent'}). Definitions of the creep numbers: "

@@ -58,7 +58,8 @@ def mutate(pattern: str, repl: str) -> str:
 
 @pytest.mark.parametrize("text, key, words", [
     (mutate(r"^K_a1 = .*\n", ""), "powertrain.K_a1", "missing"),
-    (mutate(r"^\[powertrain\]\n", "[powertrain]\nK_a9 = { value = 1.0, unit = \"1\", source = \"assumed\", why = \"xxxxxxxxxxx\" }\n"),
+    (mutate(r"^\[powertrain\]\n",
+            "[powertrain]\nK_a9 = { value = 1.0, unit = \"1\", source = \"assumed\", why = \"xxxxxxxxxxx\" }\n"),
      "powertrain.K_a9", "unknown key"),
     (mutate(r'(^K_a1 = \{ value = 89389.0, unit = )"N\*m/rad"', r'\1"N*m"'), "powertrain.K_a1", "unit"),
     (mutate(r'(^K_a1 = \{ value = )89389.0', r'\g<1>-1.0'), "powertrain.K_a1", "out of range"),

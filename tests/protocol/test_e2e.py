@@ -21,7 +21,8 @@ def test_crc_parameters_check_value_and_a_worked_frame():
     assert data[7] == crc8_j1850(bytes.fromhex("0002") + bytes.fromhex("88130000000003"))
 
 
-def _db_with(crc_sig: str, counter_sig: str = " SG_ Counter : 48|4@1+ (1,0) [0|15] \"-\" B") -> cantools.database.Database:
+def _db_with(crc_sig: str,
+             counter_sig: str = " SG_ Counter : 48|4@1+ (1,0) [0|15] \"-\" B") -> cantools.database.Database:
     text = f"""VERSION ""
 NS_ :
 BS_:

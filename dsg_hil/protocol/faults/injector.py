@@ -15,7 +15,7 @@ from __future__ import annotations
 import random
 import time
 from collections import Counter as Tally
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 import can
 from cantools.database.can import Database, Message, Signal

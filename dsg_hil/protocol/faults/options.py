@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import argparse
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 import can
 from cantools.database.can import Database

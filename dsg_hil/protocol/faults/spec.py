@@ -23,8 +23,9 @@ unknown-ID frames per frame the node sends, default 10), ``frame_id`` (flood, de
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, fields
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from cantools.database.can import Database
 
