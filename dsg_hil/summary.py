@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from .reference import SAFETY_TEMPERATURE_C
 
@@ -46,6 +47,56 @@ SETTLE_S = 0.5  # s after a crossover (before the next) where a phase's start (e
 ESTABLISHED = 0.5  # creep is under way once the vehicle has reached this fraction of the desired speed
 
 
+class Sample(Protocol):
+    """What :class:`CreepMetrics` reads of a sample: these attributes of :class:`dsg_hil.plant.PlantOutputs`
+    (:class:`dsg_hil.report.log.LogSample` has them too)."""
+
+    @property
+    def t(self) -> float: ...
+
+    @property
+    def v(self) -> float: ...
+
+    @property
+    def omega_in(self) -> float: ...
+
+    @property
+    def omega_CL(self) -> float: ...
+
+    @property
+    def omega_CH(self) -> float: ...
+
+    @property
+    def P_CL(self) -> float: ...
+
+    @property
+    def P_CH(self) -> float: ...
+
+    @property
+    def T_CL(self) -> float: ...
+
+    @property
+    def T_CH(self) -> float: ...
+
+    @property
+    def mu_CL(self) -> float: ...
+
+    @property
+    def mu_CH(self) -> float: ...
+
+    @property
+    def M_CL(self) -> float: ...
+
+    @property
+    def M_CH(self) -> float: ...
+
+    @property
+    def Q_CL(self) -> float: ...
+
+    @property
+    def Q_CH(self) -> float: ...
+
+
 def _known(x: float) -> bool:
     return x == x  # not NaN
 
@@ -55,7 +106,7 @@ def _slips(omega_in: float, omega: float, M: float, P: float) -> bool:
     return (abs(M) > TORQUE_MIN if M == M else P > P_ENGAGED) and abs(omega_in - omega) > SLIP_MIN
 
 
-def driving_clutch(s) -> tuple[str | None, bool]:
+def driving_clutch(s: Sample) -> tuple[str | None, bool]:
     """The slipping clutch that drives (the larger torque when both slip), and whether both slip."""
     cl = _slips(s.omega_in, s.omega_CL, s.M_CL, s.P_CL)
     ch = _slips(s.omega_in, s.omega_CH, s.M_CH, s.P_CH)
@@ -73,14 +124,14 @@ class _Run:
     clutch: str | None
     start: float
     end: float
-    first: object = None
-    settled: object = None
-    lagged: object = None
-    last: object = None
-    tail: object = None  # last sample of the run
-    window: deque = field(default_factory=deque)
+    first: Sample | None = None
+    settled: Sample | None = None
+    lagged: Sample | None = None
+    last: Sample | None = None
+    tail: Sample | None = None  # last sample of the run
+    window: deque[Sample] = field(default_factory=deque)
 
-    def take(self, s, dt: float, alone: bool) -> None:
+    def take(self, s: Sample, dt: float, alone: bool) -> None:
         self.end, self.tail = s.t + dt, s
         if not alone:
             return
@@ -93,10 +144,12 @@ class _Run:
             self.lagged = self.window.popleft()
         self.last = s
 
-    def values(self) -> tuple[object, object, object]:
+    def values(self) -> tuple[Sample, Sample, Sample]:
         """(start, end, last) samples: the start and end values of mu and P, and the temperatures at the end."""
         last = self.last or self.tail
-        return self.settled or self.first or self.tail, self.lagged or last, last
+        start = self.settled or self.first or self.tail
+        assert start is not None and last is not None, "a run is created with its first sample"
+        return start, self.lagged or last, last
 
 
 def _r(x: float | None, nd: int) -> float | None:
@@ -142,7 +195,7 @@ class CreepMetrics:
     speed_min_creeping: float | None = None
     rollback_speed: float = 0.0
     rollback_distance: float = 0.0
-    stop: tuple[float, object] | None = None
+    stop: tuple[float, Sample] | None = None
     # from TCU_STATUS, when a TCU sends it
     handovers: list[dict] = field(default_factory=list)
     tcu_state: str | None = None
@@ -154,10 +207,10 @@ class CreepMetrics:
     _sq_speed_error: float = 0.0
     _driven_time: float = 0.0
     _moved: bool = False
-    _rest: tuple[float, object] | None = None
+    _rest: tuple[float, Sample] | None = None
     _t_last: float = 0.0
 
-    def add(self, s, dt: float, creep_request: bool, desired_speed: float) -> None:
+    def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
         """One sample ``s`` standing for the interval [s.t, s.t + dt)."""
         clutch, both = driving_clutch(s)
         if clutch is not None:
@@ -205,7 +258,8 @@ class CreepMetrics:
             self.stop = self._rest
         self._rest = None
 
-    def status(self, t: float, state: int, active: int, T_CL_pred: float, T_CH_pred: float, truth) -> None:
+    def status(self, t: float, state: float, active: float, T_CL_pred: float, T_CH_pred: float,
+               truth: Sample) -> None:
         """A TCU_STATUS frame at ``t`` (raw State/ActiveClutch values), with the truth at that time."""
         state_name = STATES.get(int(state), f"UNKNOWN_{int(state)}")
         clutch = CLUTCHES.get(int(active), "NONE")
@@ -217,11 +271,12 @@ class CreepMetrics:
             self.tcu_stop_s = round(t, 3)
         self.tcu_state, self.active_clutch = state_name, clutch
         for name, pred, true in (("CL", T_CL_pred, truth.T_CL), ("CH", T_CH_pred, truth.T_CH)):
-            if self.max_pred[name] is None or pred > self.max_pred[name]:
+            peak, worst = self.max_pred[name], self.pred_error[name]
+            if peak is None or pred > peak:
                 self.max_pred[name] = pred
             if _known(true):
                 err = pred - true
-                if self.pred_error[name] is None or abs(err) > abs(self.pred_error[name][0]):
+                if worst is None or abs(err) > abs(worst[0]):
                     self.pred_error[name] = (err, t)
 
     def as_json(self) -> dict:
@@ -283,13 +338,13 @@ class RunSummary:
     def active_clutch(self) -> str:
         return self.creep.active_clutch or "NONE"
 
-    def on_step(self, out, creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
+    def on_step(self, out: Sample, creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
         """One plant step: ``out`` holds the outputs at its end, and stands for the step just taken."""
         self.creep.add(out, self.dt, creeping, desired_speed)
         if fallback:
             self.fallback_time_s += self.dt
 
-    def on_status(self, t: float, values: dict[str, float], truth) -> None:
+    def on_status(self, t: float, values: dict[str, float], truth: Sample) -> None:
         self.creep.status(t, values["State"], values["ActiveClutch"], values["T_CL_Pred"], values["T_CH_Pred"],
                           truth)
 

@@ -118,6 +118,7 @@ def run_in_vm(plan: VmPlan, timeout: float) -> int:
                             stderr=subprocess.STDOUT)
     timer = threading.Timer(timeout, proc.kill)
     timer.start()
+    assert proc.stdout is not None  # stdout=PIPE
     try:
         for raw in proc.stdout:
             line = _printable(raw.decode(errors="replace"))

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -127,7 +128,7 @@ def _check_number(key: str, x: Any, lo: float | None, hi: float | None) -> float
     return float(x)
 
 
-def _value(key: str, entry: Any, meta: dict) -> Any:
+def _value(key: str, entry: Any, meta: Mapping[str, Any]) -> Any:
     if not isinstance(entry, dict) or "value" not in entry:
         raise CalibrationError(f"{key}: must be an inline table {{ value, unit, source, how }}")
     extra = set(entry) - {"value", "unit", "source", "how"}

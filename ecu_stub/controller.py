@@ -114,6 +114,12 @@ class CreepController:
         c, T_out = self.cal.clutch(clutch), inp.oil_c(clutch)
         return T_out + c.cooling_w_k / c.K_plate_oil_w_k * max(T_out - inp.T_sump_c, 0.0)
 
+    @property
+    def _T_pred(self) -> dict[str, float]:
+        """The plate estimates [degC], known to be set (by the first :meth:`_predict`)."""
+        assert self.T_pred is not None, "no plate estimate before the first valid plant frames"
+        return self.T_pred
+
     def starting(self, now: float) -> bool:
         """True while the plate estimates still come from the start-up observer."""
         return self.first_seen is None or now - self.first_seen < self.cal.strategy.startup_observer_s
@@ -127,22 +133,22 @@ class CreepController:
             return
         for c in ("CL", "CH"):
             clutch = self.cal.clutch(c)
-            self.heat[c] = friction_heat(self.cal.friction, clutch, self.T_pred[c], inp.slip_rpm(c),
+            self.heat[c] = friction_heat(self.cal.friction, clutch, self._T_pred[c], inp.slip_rpm(c),
                                          inp.pressure_mpa(c))
-            self.T_pred[c] = plate_step(clutch, self.T_pred[c], self.heat[c], inp.oil_c(c), dt)
+            self._T_pred[c] = plate_step(clutch, self._T_pred[c], self.heat[c], inp.oil_c(c), dt)
 
     def pressure_for(self, clutch: str, force_n: float, inp: TcuInputs) -> float:
         """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu k_geom)."""
         c = self.cal.clutch(clutch)
         torque = max(force_n, 0.0) * c.speed_ratio_m / self.cal.vehicle.eta
-        per_mpa = torque_per_mpa(self.cal.friction, c, self.T_pred[clutch], inp.slip_rpm(clutch),
+        per_mpa = torque_per_mpa(self.cal.friction, c, self._T_pred[clutch], inp.slip_rpm(clutch),
                                  max(self.P_cmd[clutch], inp.pressure_mpa(clutch)))
         return min(torque / per_mpa, self.cal.speed.P_max_mpa)
 
     def force_capacity(self, clutch: str, inp: TcuInputs) -> float:
         """Largest wheel force the clutch gives at the pressure limit [N]."""
         c, P_max = self.cal.clutch(clutch), self.cal.speed.P_max_mpa
-        per_mpa = torque_per_mpa(self.cal.friction, c, self.T_pred[clutch], inp.slip_rpm(clutch), P_max)
+        per_mpa = torque_per_mpa(self.cal.friction, c, self._T_pred[clutch], inp.slip_rpm(clutch), P_max)
         return per_mpa * P_max * self.cal.vehicle.eta / c.speed_ratio_m
 
     # ---- the thermal limits ----------------------------------------------------------------------------------
@@ -164,14 +170,14 @@ class CreepController:
         """The clutch may take the load if its estimate is ``takeover_headroom_k`` under its limit, the limit taken at
         the largest friction power of the two now (the on-coming clutch will carry the same wheel force)."""
         load = max(self.heat.values())
-        return self.T_pred[clutch] <= self.limit(clutch, load) - self.cal.strategy.takeover_headroom_k
+        return self._T_pred[clutch] <= self.limit(clutch, load) - self.cal.strategy.takeover_headroom_k
 
     def _limit_reached(self, now: float) -> bool:
         c = self.active
         limit = self.limit(c)
-        if self.T_pred[c] >= limit:
+        if self._T_pred[c] >= limit:
             return True
-        if self.T_pred[c] >= limit - self.cal.strategy.dwell_band_k:
+        if self._T_pred[c] >= limit - self.cal.strategy.dwell_band_k:
             if self.near_limit_since is None:
                 self.near_limit_since = now
             return now - self.near_limit_since >= self.cal.strategy.dwell_time_s

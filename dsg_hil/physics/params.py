@@ -17,7 +17,7 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar, dataclass_transform
 
 from ..errors import InputError, read_input_file
 
@@ -30,25 +30,35 @@ class ParameterError(InputError):
 
 
 def p(unit: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False,
-      whole: bool = False) -> Any:
+      whole: bool = False) -> float:
     """Declare a parameter field with its unit and allowed range [lo, hi] (lo excluded if ``lo_open``);
-    ``whole``: a count, its value a whole number."""
+    ``whole``: a count, its value a whole number. The field has no default: the file must give it."""
     return field(metadata={"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "whole": whole})
 
 
-def positive(unit: str) -> Any:
+def positive(unit: str) -> float:
     return p(unit, 0.0, None, lo_open=True)
 
 
-def nonneg(unit: str) -> Any:
+def nonneg(unit: str) -> float:
     return p(unit, 0.0)
 
 
-def ratio() -> Any:
+def ratio() -> float:
     return p("1", 0.0, 1.0, lo_open=True)
 
 
-@dataclass(frozen=True)
+_C = TypeVar("_C")
+
+
+@dataclass_transform(frozen_default=True, field_specifiers=(field, p, positive, nonneg, ratio))
+def parameters(cls: type[_C]) -> type[_C]:
+    """``@dataclass(frozen=True)``, and tells type checkers (PEP 681) that a field declared with :func:`p` and
+    its shorthands has no default, so a missing one is an error to them as it is to the loader."""
+    return dataclass(frozen=True)(cls)
+
+
+@parameters
 class Friction:
     """Formula (6) in its Stribeck reading (see :mod:`dsg_hil.physics.friction`)."""
 
@@ -57,7 +67,7 @@ class Friction:
     tau_slip: float = positive("s")  # frictional memory: (6) sees the slip speed through this first-order lag
 
 
-@dataclass(frozen=True)
+@parameters
 class ClutchGeometry:
     """One wet multi-plate clutch, equation (5), and its plate pack's heat capacity."""
 
@@ -68,20 +78,20 @@ class ClutchGeometry:
     C_plate: float = positive("J/K")  # heat capacity of the plates (the component of element CL/CH in (3))
 
 
-@dataclass(frozen=True)
+@parameters
 class Clutches:
     test: ClutchGeometry  # the rig clutch of Section III.C
     CL: ClutchGeometry
     CH: ClutchGeometry
 
 
-@dataclass(frozen=True)
+@parameters
 class Oil:
     rho: float = positive("kg/m^3")
     c_p: float = positive("J/(kg*K)")
 
 
-@dataclass(frozen=True)
+@parameters
 class Circuit:
     """Oil circuit of Fig. 2: reservoir F -> pump P -> valve V (and relief RV -> F) -> clutches -> radiator R -> F.
     The cooling flow through each clutch is that clutch's own (:class:`ClutchThermal`); the rest of the valve's
@@ -93,7 +103,7 @@ class Circuit:
     eta_pump: float = ratio()
 
 
-@dataclass(frozen=True)
+@parameters
 class Element:
     """One lumped element of (2): component capacity, oil volume and its conductances."""
 
@@ -104,7 +114,7 @@ class Element:
     K_oE: float = nonneg("W/K")  # oil <-> environment E
 
 
-@dataclass(frozen=True)
+@parameters
 class ClutchThermal:
     """What a clutch element (CL or CH of (3)) needs besides its plate pack (Clutches.*.C_plate)."""
 
@@ -115,14 +125,14 @@ class ClutchThermal:
     K_oE: float = nonneg("W/K")
 
 
-@dataclass(frozen=True)
+@parameters
 class ClutchThermals:
     test: ClutchThermal  # the rig's test clutch with the rig's lubrication (Section III.C)
     CL: ClutchThermal
     CH: ClutchThermal
 
 
-@dataclass(frozen=True)
+@parameters
 class Thermal:
     T_E: float = p("degC", -40.0, 60.0)  # environment
     clutch: ClutchThermals
@@ -133,7 +143,7 @@ class Thermal:
     R: Element
 
 
-@dataclass(frozen=True)
+@parameters
 class Powertrain:
     """Lumped torsional model of Fig. 6, equations (7)-(12), (14)-(17)."""
 
@@ -169,7 +179,7 @@ class Powertrain:
     eta_b: float = ratio()
 
 
-@dataclass(frozen=True)
+@parameters
 class Vehicle:
     """Road load (13)."""
 
@@ -186,7 +196,7 @@ class Vehicle:
     M_brake_max: float = nonneg("N*m")  # service brake torque at the wheels at full request
 
 
-@dataclass(frozen=True)
+@parameters
 class Engine:
     """Engine with an idle governor (the paper gives no engine map)."""
 
@@ -198,7 +208,7 @@ class Engine:
     Ki_gov: float = nonneg("N*m/rad")
 
 
-@dataclass(frozen=True)
+@parameters
 class Hydraulics:
     """Clutch pressure response: first-order lag towards the clamped command."""
 
@@ -206,7 +216,7 @@ class Hydraulics:
     P_max: float = positive("Pa")
 
 
-@dataclass(frozen=True)
+@parameters
 class Params:
     friction: Friction
     clutch: Clutches

@@ -14,7 +14,7 @@ coefficients, so :func:`discretize` gives its exact solution (matrix exponential
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import expm
@@ -154,6 +154,8 @@ class DiscreteNetwork:
     dt: float
     Phi: np.ndarray
     Gamma: np.ndarray
+    _Gamma_per_C: np.ndarray = field(init=False, repr=False, compare=False)  # set in __post_init__
+    _drive: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n = self.network

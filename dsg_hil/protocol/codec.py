@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import cast
 
 import cantools
 from cantools.database.can import Database, Message, Signal
@@ -46,12 +47,16 @@ def load_dbc(path: str | Path | None = None) -> Database:
     """Load a DBC file strictly; ``None``: the one shipped inside the package (read as a package resource)."""
     try:
         if path is None:
-            return cantools.database.load_string(DEFAULT_DBC.read_text(encoding="utf-8"), "dbc", strict=True)
-        return cantools.database.load_file(str(path), strict=True)
+            db = cantools.database.load_string(DEFAULT_DBC.read_text(encoding="utf-8"), "dbc", strict=True)
+        else:
+            db = cantools.database.load_file(str(path), strict=True)
     except FileNotFoundError:
         raise ProtocolError(f"{path or DEFAULT_DBC}: DBC file not found") from None
     except Exception as exc:  # cantools raises several types for a bad file
         raise ProtocolError(f"{path or DEFAULT_DBC}: cannot load DBC ({exc})") from None
+    if not isinstance(db, Database):  # a .cdd/.odx file is a diagnostics database
+        raise ProtocolError(f"{path or DEFAULT_DBC}: not a CAN database")
+    return db
 
 
 def raw_range(signal: Signal) -> tuple[float, float]:
@@ -109,7 +114,7 @@ class Codec:
 
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
-        return self._by_name[name].cycle_time / 1000.0
+        return cast(int, self._by_name[name].cycle_time) / 1000.0  # checked in __init__
 
     # ---- encode / decode -------------------------------------------------------------------------------------
     def encode(self, name: str, values: Mapping[str, float], counter: int) -> bytes:
@@ -122,7 +127,8 @@ class Codec:
                 continue
             value = values.get(signal.name)
             lo, hi = signal_range(signal)
-            default = signal.initial if signal.initial is not None else min(max(0.0, lo), hi)
+            default = min(max(0.0, lo), hi) if signal.raw_initial is None else \
+                signal.raw_initial * signal.scale + signal.offset  # .initial may be a value name (VAL_)
             if value is None or not math.isfinite(value):
                 value = default
             data[signal.name] = min(max(float(value), lo), hi)
@@ -141,7 +147,8 @@ class Codec:
         if not self._protection[frame_id].check(data):
             raise FrameError("crc", f"{message.name}: CRC mismatch")
         try:
-            values = message.decode(bytes(data), decode_choices=False, scaling=True)
+            values = cast("dict[str, float]",  # no container messages in the DBC: a dict
+                          message.decode(bytes(data), decode_choices=False, scaling=True))
         except Exception as exc:  # noqa: BLE001 - cantools raises several types
             raise FrameError("malformed", f"{message.name}: {exc}") from None
         for signal in message.signals:

@@ -56,7 +56,7 @@ class Protection:
             raise ProtectionError(f"{message.name}.Counter must be 1-8 unsigned bits, got {counter.length}")
         return cls(message.frame_id, message.length, crc.start // 8, 1 << counter.length)
 
-    def crc(self, data: bytes) -> int:
+    def crc(self, data: bytes | bytearray) -> int:
         """The CRC of a frame's data (the CRC byte itself is not covered)."""
         covered = bytes(data[:self.crc_byte]) + bytes(data[self.crc_byte + 1:])
         return crc8_j1850(bytes((self.frame_id & 0xFF, (self.frame_id >> 8) & 0xFF)) + covered)

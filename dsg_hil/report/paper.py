@@ -8,6 +8,7 @@ entry per key, for every number that misses its band.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from ..reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C,
                          CREEP_T_ONCOMING_AT_STOP_C, CREEP_TIME_S, RIG_CASES, SAFETY_TEMPERATURE_C, TOL_CREEP_MU,
@@ -26,7 +27,14 @@ class Band:
     def accepts(self, sim: float, paper: float | None) -> bool:
         if self.upper is not None:
             return sim <= self.upper
-        tol = self.abs if self.abs is not None else self.rel * abs(paper)
+        if paper is None:
+            raise ValueError("a Band without 'upper' needs the paper's value")
+        if self.abs is not None:
+            tol = self.abs
+        elif self.rel is not None:
+            tol = self.rel * abs(paper)
+        else:
+            raise ValueError("a Band needs abs, rel or upper")
         return abs(sim - paper) <= tol + 1e-12
 
     def text(self, unit: str) -> str:
@@ -108,7 +116,7 @@ REASONS: dict[str, str] = {p.key: "" for p in PAPER} | {
 
 def lookup(report: dict, key: str) -> float | None:
     """The value at ``key`` ("a.b.c"; a number selects a validation case by its number) or None."""
-    node = report
+    node: Any = report
     for part in key.split("."):
         if isinstance(node, list):
             node = next((c for c in node if str(c.get("case")) == part), None)

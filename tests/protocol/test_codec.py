@@ -6,6 +6,7 @@ import can
 import pytest
 
 from dsg_hil.protocol import Codec, FrameError, ProtocolError, RxMonitor, TxScheduler, crc8_j1850, load_dbc
+from dsg_hil.protocol.codec import DEFAULT_DBC
 
 USES = {"TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"), "PLANT_OIL_TEMP": ("T_OilCL", "T_Sump"),
         "PLANT_SPEEDS": ("ClutchInputSpeed",)}
@@ -100,3 +101,16 @@ def test_tx_scheduler_absolute_deadlines_and_counter_wrap(codec):
     counters = [codec.decode(codec.frame_id("TCU_CMD"), bytes(tx.frame("TCU_CMD", {}).data)).counter
                 for _ in range(18)]
     assert counters == list(range(16)) + [0, 1]
+
+
+def test_start_value_of_a_signal_with_value_names_is_its_default(tmp_path):
+    """A GenSigStartValue on a signal with VAL_ names: cantools gives its initial value as a NamedSignalValue;
+    encoding without the signal (or with NaN) takes that start value instead of failing."""
+    text = DEFAULT_DBC.read_text(encoding="utf-8")
+    assert 'VAL_ 528 State ' in text
+    path = tmp_path / "start_value.dbc"
+    path.write_text(text + '\nBA_ "GenSigStartValue" SG_ 528 State 2;\n', encoding="utf-8")
+    codec = Codec(load_dbc(path), {"TCU_STATUS": ("State",)})
+    for given in ({}, {"State": float("nan")}):
+        frame = codec.decode(codec.frame_id("TCU_STATUS"), codec.encode("TCU_STATUS", given, 0))
+        assert frame.values["State"] == 2.0

@@ -16,6 +16,7 @@ import random
 import time
 from collections import Counter as Tally
 from collections.abc import Callable, Iterable
+from typing import cast
 
 import can
 from cantools.database.can import Database, Message, Signal
@@ -50,9 +51,10 @@ class FaultInjector:
         for i, spec in enumerate(self.specs):
             if spec.kind == "flood":
                 continue
+            assert spec.message is not None  # check_against_dbc: every other kind names its message
             if spec.kind == "out_of_range":  # fail at start-up, not mid-run, if the bits cannot carry it
                 try:
-                    outside_range(db.get_message_by_name(spec.message).get_signal_by_name(spec.signal))
+                    outside_range(db.get_message_by_name(spec.message).get_signal_by_name(str(spec.signal)))
                 except FaultError as exc:
                     raise FaultError(f"{spec.origin}: {exc}") from None
             self._by_id.setdefault(db.get_message_by_name(spec.message).frame_id, []).append(i)
@@ -111,18 +113,19 @@ class FaultInjector:
             self._held.append((t + spec.delay_s, self._sequence, msg))
             return []
         if kind == "corrupt_crc":
-            data = bytearray(msg.data)
             message = self._messages[msg.arbitration_id]
-            values = message.decode(bytes(data), decode_choices=False, scaling=False)
+            values = _decode(message, bytes(msg.data), scaling=False)
             values[CRC] = int(values[CRC]) ^ 0xFF
             return [_copy(msg, message.encode(values, scaling=False, strict=False))]
         if kind == "wrong_dlc":
             data = bytes(msg.data)[:spec.dlc].ljust(spec.dlc, b"\x00")
             return [_copy(msg, data)]
         message = self._messages[msg.arbitration_id]
-        values = message.decode(bytes(msg.data), decode_choices=False, scaling=True)
+        values = _decode(message, bytes(msg.data), scaling=True)
         if kind == "freeze_counter":
             values[COUNTER] = self._frozen.setdefault(i, int(values[COUNTER]))
+        elif spec.signal is None:  # parse_fault gives every other kind its MESSAGE.Signal
+            raise FaultError(f"{spec.origin}: {kind} needs a target MESSAGE.Signal")
         elif kind == "stuck":
             values[spec.signal] = spec.value
         elif kind == "offset":
@@ -132,7 +135,12 @@ class FaultInjector:
         return [_copy(msg, _sealed(message, values))]
 
 
-def _sealed(message: Message, values: dict) -> bytes:
+def _decode(message: Message, data: bytes, scaling: bool) -> dict[str, float]:
+    """The raw (or scaled) signal values; a dict, as the DBC has no container messages."""
+    return cast("dict[str, float]", message.decode(data, decode_choices=False, scaling=scaling))
+
+
+def _sealed(message: Message, values: dict[str, float]) -> bytes:
     """Encode without range checks (a fault may leave the range on purpose), then a valid CRC."""
     return Protection.of(message).seal(message.encode({**values, CRC: 0}, scaling=True, strict=False))
 
@@ -155,7 +163,7 @@ class FaultyBus(can.BusABC):
             clock = lambda: time.monotonic() - start  # noqa: E731
         self.clock = clock
         self.channel_info = f"faults on {inner.channel_info}"
-        super().__init__(channel=getattr(inner, "channel", None))
+        super().__init__(channel=getattr(inner, "channel", ""))  # BusABC only requires it
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         now = self.clock()

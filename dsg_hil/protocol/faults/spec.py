@@ -184,6 +184,8 @@ def fault_side(spec: FaultSpec, db: Database) -> str:
         return spec.side
     if spec.kind == "flood":
         return "plant"
+    if spec.message is None:
+        raise FaultError(f"{spec.origin}: {spec.kind} needs a target MESSAGE")
     senders = db.get_message_by_name(spec.message).senders
     side = SIDES.get(senders[0]) if senders else None
     if side is None:
@@ -206,6 +208,8 @@ def check_against_dbc(spec: FaultSpec, db: Database, where: str = "fault") -> No
         if any(m.frame_id == spec.frame_id for m in db.messages):
             raise FaultError(f"{where}: flood frame_id {spec.frame_id:#x} is a DBC message; pick an unknown ID")
         return
+    if spec.message is None:
+        raise FaultError(f"{where}: {spec.kind} needs a target MESSAGE")
     try:
         message = db.get_message_by_name(spec.message)
     except KeyError:
