@@ -77,7 +77,7 @@ def main() -> None:
     say(f"{'message':<16}{'cycle ms':>9}{'frames':>8}{'p50 dev ms':>12}{'p99 dev ms':>12}{'max dev ms':>12}")
     for m in db.messages:
         ts = times.get(m.frame_id, [])
-        if len(ts) < 3:
+        if len(ts) < 3 or m.cycle_time is None:
             say(f"{m.name:<16}{m.cycle_time:>9}{len(ts):>8}   (not sent in real time)")
             continue
         dev = [abs((b - a) * 1000.0 - m.cycle_time) for a, b in zip(ts, ts[1:])]

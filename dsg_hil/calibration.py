@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -168,7 +169,8 @@ def _timeline_residuals(r: CreepResult, T_takeover: float) -> np.ndarray:
     return np.array(res)
 
 
-def calibrate_vehicle_thermal(params: Params, scenario: Scenario | None = None, progress=None,
+def calibrate_vehicle_thermal(params: Params, scenario: Scenario | None = None,
+                              progress: Callable[[str], None] | None = None,
                               dt: float = 0.1) -> tuple[float, float, float, float]:
     """Least-squares fit of VEHICLE_THERMAL_KEYS to Section V.B's timeline (residuals scaled by their bands),
     from the parameter file's values, in log coordinates."""
@@ -183,4 +185,5 @@ def calibrate_vehicle_thermal(params: Params, scenario: Scenario | None = None, 
         return _timeline_residuals(r, SAFETY_TEMPERATURE_C - 10.0)
 
     sol = least_squares(residual, np.log(vehicle_thermal(params)), diff_step=1e-2, xtol=1e-8)
-    return tuple(float(v) for v in np.exp(sol.x))
+    a, b, c, d = (float(v) for v in np.exp(sol.x))
+    return a, b, c, d

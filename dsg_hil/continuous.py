@@ -8,6 +8,7 @@ State ``y = [omega (7), phi (5), T (14 nodes), P_CL, P_CH, governor integral, sl
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -26,7 +27,7 @@ def pack(plant: Plant) -> np.ndarray:
     return np.concatenate([s.x, s.T, [s.P_CL, s.P_CH, s.governor_integral], s.slip_memory])
 
 
-def rhs(plant: Plant, inputs: PlantInputs):
+def rhs(plant: Plant, inputs: PlantInputs) -> Callable[[float, np.ndarray], np.ndarray]:
     """f(t, y) for solve_ivp, with the inputs held constant."""
     p = plant.params
     grade = p.vehicle.beta if inputs.grade is None else inputs.grade

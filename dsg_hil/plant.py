@@ -14,6 +14,7 @@ Each step (inputs held over it, zero-order hold):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -182,8 +183,9 @@ class Plant:
         Q_diss = [Q[k] - C[i] * (T_new[i] - T_plate[k]) / self.dt for k, i in enumerate((I_CL, I_CH))]
         return self.outputs(M_e, mu, f, Q, stuck, Q_diss)
 
-    def outputs(self, M_e: float = 0.0, mu=(0.0, 0.0), f=(0.0, 0.0, 0.0), Q=(0.0, 0.0),
-                stuck=(False, False, False), Q_diss=(0.0, 0.0)) -> PlantOutputs:
+    def outputs(self, M_e: float = 0.0, mu: Sequence[float] = (0.0, 0.0), f: Sequence[float] = (0.0, 0.0, 0.0),
+                Q: Sequence[float] = (0.0, 0.0), stuck: Sequence[bool] = (False, False, False),
+                Q_diss: Sequence[float] = (0.0, 0.0)) -> PlantOutputs:
         p, s = self.params, self.state
         x, T = s.x, s.T
         return PlantOutputs(

@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .reference import RIG_DURATION_S, RIG_T_START_C
+
+if TYPE_CHECKING:
+    from .physics.params import Friction
+    from .reference import RigReference
+    from .validation import CaseResult
 
 COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 
@@ -21,11 +27,11 @@ def require_matplotlib():
     return plt
 
 
-def _label(ref) -> str:
+def _label(ref: RigReference) -> str:
     return f"{ref.case}: {ref.pressure_mpa} MPa, {ref.speed_rpm:g} r/min"
 
 
-def validation_figures(results, outdir: Path) -> list[Path]:
+def validation_figures(results: list[CaseResult], outdir: Path) -> list[Path]:
     """Figs. 3 (temperature), 4 (torque) and 5 (friction coefficient) of Section III.C, paper values marked."""
     plt = require_matplotlib()
     outdir.mkdir(parents=True, exist_ok=True)
@@ -64,7 +70,7 @@ def validation_figures(results, outdir: Path) -> list[Path]:
     return written
 
 
-def friction_map_figure(friction, outpath: Path) -> Path:
+def friction_map_figure(friction: Friction, outpath: Path) -> Path:
     """mu over slip speed for several temperatures and pressures: the reading of formula (6) in use."""
     from .physics.friction import friction_coefficient_grid
     plt = require_matplotlib()

@@ -19,7 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter as Tally
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import can
 
@@ -28,7 +28,7 @@ from .plant import Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
 from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from .protocol.errors import RunError
-from .protocol.faults import FaultInjector, fault_counts, with_faults
+from .protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from .protocol.validity import IGNORED, NEW, REJECTED
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
@@ -90,7 +90,7 @@ class PlantRunner:
         time; -1 before the run starts, so the lock-step handshake is never faulted."""
         return round(self.plant.state.t, 9) if self._running else -1.0
 
-    def inject(self, specs, seed: int = 0) -> None:
+    def inject(self, specs: Iterable[FaultSpec], seed: int = 0) -> None:
         """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock."""
         self.bus, self.injectors["plant"] = with_faults(self.bus, self.codec.db, specs, seed, self.clock)
         self.fault_seed = seed
@@ -129,6 +129,7 @@ class PlantRunner:
         status, frame = self.rx.take(msg, now)
         if status != NEW:
             return status, frame
+        assert frame is not None  # a NEW frame comes decoded
         msg.timestamp = stamp
         if self._held is not None:
             self._held.append(msg)
@@ -223,7 +224,8 @@ class PlantRunner:
             while (remaining := probe_end - time.monotonic()) > 0:
                 msg = self.bus.recv(timeout=remaining)
                 frame = None if msg is None else self.rx.receive(msg, 0.0)
-                if frame is not None and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == SYNC_PROBE & 0xFF:
+                if msg is not None and frame is not None and frame.name == "TCU_CMD" \
+                        and int(frame.values["SyncEcho"]) == SYNC_PROBE & 0xFF:
                     self.rx = RxMonitor(self.codec, list(PLANT_RX))  # the run starts from clean counts,
                     self.rx.prime(msg)  # its counters following the answer (a repeat of it is a duplicate)
                     self.sync = TxScheduler(self.codec, [SYNC])
@@ -260,12 +262,13 @@ class PlantRunner:
                         since, self._silent_s = time.monotonic(), 0.0
                     if status == REJECTED and msg.arbitration_id == cmd_id and not have_cmd:
                         next_retry = time.monotonic()  # a command that failed its checks: ask again at once
-                    elif status == NEW and frame.name == "TCU_CMD" and int(frame.values["SyncEcho"]) == echo:
+                    elif status == NEW and frame is not None and frame.name == "TCU_CMD" \
+                            and int(frame.values["SyncEcho"]) == echo:
                         have_cmd = True
                         if not self._status_expected(t):
                             return True
                         next_retry = time.monotonic()  # its TCU_STATUS was lost: ask again at once
-                    elif status == NEW and frame.name == "TCU_STATUS" and have_cmd:
+                    elif status == NEW and frame is not None and frame.name == "TCU_STATUS" and have_cmd:
                         return True
                     continue
                 now = time.monotonic()
@@ -324,7 +327,7 @@ class PlantRunner:
             while (msg := self.bus.recv(timeout=max(deadline - clock(), 0.0))) is not None:
                 on_bus = msg.timestamp  # until this step's deadline: take what arrives
                 status, frame = self._take(msg, clock() - start, stamp=start + t)
-                if status == NEW and frame.name == "TCU_CMD":
+                if status == NEW and frame is not None and frame.name == "TCU_CMD":
                     self._cmd_on_bus = on_bus
             now = clock() - start
             self._check_command(now)

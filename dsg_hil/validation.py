@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from .physics.params import Params
@@ -45,7 +46,8 @@ class CaseResult:
         return rows
 
 
-def run_validation(params: Params, dt: float = 1e-3, progress=None) -> list[CaseResult]:
+def run_validation(params: Params, dt: float = 1e-3,
+                   progress: Callable[[str], None] | None = None) -> list[CaseResult]:
     """Run the four Section III.C cases (100 s, constant pressure and relative speed, from 40 degC)."""
     results = []
     for ref in RIG_CASES:

@@ -206,12 +206,12 @@ def fit_cooling(cols: list[dict], K: float) -> tuple[float, float] | None:
     (T_out - T_in) with the sump for T_in, least squares through the origin over samples without friction heat.
     Returns (cooling [W/K], RMS of the plate temperature it implies [K]), or None when the runs have too few such
     samples (the base calibration's value is then kept)."""
-    x, y = [], []
+    xs, ys = [], []
     for d in cols:
         ok = np.isfinite(d["T"]) & np.isfinite(d["T_sump"]) & (d["Q"] <= 0.0) & (d["T_oil"] - d["T_sump"] > 1.0)
-        x.append((d["T_oil"] - d["T_sump"])[ok])
-        y.append((d["T"] - d["T_oil"])[ok])
-    x, y = np.concatenate(x), np.concatenate(y)
+        xs.append((d["T_oil"] - d["T_sump"])[ok])
+        ys.append((d["T"] - d["T_oil"])[ok])
+    x, y = np.concatenate(xs), np.concatenate(ys)
     if len(x) < 20:
         return None
     ratio = max(float(x @ y / (x @ x)), 0.0)

@@ -51,8 +51,8 @@ SIGHTS_BEFORE_INCOMPLETE = 3  # lock-step: a tick seen this often is answered ev
 
 
 def _choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
-    choices = codec.message(message).get_signal_by_name(signal).choices or {}
-    return {str(name): int(value) for value, name in choices.items()}
+    choices = codec.message(message).get_signal_by_name(signal).choices
+    return {str(name): int(value) for value, name in (choices or {}).items()}
 
 
 class TcuRunner:
@@ -145,6 +145,7 @@ class TcuRunner:
         status, frame = self.rx.take(msg, stamp)
         if status not in (NEW, DUPLICATE):
             return status != IGNORED
+        assert frame is not None  # NEW and DUPLICATE come decoded
         if self.heard_plant_at is None:
             self.heard_plant_at = now
         if frame.name != "SIM_SYNC":
@@ -185,7 +186,7 @@ class TcuRunner:
         self._pending = tick
         t = tick * self.cycle
         missing = [name for name, every in self._due_every.items() if tick % every == 0
-                   and (self.rx.states[name].last_time is None or abs(self.rx.states[name].last_time - t) > 1e-9)]
+                   and ((last := self.rx.states[name].last_time) is None or abs(last - t) > 1e-9)]
         if not missing:
             self._pending = None
             return True

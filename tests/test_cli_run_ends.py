@@ -29,6 +29,7 @@ def start_run(tmp_path: Path, *extra: str) -> subprocess.Popen:
 def wait_for(proc: subprocess.Popen, text: str, timeout: float = 120.0) -> list[str]:
     """stderr lines up to the first containing ``text``."""
     lines, deadline = [], time.monotonic() + timeout
+    assert proc.stderr is not None  # started with stderr=PIPE
     while time.monotonic() < deadline:
         line = proc.stderr.readline()
         if not line:
@@ -110,6 +111,7 @@ def udp_lockstep(tmp_path: Path, during=None) -> tuple[dict, str]:
     plant)`` runs while both are up. Returns the plant's summary and the TCU's stderr."""
     bus = ["--interface", "udp_multicast", "--channel", multicast_group()]
     tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2"], stderr=subprocess.PIPE, text=True)
+    assert tcu.stderr is not None  # stderr=PIPE
     try:
         assert "listening on udp_multicast" in tcu.stderr.readline()
         plant = subprocess.Popen([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", UDP_DURATION,

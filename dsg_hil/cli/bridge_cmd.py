@@ -16,7 +16,7 @@ from ..protocol.faults import FaultInjector, add_fault_arguments, bridge_step, f
 from .common import positive_number, progress
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "bridge", help="forward frames between two buses, injecting faults into one direction",
         description="Forward every frame from the --from bus to the --to bus through the faults given (times: "

@@ -6,8 +6,10 @@ import argparse
 import json
 import logging
 import sys
+from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
+from types import TracebackType
 
 import can
 
@@ -94,10 +96,11 @@ def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantR
     return runner, config, scenario
 
 
-def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario):
+def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict,
+                      scenario: Scenario) -> Callable[..., bool]:
     """An exit handler (ExitStack.push) that writes the summary so far when the run ends early: Ctrl-C,
     SIGTERM or a lost peer (stop reasons interrupted, terminated, peer_lost)."""
-    def on_exit(exc_type, exc, tb) -> bool:
+    def on_exit(exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> bool:
         reason = next((r for kind, r in STOP_REASONS if exc_type is not None and issubclass(exc_type, kind)), None)
         if reason is not None:
             runner.summary.stop_reason = reason
@@ -113,7 +116,7 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
     args.faults_by_side = check_faults([*scenario.faults, *faults_from_args(args)], db)
     bus = open_bus(config)
     stack.callback(bus.shutdown)
-    listeners = ()
+    listeners: tuple[LogListener, ...] = ()
     if args.log:
         listener = LogListener(args.log, log_channel(config))
         stack.callback(listener.stop)
@@ -125,7 +128,7 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
     return runner, config
 
 
-def drive(runner: PlantRunner, args: argparse.Namespace, pump=None) -> None:
+def drive(runner: PlantRunner, args: argparse.Namespace, pump: Callable[[], None] | None = None) -> None:
     """Run the scenario in the chosen mode (``pump``: an in-process TCU on the virtual bus, lockstep)."""
     if args.mode == "lockstep":
         runner.run_lockstep(args.reply_timeout, pump=pump, startup_timeout=args.startup_timeout)
@@ -140,7 +143,8 @@ def frames_line(frames: dict) -> str:
             f"{frames['unanswered_ticks']}")
 
 
-def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario, **extra) -> dict:
+def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario,
+           **extra: object) -> dict:
     """The run's summary (written to --summary if given)."""
     summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode, bus_name(config),
                                      scenario.duration_s)

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterable
 
-from ..calibration import (VEHICLE_THERMAL_KEYS, calibrate_h_plate_oil, calibrate_stribeck,
+from ..calibration import (VEHICLE_THERMAL_KEYS, Check, calibrate_h_plate_oil, calibrate_stribeck,
                            calibrate_vehicle_thermal, friction_checks, reduced_creep, rise_residuals, timeline_checks,
                            vehicle_thermal, with_h_plate_oil, with_vehicle_thermal)
 from ..scenario import load_scenario
 from .common import add_params_option, params_from, progress
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "calibrate", help="re-run the calibrations of the 'calibrated' parameters",
         description="Re-run every calibration behind a parameter tagged 'calibrated' (friction.A_stribeck against "
@@ -24,7 +25,7 @@ def add_subparser(sub) -> None:
     parser.set_defaults(func=_do_calibrate)
 
 
-def _print_checks(title: str, checks) -> None:
+def _print_checks(title: str, checks: Iterable[Check]) -> None:
     print(title)
     for c in checks:
         print(f"  {c.name:<26} {c.simulated:9.4g}  published {c.published:9.4g}  "

@@ -15,7 +15,7 @@ class Terminated(BaseException):
     """SIGTERM, raised in the main thread so that the run ends like on Ctrl-C: summary and log written."""
 
 
-def raise_terminated(signum, frame) -> None:
+def raise_terminated(signum: int, frame: object) -> None:
     raise Terminated
 
 

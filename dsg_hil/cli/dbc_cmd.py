@@ -11,7 +11,7 @@ from .common import positive_number
 LOAD_LIMIT = 0.30
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("dbc", help="list the DBC's messages and the bus load they imply",
                             description="List every message of the DBC with its ID, sender, cycle time and "
                                         "worst-case bus load (bit stuffing included). Exit 3 above 30 %%.")

@@ -6,10 +6,11 @@ import argparse
 from collections import Counter
 from dataclasses import fields
 
+from ..physics.params import Params
 from .common import add_params_option, params_from
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "params", help="list the model parameters and where each comes from",
         description="Load and check a parameter file, then list every value with its source: 'paper' (with the "
@@ -19,7 +20,7 @@ def add_subparser(sub) -> None:
     parser.set_defaults(func=_do_params)
 
 
-def _value_and_unit(params, key: str) -> tuple[float, str]:
+def _value_and_unit(params: Params, key: str) -> tuple[float, str]:
     """The value at a dotted key and the unit its dataclass field declares."""
     *path, name = key.split(".")
     obj = params

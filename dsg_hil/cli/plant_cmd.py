@@ -13,7 +13,7 @@ from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "plant", help="run the plant process on a bus (the TCU runs elsewhere)",
         description="Run the plant on a CAN bus against a TCU started separately (ecu-stub, or a real ECU on "

@@ -17,7 +17,7 @@ from .common import add_params_option, params_from, progress
 CREEP_LOG = "creep.log"
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "report", help="figures and a 'paper vs dsg-hil' table: validation rig and creep run",
         description="Run the Section III.C validation and the creep scenario (Section V.B) with the plant and the "

@@ -8,6 +8,9 @@ import sys
 import threading
 import time
 from contextlib import ExitStack
+from typing import Any
+
+from cantools.database.can import Database
 
 from ..errors import RunError
 from ..loop import answer_at_once, attach_tcu
@@ -17,7 +20,7 @@ from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "run", help="run the plant and the TCU (ecu-stub) together on a bus",
         description="Run a scenario with the plant and the TCU: as two processes on a real bus (socketcan, "
@@ -31,7 +34,7 @@ def add_subparser(sub) -> None:
     parser.set_defaults(func=_do_run)
 
 
-def _tcu_in_process(bus_config: dict, dbc, runner: PlantRunner, args: argparse.Namespace):
+def _tcu_in_process(bus_config: dict, dbc: Database, runner: PlantRunner, args: argparse.Namespace) -> Any:
     """The TCU side in this process (virtual bus only), its frames through the TCU-side faults."""
     tcu, _ = attach_tcu(runner, open_bus(bus_config), dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0))
     return tcu

@@ -11,7 +11,7 @@ from ..validation import run_validation, validation_json
 from .common import add_params_option, check_output_path, params_from, positive_number, progress
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "validate", help="run the paper's single-clutch validation (Section III.C)",
         description="Run the four Section III.C cases of the paper (clutch CL slipping 100 s at constant pressure "

@@ -16,7 +16,7 @@ from .common import progress
 DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "--pyargs", "dsg_hil.e2e"]
 
 
-def add_subparser(sub) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "vcan", help="run the vcan end-to-end tests (or a command) natively or in a throw-away VM",
         description="Run COMMAND (default: the vcan end-to-end tests shipped with the package, 'pytest -m vcan "

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .params import ClutchGeometry, Friction
 
@@ -75,7 +76,7 @@ def friction_coefficient(slip_rpm: float, T_c: float, P_mpa: float, f: Friction)
     )
 
 
-def friction_coefficient_grid(slip_rpm, T_c, P_mpa, f: Friction) -> np.ndarray:
+def friction_coefficient_grid(slip_rpm: ArrayLike, T_c: ArrayLike, P_mpa: ArrayLike, f: Friction) -> np.ndarray:
     """:func:`friction_coefficient` over broadcast arrays (for maps and tests)."""
     return np.vectorize(lambda n, T, P: friction_coefficient(n, T, P, f), otypes=[float])(slip_rpm, T_c, P_mpa)
 

@@ -23,6 +23,7 @@ have modes up to ~690 Hz.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,7 +152,8 @@ def discretize(model: Model, dt: float) -> Discrete:
     return Discrete(dt, E[:n, :n], Gamma, E[n:, :n], Gam[n:], V, V @ Gamma[:, CONTACT_INPUTS])
 
 
-def solve_contacts(v_free, W, cap, f0, iterations: int = 50, tol: float = 1e-9) -> list[float]:
+def solve_contacts(v_free: Sequence[float], W: Sequence[Sequence[float]], cap: Sequence[float], f0: Sequence[float],
+                   iterations: int = 50, tol: float = 1e-9) -> list[float]:
     """Friction torques f (one per contact, |f_i| <= cap_i) of the implicit time-stepping friction law.
 
     With ``v = v_free + W f`` the contact velocities at the end of the step: a contact sticks (v_i = 0) when it

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -11,12 +12,16 @@ from ..reference import SAFETY_TEMPERATURE_C
 from ..summary import TORQUE_MIN
 from .log import CreepRecord
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
 COLOR = {"CL": "tab:blue", "CH": "tab:orange"}
 DARK = {"CL": "navy", "CH": "saddlebrown"}
 SHADE = {"CL": "#dbe8f6", "CH": "#fde6cf"}
 
 
-def _frame(ax, record: CreepRecord, ylabel: str) -> None:
+def _frame(ax: Axes, record: CreepRecord, ylabel: str) -> None:
     """Phase shading (which clutch slips), handovers, the stop; labels and grid."""
     m = record.metrics
     for p in m["phases"]:
@@ -33,14 +38,14 @@ def _frame(ax, record: CreepRecord, ylabel: str) -> None:
 def _phase_legend(record: CreepRecord) -> list:
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
-    handles = [Patch(color=SHADE[c], label=f"{c} slips") for c in ("CL", "CH")]
+    handles: list[Patch | Line2D] = [Patch(color=SHADE[c], label=f"{c} slips") for c in ("CL", "CH")]
     handles.append(Line2D([], [], color="0.45", lw=0.8, ls=":", label="handover"))
     if record.metrics["stop_time_s"] is not None:
         handles.append(Line2D([], [], color="tab:red", lw=1.2, ls="--", label="vehicle stopped"))
     return handles
 
 
-def _save(fig, path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path)
     return path
@@ -89,7 +94,7 @@ def creep_figures(record: CreepRecord, outdir: Path) -> list[Path]:
     return written
 
 
-def _temperatures(ax, record: CreepRecord) -> None:
+def _temperatures(ax: Axes, record: CreepRecord) -> None:
     col = record.column
     for c in ("CL", "CH"):
         ax.plot(col("t"), col(f"T_{c}"), color=COLOR[c], lw=2, label=f"T_{c} (plant truth)")
@@ -99,7 +104,7 @@ def _temperatures(ax, record: CreepRecord) -> None:
     ax.axhline(SAFETY_TEMPERATURE_C, color="tab:red", lw=1.5, label=f"safety limit {SAFETY_TEMPERATURE_C:g} °C")
 
 
-def _mu(ax, record: CreepRecord) -> None:
+def _mu(ax: Axes, record: CreepRecord) -> None:
     col = record.column
     for c in ("CL", "CH"):
         transmits = np.abs(col(f"M_{c}")) > TORQUE_MIN
@@ -107,7 +112,7 @@ def _mu(ax, record: CreepRecord) -> None:
                 label=f"μ_{c} (while it transmits torque)")
 
 
-def _pressures(ax, record: CreepRecord) -> None:
+def _pressures(ax: Axes, record: CreepRecord) -> None:
     col = record.column
     for c in ("CL", "CH"):
         ax.plot(col("t"), col(f"P_{c}") / 1e6, color=COLOR[c], lw=3.0, alpha=0.55, label=f"P_{c} measured")
@@ -116,7 +121,7 @@ def _pressures(ax, record: CreepRecord) -> None:
     ax.set_ylim(top=ax.get_ylim()[1] * 1.3)  # room for the legend above the curves
 
 
-def _speed(ax, record: CreepRecord) -> None:
+def _speed(ax: Axes, record: CreepRecord) -> None:
     col = record.column
     target = np.where(col("creep_request") >= 0.5, col("desired_speed"), np.nan)
     ax.plot(col("t"), target, color="k", lw=1.2, ls="--", label="desired creep speed (DRIVER)")

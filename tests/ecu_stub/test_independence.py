@@ -13,7 +13,7 @@ ECU_STUB = Path(ecu_stub.__file__).resolve().parent  # the sources under test, i
 
 
 def imported_modules(path: Path) -> set[str]:
-    names = set()
+    names: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)

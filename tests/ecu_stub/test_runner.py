@@ -4,6 +4,8 @@ missing frame, at the first control cycle past the 3-cycle RX deadline of its la
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 import can
 import pytest
 
@@ -160,12 +162,12 @@ def test_a_tick_with_plant_frames_missing_waits_for_the_re_sent_period(setup):
     counting(tcu, steps)
     period = []
 
-    def resend(lose: set[str] = frozenset()) -> None:
+    def resend(lose: Collection[str] = frozenset()) -> None:
         for msg in period:
             if msg.arbitration_id not in {plant_codec.frame_id(name) for name in lose}:
                 tcu.handle(msg, 0.0)
 
-    def send_period(tick: int, lose: set[str] = frozenset()) -> None:
+    def send_period(tick: int, lose: Collection[str] = frozenset()) -> None:
         period[:] = [plant.frame(name, {}) for name in plant.due(tick * tcu.cycle) if name != "SIM_SYNC"]
         period.append(plant.frame("SIM_SYNC", {"Tick": tick}))
         resend(lose)

@@ -9,7 +9,10 @@ goes unanswered; more than 3 such ticks in a row put the plant's hydraulics in t
 from __future__ import annotations
 
 import math
+from typing import cast
 
+import can
+import cantools
 import pytest
 
 from dsg_hil.faults import FaultError, parse_fault
@@ -25,6 +28,10 @@ SENDS_PER_TICK = 7  # a tick given up: the first transmission and RETRIES_PER_TI
 @pytest.fixture(scope="module")
 def scenario():
     return load_scenario().with_duration(3.0)
+
+
+def _values(m: cantools.database.can.Message, f: can.Message) -> dict[str, float]:
+    return cast("dict[str, float]", m.decode(bytes(f.data), decode_choices=False))  # no container messages
 
 
 class Loop:
@@ -47,7 +54,7 @@ class Loop:
     def series(self, message: str, signal: str, t0: float = 0.0, t1: float = math.inf) -> list[tuple[float, float]]:
         """(time, value) of a signal in the captured frames (the plant's as it sent them, the TCU's it took)."""
         m = DB.get_message_by_name(message)
-        return [(round(f.timestamp, 3), float(m.decode(bytes(f.data), decode_choices=False)[signal]))
+        return [(round(f.timestamp, 3), float(_values(m, f)[signal]))
                 for f in self.frames if f.arbitration_id == m.frame_id and t0 <= f.timestamp < t1]
 
     def injected(self) -> int:

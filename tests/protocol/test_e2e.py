@@ -34,7 +34,9 @@ BO_ 256 MSG: 8 A
 BA_DEF_ BO_ "GenMsgCycleTime" INT 0 10000;
 BA_ "GenMsgCycleTime" BO_ 256 10;
 """
-    return cantools.database.load_string(text, "dbc", strict=False)
+    db = cantools.database.load_string(text, "dbc", strict=False)
+    assert isinstance(db, cantools.database.Database)
+    return db
 
 
 def test_positions_come_from_the_dbc():
