@@ -158,7 +158,7 @@ def _run_process(process: ControllerProcess, scenario: Scenario, params: Params,
     bus = open_bus(config)
     runner = PlantRunner(plant_for(scenario, params), scenario, Codec(db, PLANT_USES), bus,
                          (frames.append, at_each_tick(db, lambda: record(runner))))
-    with (open(output, "wb") if output is not None else tempfile.TemporaryFile()) as sink:
+    with (open(output, "w+b") if output is not None else tempfile.TemporaryFile()) as sink:
         try:
             runner.inject(by_side["plant"], fault_seed)
             proc = process.start(config, sink)
