@@ -20,7 +20,7 @@ import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Union
+from typing import Any, TypeGuard
 
 import can
 import numpy as np
@@ -40,7 +40,7 @@ from .signals import Signals, decode_frames
 
 __all__ = ["Controller", "ControllerProcess", "PlantRun", "Signals", "run_plant"]
 
-ControllerLike = Union[None, Controller, ControllerProcess, Sequence[str], Any]
+ControllerLike = Controller | ControllerProcess | Sequence[str] | Any  # or None: the bundled ecu-stub
 
 
 @dataclass
@@ -126,7 +126,7 @@ def _replace_dotted(obj: Any, path: list[str], value: float, key: str) -> Any:
     return dataclasses.replace(obj, **{path[0]: inner})
 
 
-def _is_command(controller: Any) -> bool:
+def _is_command(controller: Any) -> TypeGuard[Sequence[str]]:
     return isinstance(controller, (list, tuple)) and bool(controller) and all(isinstance(a, str) for a in controller)
 
 

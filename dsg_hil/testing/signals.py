@@ -39,7 +39,9 @@ def decode_frames(db: Database, frames: Iterable[can.Message]) -> Signals:
             continue
         names.add(message.name)
         columns[f"{message.name}.t"].append(msg.timestamp)
-        for name, value in message.decode(bytes(msg.data), decode_choices=False).items():
+        decoded = message.decode(bytes(msg.data), decode_choices=False)
+        assert isinstance(decoded, dict)  # (a container message would give a list; this DBC has none)
+        for name, value in decoded.items():
             columns[f"{message.name}.{name}"].append(float(value))  # type: ignore[arg-type]
     signals = Signals({key: np.asarray(values) for key, values in columns.items()})
     for message in db.messages:  # a message never sent: empty arrays, so a test fails on values, not on a key
