@@ -63,5 +63,5 @@ CASES = {
 if __name__ == "__main__":
     for name in sys.argv[1:] or list(CASES):
         scenario, mass = CASES[name]()
-        s, trace, _ = closed_loop(f"envelope-{name}", scenario, mass)
+        s, trace, _ = closed_loop(scenario, mass)
         print(name, json.dumps(metrics(s, trace)), flush=True)

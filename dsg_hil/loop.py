@@ -19,7 +19,7 @@ from cantools.database.can import Database
 from .physics.params import Params, load_params
 from .physics.thermal import NODES
 from .plant import Plant
-from .plant_io import PLANT_USES
+from .plant_io import PLANT_USES, SYNC
 from .protocol import Codec, load_dbc
 from .protocol.faults import FaultSpec, check_faults, with_faults
 from .runner import PlantRunner
@@ -37,6 +37,17 @@ def answer_at_once(runner: PlantRunner) -> None:
     """An in-process TCU has answered when ``pump()`` returns: re-send a late tick at once instead of waiting
     on the wall clock (a fault that loses answers then costs no wall time, and no silence toward PeerLost)."""
     runner.retry_first_s = runner.retry_max_s = 0.0
+
+
+def at_each_tick(db: Database, call: Callable[[], None]) -> Callable[[can.Message], None]:
+    """A plant listener that calls ``call()`` at each SIM_SYNC tick the plant sends (once per control period:
+    listeners see first transmissions only, never re-sends or the presence probe)."""
+    sync_id = db.get_message_by_name(SYNC).frame_id
+
+    def listener(msg: can.Message) -> None:
+        if msg.arbitration_id == sync_id:
+            call()
+    return listener
 
 
 @dataclass
@@ -69,7 +80,7 @@ def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Dat
                     tcu_factory: Callable[[Database, can.BusABC], Any] | None = None, capture: bool = False,
                     listeners: tuple[Callable[[can.Message], None], ...] = (),
                     progress: Callable[[str], None] | None = None, faults: Iterable[FaultSpec] | None = None,
-                    fault_seed: int = 0) -> LoopResult:
+                    fault_seed: int = 0, on_period: Callable[[PlantRunner], None] | None = None) -> LoopResult:
     """Run ``scenario`` to its end with the plant and the TCU in lockstep on a private ``virtual`` channel.
 
     ``tcu_factory(db, bus)`` builds the TCU (default: ecu-stub's ``TcuRunner``); it must offer ``pump()``,
@@ -77,13 +88,16 @@ def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Dat
     ``capture`` keeps every frame the plant sent or accepted (as sent: faults on the plant's frames are not in
     it). ``faults`` (default: the scenario's ``[[fault]]`` tables) go on the bus of the side whose frames they
     change, each side drawing from its own generator seeded ``fault_seed``; the summary's ``faults`` counts the
-    frames each hit."""
+    frames each hit. ``on_period(runner)`` is called once per control period, as the plant sends the period's
+    SIM_SYNC tick: ``runner.out`` is then the plant at the tick's time (before the TCU answers it)."""
     params = params or load_params()
     db = db or load_dbc()
     channel = f"dsg_hil_loop_{os.getpid()}_{next(_channels)}"
     frames: list[can.Message] = []
     if capture:
         listeners = (*listeners, frames.append)
+    if on_period is not None:
+        listeners = (*listeners, at_each_tick(db, lambda: on_period(runner)))
     by_side = check_faults(scenario.faults if faults is None else faults, db)
     buses = [can.Bus(interface="virtual", channel=channel), can.Bus(interface="virtual", channel=channel)]
     try:

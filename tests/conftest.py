@@ -10,11 +10,22 @@ from dsg_hil.vcan import ENV_REQUIRE
 
 
 def pytest_configure(config):
+    register_plugin(config)
     config.addinivalue_line("markers", "slow: a minute or so: the 100-s cases against solve_ivp; building a wheel "
                                        "(needs the package index for setuptools)")
     config.addinivalue_line("markers", "vcan: end-to-end on a real SocketCAN vcan0 with separate processes (run "
                                        "with 'dsg-hil vcan'); deselected unless DSG_HIL_REQUIRE_VCAN is set or -m "
                                        "names vcan")
+
+
+def register_plugin(config) -> None:
+    """The dsg_hil plugin (fixture dsg_hil_run) comes by its pytest11 entry point once dsg-hil is installed; from
+    a checkout on PYTHONPATH register it here, unless disabled (``-p no:dsg_hil``)."""
+    manager = config.pluginmanager
+    if not manager.has_plugin("dsg_hil") and not manager.is_blocked("dsg_hil"):
+        from dsg_hil import pytest_plugin
+
+        manager.register(pytest_plugin, "dsg_hil")
 
 
 @pytest.fixture(scope="session")

@@ -1,25 +1,27 @@
 """Plant and TCU closed loop in one process on python-can's virtual interface (no vcan needed), in lockstep.
 
-Judged on the plant's truth (``PlantRunner.out``), not on the TCU's prediction: plate temperatures never above
-250 degC, speed within +-20 % of its target through a handover, roll-back at brake release, tracking. The runs are
-short: they start with hot clutches so the thermal events come within seconds.
+Run with the dsg_hil plugin's fixture (``dsg_hil_run``). Judged on the plant's truth each control period
+(``PlantRun.truth``), not on the TCU's prediction: plate temperatures never above 250 degC, speed within +-20 % of
+its target through a handover, roll-back at brake release, tracking. The runs are short: they start with hot
+clutches so the thermal events come within seconds.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import can
 import pytest
 
 from dsg_hil.physics.params import load_params
-from dsg_hil.physics.thermal import NODES
 from dsg_hil.plant import Plant
 from dsg_hil.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.runner import PeerTimeout, PlantRunner
-from dsg_hil.scenario import load_scenario, parse_scenario
+from dsg_hil.scenario import Scenario, load_scenario, parse_scenario
+from dsg_hil.testing import PlantRun, run_plant
 from ecu_stub.calibration import TcuCalibration
 from ecu_stub.controller import CreepController
 from ecu_stub.runner import TCU_USES, TcuRunner
@@ -53,7 +55,8 @@ desired_speed_mps = {speed}
 
 @dataclass
 class Trace:
-    """Plant truth and TCU state once per control period."""
+    """Plant truth once per control period (at the tick's time) and the TCU's state as its TCU_STATUS last
+    reported it (every 100 ms)."""
 
     t: list[float]
     v: list[float]
@@ -66,7 +69,7 @@ class Trace:
     def handover_windows(self, after_s: float = 1.0) -> list[tuple[float, float]]:
         """(start, end + after_s) of each HANDOVER."""
         windows, start = [], None
-        for t, s in zip(self.t, self.state):
+        for t, s in zip(self.t, self.state, strict=True):
             if s == "HANDOVER" and start is None:
                 start = t
             elif s != "HANDOVER" and start is not None:
@@ -78,41 +81,26 @@ class Trace:
         return any(a <= t <= b for a, b in windows)
 
 
-def closed_loop(channel: str, scenario=None, mass_factor: float = 1.0, cal: TcuCalibration | None = None):
-    """Run the scenario (default: the shipped one); ``mass_factor`` scales the vehicle mass, ``cal`` replaces
-    the TCU's shipped calibration."""
-    params, db = load_params(), load_dbc()
+def trace_of(run: PlantRun, scenario: Scenario) -> Trace:
+    t, s = run.truth["t"], run.signals
+    states = {int(value): str(name) for value, name in
+              load_dbc().get_message_by_name("TCU_STATUS").get_signal_by_name("State").choices.items()}
+    state = [states.get(int(code), "?") if code == code else "?" for code in s.at("TCU_STATUS.State", t)]
+    T_pred = list(zip(s.at("TCU_STATUS.T_CL_Pred", t).tolist(), s.at("TCU_STATUS.T_CH_Pred", t).tolist(), strict=True))
+    return Trace(t.tolist(), run.truth["v"].tolist(), [scenario.driver_at(x).desired_speed_mps for x in t],
+                 run.truth["T_CL"].tolist(), run.truth["T_CH"].tolist(), state, T_pred)
+
+
+def closed_loop(scenario: Scenario | None = None, mass_factor: float = 1.0, cal: TcuCalibration | None = None,
+                run: Callable[..., PlantRun] = run_plant):
+    """Run the scenario (default: the shipped one) against the bundled ecu-stub in lockstep with ``run`` (the
+    plugin's dsg_hil_run fixture, or run_plant); ``mass_factor`` scales the vehicle mass, ``cal`` replaces the
+    TCU's shipped calibration. Returns the summary, the trace and every frame as (time, ID, data)."""
     scenario = scenario or load_scenario()
-    if mass_factor != 1.0:
-        params = replace(params, vehicle=replace(params.vehicle, m=params.vehicle.m * mass_factor))
-    T_init = scenario.initial_temperatures(NODES)
-    plant_bus = can.Bus(interface="virtual", channel=channel)
-    tcu_bus = can.Bus(interface="virtual", channel=channel)
-    frames: list[tuple[float, int, bytes]] = []
-    record = (lambda m: frames.append((m.timestamp, m.arbitration_id, bytes(m.data))),)
-    runner = PlantRunner(Plant(params, T_init=T_init, v_init=scenario.v_mps), scenario, Codec(db, PLANT_USES),
-                         plant_bus, listeners=record)
-    tcu = TcuRunner(Codec(db, TCU_USES), tcu_bus, CreepController(cal))
-    trace = Trace([], [], [], [], [], [], [])
-
-    def pump() -> None:
-        tcu.pump()
-        o = runner.out
-        trace.t.append(o.t)
-        trace.v.append(o.v)
-        trace.v_target.append(scenario.driver_at(o.t).desired_speed_mps)
-        trace.T_CL.append(o.T_CL)
-        trace.T_CH.append(o.T_CH)
-        trace.state.append(tcu.controller.state)
-        T_pred = tcu.controller.T_pred or {"CL": math.nan, "CH": math.nan}
-        trace.T_pred.append((T_pred["CL"], T_pred["CH"]))
-
-    try:
-        summary = runner.run_lockstep(pump=pump)
-    finally:
-        plant_bus.shutdown()
-        tcu_bus.shutdown()
-    return summary.as_json(runner.frames(), scenario.name, "lockstep", "virtual", scenario.duration_s), trace, frames
+    params = {"vehicle.m": load_params().vehicle.m * mass_factor} if mass_factor != 1.0 else None
+    result = run(CreepController(cal) if cal is not None else None, scenario=scenario, params=params, log=None)
+    frames = [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in result.frames]
+    return result.summary, trace_of(result, scenario), frames
 
 
 # ---- hot clutches: the handover and the thermal limit on the plant's truth ------------------------------------
@@ -124,10 +112,10 @@ HOT = {  # name: scenario, (T_CL, T_CH) plates, rest of the network, mass factor
 
 
 @pytest.fixture(scope="module", params=list(HOT), ids=list(HOT))
-def hot_run(request):
+def hot_run(request, dsg_hil_run):
     kwargs, plates, rest, mass, duration = HOT[request.param]
     scenario = creep_scenario(duration, T_oil=rest, T_plates=plates, **kwargs)
-    return closed_loop(f"hot-{request.param}", scenario, mass)
+    return closed_loop(scenario, mass, run=dsg_hil_run)
 
 
 def test_hot_cl_hands_over_to_ch_and_the_truth_stays_under_250(hot_run):
@@ -142,13 +130,14 @@ def test_speed_stays_within_20_percent_of_its_target_through_the_handover(hot_ru
     _, trace, _ = hot_run
     windows = trace.handover_windows()
     assert windows
-    speeds = [(v, vt) for t, v, vt in zip(trace.t, trace.v, trace.v_target) if trace.in_windows(t, windows)]
+    speeds = [(v, vt) for t, v, vt in zip(trace.t, trace.v, trace.v_target, strict=True)
+              if trace.in_windows(t, windows)]
     assert all(abs(v - vt) <= 0.2 * vt for v, vt in speeds), (min(v for v, _ in speeds), max(v for v, _ in speeds))
 
 
-def test_stops_when_neither_clutch_can_take_over_with_the_truth_under_250():
+def test_stops_when_neither_clutch_can_take_over_with_the_truth_under_250(dsg_hil_run):
     scenario = creep_scenario(8.0, grade=0.2, idle_rpm=1300, speed=0.4, T_oil=150.0, T_plates=(232.0, 249.0))
-    s, trace, _ = closed_loop("hot-both", scenario, 1.3)  # CH cannot take over: creep on CL, then stop
+    s, trace, _ = closed_loop(scenario, 1.3, run=dsg_hil_run)  # CH cannot take over: creep on CL, then stop
     assert s["stop_reason"] == "STOPPED_OVERHEAT" and not s["handovers"]
     assert max(trace.T_CL) <= T_SAFE and max(trace.T_CH) <= T_SAFE
     i_stop = trace.state.index("STOPPED_OVERHEAT")
@@ -158,29 +147,29 @@ def test_stops_when_neither_clutch_can_take_over_with_the_truth_under_250():
 
 # ---- launch on the grade and tracking -----------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def launch_run():
-    return closed_loop("launch", creep_scenario(12.0))
+def launch_run(dsg_hil_run):
+    return closed_loop(creep_scenario(12.0), run=dsg_hil_run)
 
 
 def test_no_roll_back_when_the_brake_is_released_on_the_grade(launch_run):
     _, trace, _ = launch_run
     assert min(trace.v) >= -0.010
-    reached = next(t for t, v in zip(trace.t, trace.v) if v >= 0.9 * 0.22)
+    reached = next(t for t, v in zip(trace.t, trace.v, strict=True) if v >= 0.9 * 0.22)
     assert reached < 4.0  # and it does get going
 
 
 def test_speed_is_tracked_and_nothing_rejected(launch_run):
     s, trace, _ = launch_run
-    settled = [(v - vt) ** 2 for t, v, vt, st in zip(trace.t, trace.v, trace.v_target, trace.state)
+    settled = [(v - vt) ** 2 for t, v, vt, st in zip(trace.t, trace.v, trace.v_target, trace.state, strict=True)
                if t > 5.0 and st == "CREEP"]
     assert math.sqrt(sum(settled) / len(settled)) <= 0.005
     assert s["frames"]["rejected"] == 0 and s["frames"]["sent"] > 5000 and s["frames"]["received"] > 1000
     assert s["command_fallback"]["events"] == 0
 
 
-def test_lockstep_is_deterministic_bit_for_bit():
-    _, _, a = closed_loop("det-a", load_scenario().with_duration(8.0))
-    _, _, b = closed_loop("det-b", load_scenario().with_duration(8.0))
+def test_lockstep_is_deterministic_bit_for_bit(dsg_hil_run):
+    _, _, a = closed_loop(load_scenario().with_duration(8.0), run=dsg_hil_run)
+    _, _, b = closed_loop(load_scenario().with_duration(8.0), run=dsg_hil_run)
     assert len(a) > 3000 and a == b
 
 

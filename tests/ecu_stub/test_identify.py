@@ -22,7 +22,7 @@ def recorded(tmp_path_factory):
     path = tmp_path_factory.mktemp("identify") / "run.log"
     shipped = load_calibration()
     low = replace(shipped, strategy=replace(shipped.strategy, T_safe_c=shipped.strategy.T_safe_c - 110.0))
-    _, _, frames = closed_loop("identify", creep_scenario(12.0, T_oil=120.0, T_plates=(128.0, 100.0)), cal=low)
+    _, _, frames = closed_loop(creep_scenario(12.0, T_oil=120.0, T_plates=(128.0, 100.0)), cal=low)
     with can.Logger(str(path)) as log:
         for t, frame_id, data in frames:
             log.on_message_received(can.Message(timestamp=t, arbitration_id=frame_id, data=data,
