@@ -84,7 +84,7 @@ class Trace:
 def trace_of(run: PlantRun, scenario: Scenario) -> Trace:
     t, s = run.truth["t"], run.signals
     states = {int(value): str(name) for value, name in
-              load_dbc().get_message_by_name("TCU_STATUS").get_signal_by_name("State").choices.items()}
+              (load_dbc().get_message_by_name("TCU_STATUS").get_signal_by_name("State").choices or {}).items()}
     state = [states.get(int(code), "?") if code == code else "?" for code in s.at("TCU_STATUS.State", t)]
     T_pred = list(zip(s.at("TCU_STATUS.T_CL_Pred", t).tolist(), s.at("TCU_STATUS.T_CH_Pred", t).tolist(), strict=True))
     return Trace(t.tolist(), run.truth["v"].tolist(), [scenario.driver_at(x).desired_speed_mps for x in t],

@@ -11,6 +11,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
+from typing import cast
 from importlib import resources
 
 import pytest
@@ -36,7 +37,7 @@ def main_c(frames) -> str:
     lines = ['#include <stdio.h>', '#include "dsg_hil.h"', "int main(void) {", "    uint8_t buf[8];"]
     for name, _, values, data in frames:
         message, prefix = load_dbc().get_message_by_name(name), f"dsg_hil_{snake(name)}"
-        raw = message.decode(data, decode_choices=False, scaling=False)
+        raw = cast(dict[str, int], message.decode(data, decode_choices=False, scaling=False))  # unscaled: ints
         lines += ["    {", f"        struct {prefix}_t m;", f"        {prefix}_init(&m);"]
         for signal in message.signals:
             field = snake(signal.name)

@@ -17,13 +17,14 @@ from __future__ import annotations
 import dataclasses
 import subprocess
 import tempfile
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeGuard
+from typing import IO, Any, TypeGuard
 
 import can
 import numpy as np
+from cantools.database.can import Database
 
 from ..errors import InputError
 from ..loop import at_each_tick, plant_for, run_closed_loop
@@ -130,7 +131,7 @@ def _is_command(controller: Any) -> TypeGuard[Sequence[str]]:
     return isinstance(controller, (list, tuple)) and bool(controller) and all(isinstance(a, str) for a in controller)
 
 
-def _tcu_factory(controller: Any):
+def _tcu_factory(controller: Any) -> Callable[[Database, can.BusABC], Any] | None:
     """How run_closed_loop builds the in-process TCU: ecu-stub (``None`` or its controller) or a Controller."""
     if controller is None:
         return None
@@ -145,8 +146,9 @@ def _tcu_factory(controller: Any):
                     f"ControllerProcess or an object with step(t, inputs); got {type(controller).__name__}")
 
 
-def _run_process(process: ControllerProcess, scenario: Scenario, params: Params, db, specs: list[FaultSpec],
-                 fault_seed: int, record, output: Path | None, reply_timeout: float,
+def _run_process(process: ControllerProcess, scenario: Scenario, params: Params, db: Database,
+                 specs: list[FaultSpec], fault_seed: int, record: Callable[[PlantRunner], None],
+                 output: Path | None, reply_timeout: float,
                  startup_timeout: float) -> tuple[dict[str, Any], list[can.Message]]:
     """The plant on a fresh udp_multicast group, the controller as a process on it, lockstep."""
     by_side = check_faults(specs, db)
@@ -178,7 +180,7 @@ def _run_process(process: ControllerProcess, scenario: Scenario, params: Params,
     return data, frames
 
 
-def _process_state(proc: subprocess.Popen[bytes], sink) -> str:
+def _process_state(proc: subprocess.Popen[bytes], sink: IO[bytes]) -> str:
     status = proc.poll()
     sink.flush()
     sink.seek(0)
