@@ -17,7 +17,7 @@ from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_fault
 
 from .calibration import load_calibration
 from .controller import CreepController
-from .runner import TCU_USES, TcuRunner
+from .runner import TCU_RX, TCU_USES, TcuRunner
 
 
 def _version() -> str:
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         if faults["plant"]:
             raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                              f"side=tcu")
-        inner = open_bus(config)
+        inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
         tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
         bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
         stop = threading.Event()  # SIGTERM: stop serving, report its counts, exit 143
