@@ -7,6 +7,7 @@ import logging
 import signal
 import sys
 import threading
+from collections.abc import Mapping
 from importlib import metadata
 
 from dsg_hil.protocol import Codec, load_dbc
@@ -16,7 +17,7 @@ from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_fault
 
 from .calibration import load_calibration
 from .controller import CreepController
-from .runner import TCU_USES, TcuRunner
+from .runner import TCU_RX, TCU_USES, TcuRunner
 
 
 def _version() -> str:
@@ -50,6 +51,12 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+def by_cause(rejected: Mapping[str, int]) -> str:
+    """' (crc 3, dlc 12)': the rejects by cause, sorted, for the closing line; '' when there were none."""
+    causes = ", ".join(f"{reason} {n}" for reason, n in sorted(rejected.items()) if n)
+    return f" ({causes})" if causes else ""
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, stream=sys.stderr,
@@ -67,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         if faults["plant"]:
             raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                              f"side=tcu")
-        inner = open_bus(config)
+        inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
         tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
         bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
         stop = threading.Event()  # SIGTERM: stop serving, report its counts, exit 143
@@ -85,8 +92,8 @@ def main(argv: list[str] | None = None) -> int:
             c = tcu.frame_counts()
             print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
                   f"{c['incomplete_answers']} on incomplete plant frames); received "
-                  f"{c['received']}, rejected {c['rejected']}, lost {c['lost']}, duplicates {c['duplicates']}",
-                  file=sys.stderr, flush=True)
+                  f"{c['received']}, rejected {c['rejected']}{by_cause(tcu.rx.rejected)}, lost {c['lost']}, "
+                  f"duplicates {c['duplicates']}", file=sys.stderr, flush=True)
             if injector is not None:
                 print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)
     except KeyboardInterrupt:

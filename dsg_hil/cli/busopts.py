@@ -16,7 +16,7 @@ import can
 from ..errors import InputError
 from ..loop import plant_for
 from ..plant import Plant
-from ..plant_io import PLANT_USES
+from ..plant_io import PLANT_RX, PLANT_USES
 from ..protocol import Codec, load_dbc
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
 from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
@@ -114,7 +114,7 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
     config = bus_config(args, fresh_udp=True)
     db = load_dbc(args.dbc)
     args.faults_by_side = check_faults([*scenario.faults, *faults_from_args(args)], db)
-    bus = open_bus(config)
+    bus = open_bus(config, receive=[db.get_message_by_name(name) for name in PLANT_RX])
     stack.callback(bus.shutdown)
     listeners: tuple[LogListener, ...] = ()
     if args.log:

@@ -20,11 +20,13 @@ import configparser
 import os
 import random
 import socket
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import can
 import can.cli
+from cantools.database.can import Message
 
 from .errors import InputError, RunError
 
@@ -148,10 +150,19 @@ def vcan0_present() -> bool:
     return Path("/sys/class/net/vcan0").exists()
 
 
-def open_bus(config: dict[str, Any]) -> can.BusABC:
-    """Open a bus from a resolved configuration; a failure is one readable RunError (the options were well
-    formed, the interface or channel could not be had here: exit 1)."""
+def receive_filters(messages: Iterable[Message]) -> can.typechecking.CanFilters:
+    """python-can receive filters passing exactly ``messages`` (the DBC messages a node reads): on SocketCAN the
+    kernel applies them, so a node never wakes for the other frames of a busy bus (a flood of unknown IDs)."""
+    return [{"can_id": m.frame_id, "can_mask": 0x1FFFFFFF if m.is_extended_frame else 0x7FF,
+             "extended": bool(m.is_extended_frame)} for m in messages]
+
+
+def open_bus(config: dict[str, Any], receive: Iterable[Message] | None = None) -> can.BusABC:
+    """Open a bus from a resolved configuration, passing only the frames of ``receive`` when given (see
+    :func:`receive_filters`); a failure is one readable RunError (the options were well formed, the interface or
+    channel could not be had here: exit 1)."""
+    filters = None if receive is None else receive_filters(receive)
     try:
-        return can.Bus(**{**config, "receive_own_messages": False})
+        return can.Bus(**{**config, "receive_own_messages": False, "can_filters": filters})
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise RunError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None
