@@ -82,6 +82,7 @@ class Codec:
 
     def __init__(self, db: Database, uses: Mapping[str, Sequence[str]], *, reference: bool = False) -> None:
         self.db = db
+        self.reference = reference
         self._by_name: dict[str, Message] = {}
         self._by_id: dict[int, Message] = {}
         self._protection: dict[int, Protection] = {}

@@ -13,6 +13,7 @@ import can
 
 from .codec import Codec, DecodedFrame, FrameError
 from .e2e import MAX_DELTA
+from .frame import data_frame
 
 log = logging.getLogger(__name__)
 
@@ -172,5 +173,4 @@ class TxScheduler:
         data = self.codec.encode(name, values, self.counters[name])
         self.counters[name] = (self.counters[name] + 1) % self.codec.protection(name).counter_modulus
         self.sent += 1
-        return can.Message(arbitration_id=self.codec.frame_id(name), data=data, is_extended_id=False,
-                           dlc=len(data), timestamp=timestamp, is_rx=False)
+        return data_frame(self.codec.frame_id(name), data, timestamp)
