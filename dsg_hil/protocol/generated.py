@@ -15,9 +15,11 @@ function is kept (``source``) for reading and debugging.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from types import CodeType
 from typing import Any
 
 from cantools.database.can import Message, Signal
@@ -164,8 +166,14 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
 
     namespace: dict = {"FrameError": frame_error, "DecodedFrame": decoded_frame, "TABLE": _TABLE,
                        "isfinite": math.isfinite}
-    exec(compile(source, f"<dsg_hil codec: {name}>", "exec"), namespace)  # noqa: S102 - our own source
+    exec(_compiled(source, name), namespace)  # noqa: S102 - our own source
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
+
+
+@functools.lru_cache(maxsize=256)
+def _compiled(source: str, name: str) -> CodeType:
+    """The source compiled once per process (every codec of the same DBC generates the same source)."""
+    return compile(source, f"<dsg_hil codec: {name}>", "exec")
 
 
 def _crc_after_header(protection: Protection) -> int:
