@@ -8,9 +8,8 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from ..errors import InputError
-from ..protocol import load_dbc
 from ..protocol.bus import VIRTUAL_CHANNEL
-from ..validation import run_validation
+from . import command_help
 from .busopts import drive, finish, start
 from .common import add_params_option, params_from, progress
 
@@ -19,7 +18,7 @@ CREEP_LOG = "creep.log"
 
 def add_subparser(sub) -> None:
     parser = sub.add_parser(
-        "report", help="figures and a 'paper vs dsg-hil' table: validation rig and creep run",
+        "report", help=command_help("report"),
         description="Run the Section III.C validation and the creep scenario (Section V.B) with the plant and the "
                     "TCU (ecu-stub) in lockstep on python-can's virtual bus, recording the traffic (candump -L) "
                     "into DIR; then write the paper's figures (Figs. 3-5, 8-12), report.md with the table 'paper "
@@ -54,7 +53,8 @@ def _run_creep(args: argparse.Namespace, out: Path) -> Path:
     log = out / CREEP_LOG
     run_args = argparse.Namespace(**vars(args), interface="virtual", channel=f"{VIRTUAL_CHANNEL}_report",
                                   config_context=None, mode="lockstep", log=str(log),
-                                  summary=str(out / "summary.json"), reply_timeout=5.0, startup_timeout=60.0)
+                                  summary=str(out / "summary.json"), reply_timeout=5.0, startup_timeout=60.0,
+                                  tcu_in_process=True)
     with ExitStack() as stack:
         runner, config, scenario = start(run_args, stack, "creep run")
         tcu = _tcu_in_process(config, runner.codec.db, runner, run_args)
@@ -66,8 +66,10 @@ def _run_creep(args: argparse.Namespace, out: Path) -> Path:
 
 def _do_report(args: argparse.Namespace) -> int:
     from ..plots import require_matplotlib
+    from ..protocol import load_dbc
     from ..report import write_report
     from ..report.log import read_log
+    from ..validation import run_validation
     out = Path(args.out)
     _writable(out)
     require_matplotlib()

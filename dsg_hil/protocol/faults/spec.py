@@ -24,9 +24,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, Iterable, Mapping
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any
 
-from cantools.database.can import Database
+if TYPE_CHECKING:
+    from cantools.database.can import Database
 
 from ..errors import InputError
 
