@@ -7,8 +7,9 @@ load cantools and python-can.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .lazy import lazy_names
 
 if TYPE_CHECKING:
     from .codec import Codec, DecodedFrame, FrameError, ProtocolError, load_dbc
@@ -24,9 +25,4 @@ __all__ = ["MAX_DELTA", "Codec", "DecodedFrame", "FrameError", "Protection", "Pr
            "RxMonitor", "RxState", "TxScheduler", "crc8_j1850", "load_dbc"]
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_names(__name__, _WHERE, globals())

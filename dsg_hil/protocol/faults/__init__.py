@@ -7,8 +7,9 @@ imported when first used (PEP 562): the command-line options need none of python
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from ..lazy import lazy_names
 
 if TYPE_CHECKING:
     from .injector import FaultInjector, FaultyBus, bridge_step, outside_range
@@ -34,9 +35,4 @@ __all__ = ["KINDS", "FaultError", "FaultInjector", "FaultSpec", "FaultyBus", "ad
            "faults_from_args", "outside_range", "parse_fault", "with_faults"]
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_names(__name__, _WHERE, globals())
