@@ -68,10 +68,13 @@ def plant_alone(seconds: float) -> float:
 
 
 def env_for(tree: str | None) -> dict[str, str]:
+    """The environment of a subprocess using ``tree``'s package (None: this one's)."""
     env = dict(os.environ)
-    if tree is not None:
-        env["PYTHONPATH"] = tree
+    env["PYTHONPATH"] = tree if tree is not None else str(Path(__file__).resolve().parents[1])
     return env
+
+
+NEUTRAL_CWD = tempfile.gettempdir()  # 'python -m' puts the working directory first on sys.path: not a checkout
 
 
 def udp_two_processes(seconds: float, tree: str | None) -> dict:
@@ -81,7 +84,7 @@ def udp_two_processes(seconds: float, tree: str | None) -> dict:
         before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
         proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-i", "udp_multicast", "--duration",
                                str(seconds), "--summary", str(summary)], capture_output=True, text=True,
-                              env=env_for(tree), timeout=30 * seconds + 120)
+                              env=env_for(tree), cwd=NEUTRAL_CWD, timeout=30 * seconds + 120)
         if proc.returncode != 0:
             return {"error": proc.stderr.strip().splitlines()[-1:]}
         data = json.loads(summary.read_text())
@@ -101,7 +104,8 @@ def startup(tree: str | None) -> dict[str, float]:
         samples = []
         for _ in range(STARTUP_REPEATS):
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, *argv], capture_output=True, check=True, env=env_for(tree))
+            subprocess.run([sys.executable, *argv], capture_output=True, check=True, env=env_for(tree),
+                           cwd=NEUTRAL_CWD)
             samples.append(time.perf_counter() - t0)
         times[name] = round(statistics.median(samples), 3)
     return times
