@@ -8,9 +8,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from ..errors import InputError
-from ..protocol.bus import VIRTUAL_CHANNEL
 from . import command_help
-from .busopts import drive, finish, start
 from .common import add_params_option, params_from, progress
 
 CREEP_LOG = "creep.log"
@@ -56,7 +54,9 @@ def _writable(out: Path) -> None:
 def _run_creep(args: argparse.Namespace, out: Path) -> Path:
     """The real loop, as ``dsg-hil run`` with no interface configured: plant and ecu-stub in lockstep on
     python-can's virtual bus, the traffic recorded to DIR/creep.log, the run's summary to DIR/summary.json."""
-    from .run import _tcu_in_process
+    from ..protocol.bus import VIRTUAL_CHANNEL  # noqa: PLC0415 - python-can when the run starts
+    from .busopts import drive, finish, start  # noqa: PLC0415
+    from .run import _tcu_in_process  # noqa: PLC0415
     log = out / CREEP_LOG
     run_args = argparse.Namespace(**vars(args), interface="virtual", channel=f"{VIRTUAL_CHANNEL}_report",
                                   config_context=None, mode="lockstep", log=str(log),
