@@ -164,9 +164,11 @@ class PlantRunner:
     def _advance(self, steps: int, now: float) -> None:
         driver = self.scenario.driver_at(self.plant.state.t)
         inputs = self._inputs(driver, now)
+        step, on_step = self.plant.step, self.summary.on_step
+        creeping, fallback, desired = driver.creep_request, not self.command_valid, driver.desired_speed_mps
         for _ in range(steps):
-            self.out = self.plant.step(inputs)
-            self.summary.on_step(self.out, driver.creep_request, not self.command_valid, driver.desired_speed_mps)
+            self.out = out = step(inputs)
+            on_step(out, creeping, fallback, desired)
 
     def _report(self, every_s: float = 10.0) -> None:
         t = self.plant.state.t

@@ -131,19 +131,6 @@ class _Run:
     tail: Sample | None = None  # last sample of the run
     window: deque[Sample] = field(default_factory=deque)
 
-    def take(self, s: Sample, dt: float, alone: bool) -> None:
-        self.end, self.tail = s.t + dt, s
-        if not alone:
-            return
-        if self.first is None:
-            self.first = s
-        if self.settled is None and s.t >= self.first.t + SETTLE_S - 1e-9:
-            self.settled = s
-        self.window.append(s)
-        while self.window[0].t <= s.t - SETTLE_S + 1e-9:
-            self.lagged = self.window.popleft()
-        self.last = s
-
     def values(self) -> tuple[Sample, Sample, Sample]:
         """(start, end, last) samples: the start and end values of mu and P, and the temperatures at the end."""
         last = self.last or self.tail
@@ -211,16 +198,47 @@ class CreepMetrics:
     _t_last: float = 0.0
 
     def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
-        """One sample ``s`` standing for the interval [s.t, s.t + dt)."""
-        clutch, both = driving_clutch(s)
+        """One sample ``s`` standing for the interval [s.t, s.t + dt).
+
+        Called every plant step, so :func:`driving_clutch` is written out here (the same operations), as a call
+        costs more than what it does."""
+        omega_in, M_CL, M_CH = s.omega_in, s.M_CL, s.M_CH
+        cl = (abs(M_CL) > TORQUE_MIN if M_CL == M_CL else s.P_CL > P_ENGAGED) and abs(omega_in - s.omega_CL) > SLIP_MIN
+        ch = (abs(M_CH) > TORQUE_MIN if M_CH == M_CH else s.P_CH > P_ENGAGED) and abs(omega_in - s.omega_CH) > SLIP_MIN
+        both = cl and ch
+        if both:
+            a, b = (abs(M_CL), abs(M_CH)) if M_CL == M_CL and M_CH == M_CH else (s.P_CL, s.P_CH)
+            clutch: str | None = "CL" if a >= b else "CH"
+        else:
+            clutch = "CL" if cl else "CH" if ch else None
+        t = s.t
         if clutch is not None:
             self.slip_time[clutch] += dt
             self.slip_overlap += dt if both else 0.0
-        if not self.runs or self.runs[-1].clutch != clutch:
-            self.runs.append(_Run(clutch, s.t, s.t))
-        self.runs[-1].take(s, dt, clutch is not None and not both)
-        self._thermal("CL", s.T_CL, s.Q_CL, dt)
-        self._thermal("CH", s.T_CH, s.Q_CH, dt)
+        runs = self.runs
+        if not runs or runs[-1].clutch != clutch:
+            runs.append(_Run(clutch, t, t))
+        run = runs[-1]
+        run.end, run.tail = t + dt, s
+        if clutch is not None and not both:
+            if run.first is None:
+                run.first = s
+            if run.settled is None and t >= run.first.t + SETTLE_S - 1e-9:
+                run.settled = s
+            window = run.window
+            window.append(s)
+            while window[0].t <= t - SETTLE_S + 1e-9:
+                run.lagged = window.popleft()
+            run.last = s
+        for name, T, Q in (("CL", s.T_CL, s.Q_CL), ("CH", s.T_CH, s.Q_CH)):
+            if T == T:
+                peak = self.max_T[name]
+                if peak is None or T > peak:
+                    self.max_T[name] = T
+                if T > SAFETY_TEMPERATURE_C:
+                    self.above_limit[name] += dt
+            if Q == Q:
+                self.energy[name] += Q * dt
         v = s.v
         if v < 0.0:
             self.rollback_speed = min(self.rollback_speed, v)
@@ -236,22 +254,12 @@ class CreepMetrics:
             if abs(v) <= V_MOVING:
                 self.standstill_time += dt
             if self._moved and self._rest is None:
-                self._rest = (s.t, s)
+                self._rest = (t, s)
         if self._moved and clutch is not None:
             self._sq_speed_error += (v - desired_speed) ** 2 * dt
             self._driven_time += dt
             self.speed_min_creeping = v if self.speed_min_creeping is None else min(self.speed_min_creeping, v)
-        self._t_last = s.t + dt
-
-    def _thermal(self, name: str, T: float, Q: float, dt: float) -> None:
-        if T == T:
-            peak = self.max_T[name]
-            if peak is None or T > peak:
-                self.max_T[name] = T
-            if T > SAFETY_TEMPERATURE_C:
-                self.above_limit[name] += dt
-        if Q == Q:
-            self.energy[name] += Q * dt
+        self._t_last = t + dt
 
     def _end_rest(self) -> None:
         if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:

@@ -13,6 +13,7 @@ the key. Units are SI with temperatures in degC and pressures in MPa (the DBC's 
 
 from __future__ import annotations
 
+import functools
 import math
 import tomllib
 from collections.abc import Mapping
@@ -208,9 +209,16 @@ def load_calibration(path: str | Path | None = None) -> TcuCalibration:
     path = Path(path) if path is not None else DEFAULT_CALIBRATION
     text = read_input_file(path, "calibration", CalibrationError)
     try:
-        return parse_calibration(text, str(path))
+        return _parse_once(text, str(path))
     except CalibrationError as exc:
         raise CalibrationError(f"{path}: {exc}") from None
+
+
+@functools.lru_cache(maxsize=8)
+def _parse_once(text: str, origin: str) -> TcuCalibration:
+    """:func:`parse_calibration`, once per text (the calibration is immutable): a sweep of short closed-loop runs
+    would otherwise spend a good part of each run parsing the same file."""
+    return parse_calibration(text, origin)
 
 
 def _toml_value(x: Any) -> str:

@@ -10,14 +10,9 @@ import threading
 from collections.abc import Mapping
 from importlib import metadata
 
-from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.bus import add_bus_arguments, bus_config, bus_name, open_bus, per_process_warning
 from dsg_hil.protocol.errors import EXIT_OK, InputError, exit_code
 from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
-
-from .calibration import load_calibration
-from .controller import CreepController
-from .runner import TCU_RX, TCU_USES, TcuRunner
 
 
 def _version() -> str:
@@ -59,6 +54,12 @@ def by_cause(rejected: Mapping[str, int]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parse_args(argv)
+    from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
+
+    from .calibration import load_calibration  # noqa: PLC0415
+    from .controller import CreepController  # noqa: PLC0415
+    from .runner import TCU_RX, TCU_USES, TcuRunner  # noqa: PLC0415
+
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
     try:

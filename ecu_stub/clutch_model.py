@@ -36,11 +36,14 @@ def friction_coefficient(m: FrictionMap, T_c: float, slip_rpm: float, P_mpa: flo
     i, wt = _locate(m.T_grid_c, T_c)
     j, ws = _locate(m.slip_grid_rpm, abs(slip_rpm))
     k, wp = _locate(m.P_grid_mpa, P_mpa)
+    lo, hi = m.mu[i], m.mu[i + 1]  # the four corners in (T, slip), each interpolated in P; summed in this order
+    a, b, c, d = lo[j], lo[j + 1], hi[j], hi[j + 1]
+    vt, vs, vp = 1 - wt, 1 - ws, 1 - wp
     mu = 0.0
-    for di, w_i in ((0, 1 - wt), (1, wt)):
-        for dj, w_j in ((0, 1 - ws), (1, ws)):
-            cell = m.mu[i + di][j + dj]
-            mu += w_i * w_j * ((1 - wp) * cell[k] + wp * cell[k + 1])
+    mu += vt * vs * (vp * a[k] + wp * a[k + 1])
+    mu += vt * ws * (vp * b[k] + wp * b[k + 1])
+    mu += wt * vs * (vp * c[k] + wp * c[k + 1])
+    mu += wt * ws * (vp * d[k] + wp * d[k + 1])
     return mu
 
 

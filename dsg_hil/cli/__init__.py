@@ -1,5 +1,8 @@
 """Command line: ``dsg-hil <command>``. Each command is a module with ``add_subparser`` and ``_do``.
 
+Only the module of the command given is imported (and its modules import what the command needs when it runs),
+so ``dsg-hil --help`` and ``dsg-hil COMMAND --help`` start without numpy, scipy, matplotlib or cantools.
+
 Errors reach the user as one line ``error: ...`` (``--debug`` shows the traceback) and an exit status, the same
 for ``ecu-stub`` (:mod:`dsg_hil.errors`): 0 ok, 1 the run failed (peer lost ...), 2 bad input or usage (the line
 names the file, key or option), 3 a result outside its band (``dsg-hil validate``), 130 Ctrl-C (SIGINT), 143
@@ -9,17 +12,32 @@ SIGTERM (128 + the signal number, as a shell reports a killed process).
 from __future__ import annotations
 
 import argparse
+import importlib
 import signal
 import sys
 import threading
 
 from .. import __version__
 from ..errors import EXIT_RUN_FAILED, EXIT_SIGINT, EXIT_SIGTERM, exit_code
-from . import bridge_cmd, calibrate, dbc_cmd, params_cmd, plant_cmd, report_cmd, run, validate, vcan_cmd
 from .common import Terminated, raise_terminated
 
-COMMANDS = (run, plant_cmd, bridge_cmd, dbc_cmd, vcan_cmd, validate, calibrate, params_cmd, report_cmd)
+COMMANDS = {  # command: (module, one-line help), in the order of 'dsg-hil --help'
+    "run": ("run", "run the plant and the TCU (ecu-stub) together on a bus"),
+    "plant": ("plant_cmd", "run the plant process on a bus (the TCU runs elsewhere)"),
+    "bridge": ("bridge_cmd", "forward frames between two buses, injecting faults into one direction"),
+    "dbc": ("dbc_cmd", "list the DBC's messages and the bus load they imply"),
+    "vcan": ("vcan_cmd", "run the vcan end-to-end tests (or a command) natively or in a throw-away VM"),
+    "validate": ("validate", "run the paper's single-clutch validation (Section III.C)"),
+    "calibrate": ("calibrate", "re-run the calibrations of the 'calibrated' parameters"),
+    "params": ("params_cmd", "list the model parameters and where each comes from"),
+    "report": ("report_cmd", "figures and a 'paper vs dsg-hil' table: validation rig and creep run"),
+}
 EXIT_ERROR = EXIT_RUN_FAILED
+
+
+def command_help(name: str) -> str:
+    """The one-line help of a command (the command modules' ``add_subparser`` use it)."""
+    return COMMANDS[name][1]
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -30,8 +48,12 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for module in COMMANDS:
-        module.add_subparser(sub)
+    given = next((arg for arg in (sys.argv[1:] if argv is None else argv) if not arg.startswith("-")), None)
+    for name, (module, help_) in COMMANDS.items():  # the top level has flags only: the first word is the command
+        if name == given:
+            importlib.import_module(f".{module}", __name__).add_subparser(sub)
+        else:
+            sub.add_parser(name, help=help_)
     for command in sub.choices.values():  # also after the command; SUPPRESS keeps a --debug given before it
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                              help="show a traceback on errors")

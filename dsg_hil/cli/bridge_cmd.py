@@ -7,18 +7,21 @@ import argparse
 import time
 from collections.abc import Callable
 from contextlib import ExitStack
+from typing import TYPE_CHECKING
 
-import can
-
-from ..protocol import load_dbc
-from ..protocol.bus import bus_name, open_bus, resolve_bus_config
-from ..protocol.faults import FaultInjector, add_fault_arguments, bridge_step, faults_from_args
+from ..protocol.faults import add_fault_arguments
+from . import command_help
 from .common import positive_number, progress
+
+if TYPE_CHECKING:
+    import can
+
+    from ..protocol.faults import FaultInjector
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "bridge", help="forward frames between two buses, injecting faults into one direction",
+        "bridge", help=command_help("bridge"),
         description="Forward every frame from the --from bus to the --to bus through the faults given (times: "
                     "seconds since the bridge started), and every frame from --to back to --from unchanged. "
                     "For a node whose software cannot be changed: put it alone on --from (e.g. a real ECU on "
@@ -39,6 +42,7 @@ def bridge(source: can.BusABC, sink: can.BusABC, injector: FaultInjector, clock:
            should_stop: Callable[[], bool]) -> tuple[int, int]:
     """Forward source -> sink through ``injector`` at ``clock()`` and sink -> source unchanged until
     ``should_stop()``; returns how many frames went each way."""
+    from ..protocol.faults import bridge_step  # noqa: PLC0415 - python-can and cantools at run time only
     forward = back = 0
     while not should_stop():
         forward += bridge_step(source, sink, injector, clock(), timeout=0.001)
@@ -49,6 +53,10 @@ def bridge(source: can.BusABC, sink: can.BusABC, injector: FaultInjector, clock:
 
 
 def _do_bridge(args: argparse.Namespace) -> int:
+    from ..protocol import load_dbc  # noqa: PLC0415 - python-can and cantools at run time only
+    from ..protocol.bus import bus_name, open_bus, resolve_bus_config  # noqa: PLC0415
+    from ..protocol.faults import FaultInjector, faults_from_args  # noqa: PLC0415
+
     db = load_dbc(args.dbc)
     injector = FaultInjector(db, faults_from_args(args), args.fault_seed)
     configs = [resolve_bus_config(getattr(args, f"{end}_interface"), getattr(args, f"{end}_channel"))

@@ -1,4 +1,7 @@
-"""Bus, scenario, log and mode options shared by ``dsg-hil plant`` and ``dsg-hil run``."""
+"""Bus, scenario, log and mode options shared by ``dsg-hil plant`` and ``dsg-hil run``.
+
+The options need python-can only; the plant and its run (numpy, cantools ...) are imported when a run starts.
+"""
 
 from __future__ import annotations
 
@@ -10,21 +13,26 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
 from types import TracebackType
-
-import can
+from typing import TYPE_CHECKING
 
 from ..errors import InputError
-from ..loop import plant_for
-from ..plant import Plant
-from ..plant_io import PLANT_RX, PLANT_USES
-from ..protocol import Codec, load_dbc
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
 from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
-from ..runner import PeerLost, PlantRunner
 from ..scenario import Scenario, load_scenario
 from .common import Terminated, check_output_path, params_from, positive_number, progress
 
-STOP_REASONS = ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"))
+if TYPE_CHECKING:
+    import can
+
+    from ..plant import Plant
+    from ..runner import PlantRunner
+
+
+def stop_reasons() -> tuple[tuple[type[BaseException], str], ...]:
+    """How a run that ends early ends: the exception and the summary's stop reason."""
+    from ..runner import PeerLost  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+
+    return (KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost")
 
 
 def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
@@ -62,6 +70,8 @@ def scenario_from(args: argparse.Namespace) -> Scenario:
 
 
 def make_plant(args: argparse.Namespace, scenario: Scenario) -> Plant:
+    from ..loop import plant_for  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+
     return plant_for(scenario, params_from(args))
 
 
@@ -69,6 +79,8 @@ class LogListener:
     """Writes frames through python-can's writer for the file's extension, on one channel name."""
 
     def __init__(self, path: str, channel: str) -> None:
+        import can  # noqa: PLC0415
+
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         try:
             self.writer = can.Logger(path)
@@ -100,8 +112,10 @@ def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dic
                       scenario: Scenario) -> Callable[..., bool]:
     """An exit handler (ExitStack.push) that writes the summary so far when the run ends early: Ctrl-C,
     SIGTERM or a lost peer (stop reasons interrupted, terminated, peer_lost)."""
+    reasons = stop_reasons()
+
     def on_exit(exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> bool:
-        reason = next((r for kind, r in STOP_REASONS if exc_type is not None and issubclass(exc_type, kind)), None)
+        reason = next((r for kind, r in reasons if exc_type is not None and issubclass(exc_type, kind)), None)
         if reason is not None:
             runner.summary.stop_reason = reason
             finish(args, runner, config, scenario)
@@ -110,11 +124,25 @@ def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dic
 
 
 def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario) -> tuple[PlantRunner, dict]:
-    """Open the plant's bus (and log) from the options; everything is closed by ``stack``."""
+    """Open the plant's bus (and log) from the options; everything is closed by ``stack``.
+
+    ``args.tcu_in_process`` (``dsg-hil run``, ``report``) on ``virtual`` in lockstep: the plant and the TCU of
+    this process talk over a direct in-process bus instead (:mod:`dsg_hil.protocol.local`: the same frames,
+    without python-can's copies), the TCU's end left in ``args.tcu_bus``."""
+    from ..plant_io import PLANT_RX, PLANT_USES  # noqa: PLC0415 - the plant (numpy, cantools ...) when a run starts
+    from ..protocol import Codec, load_dbc  # noqa: PLC0415
+    from ..protocol.local import local_pair  # noqa: PLC0415
+    from ..runner import PlantRunner  # noqa: PLC0415
+
     config = bus_config(args, fresh_udp=True)
     db = load_dbc(args.dbc)
     args.faults_by_side = check_faults([*scenario.faults, *faults_from_args(args)], db)
-    bus = open_bus(config, receive=[db.get_message_by_name(name) for name in PLANT_RX])
+    if getattr(args, "tcu_in_process", False) and config["interface"] == "virtual" and args.mode == "lockstep":
+        plant_end, args.tcu_bus = local_pair(str(config["channel"]))
+        stack.callback(args.tcu_bus.shutdown)
+        bus: can.BusABC = plant_end
+    else:
+        bus = open_bus(config, receive=[db.get_message_by_name(name) for name in PLANT_RX])
     stack.callback(bus.shutdown)
     listeners: tuple[LogListener, ...] = ()
     if args.log:

@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Iterable
+from typing import TYPE_CHECKING
 
-from ..calibration import (VEHICLE_THERMAL_KEYS, Check, calibrate_h_plate_oil, calibrate_stribeck,
-                           calibrate_vehicle_thermal, friction_checks, reduced_creep, rise_residuals, timeline_checks,
-                           vehicle_thermal, with_h_plate_oil, with_vehicle_thermal)
-from ..scenario import load_scenario
+from . import command_help
 from .common import add_params_option, params_from, progress
+
+if TYPE_CHECKING:
+    from ..calibration import Check
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "calibrate", help="re-run the calibrations of the 'calibrated' parameters",
+        "calibrate", help=command_help("calibrate"),
         description="Re-run every calibration behind a parameter tagged 'calibrated' (friction.A_stribeck against "
                     "Section V.B's mu_CH; thermal.clutch.test.h_plate_oil against the four Section III.C rises on "
                     "the rig; the vehicle clutches' plate capacities and cooling flows against Section V.B's "
@@ -33,6 +34,21 @@ def _print_checks(title: str, checks: Iterable[Check]) -> None:
 
 
 def _do_calibrate(args: argparse.Namespace) -> int:
+    from ..calibration import (  # noqa: PLC0415 - scipy.optimize at run time only
+        VEHICLE_THERMAL_KEYS,
+        calibrate_h_plate_oil,
+        calibrate_stribeck,
+        calibrate_vehicle_thermal,
+        friction_checks,
+        reduced_creep,
+        rise_residuals,
+        timeline_checks,
+        vehicle_thermal,
+        with_h_plate_oil,
+        with_vehicle_thermal,
+    )
+    from ..scenario import load_scenario  # noqa: PLC0415
+
     params = params_from(args)
     scenario = load_scenario(args.scenario)
     progress("fitting friction.A_stribeck and the CH slip speed of Section V.B ...")

@@ -6,9 +6,12 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import InputError
-from ..physics.params import Params, load_params
+
+if TYPE_CHECKING:
+    from ..physics.params import Params
 
 
 class Terminated(BaseException):
@@ -36,6 +39,8 @@ def add_params_option(parser: argparse.ArgumentParser) -> None:
 
 
 def params_from(args: argparse.Namespace) -> Params:
+    from ..physics.params import load_params  # noqa: PLC0415 - when a command runs, not for its --help
+
     return load_params(args.params)
 
 

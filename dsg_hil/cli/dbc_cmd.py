@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import argparse
 
-from ..protocol import load_dbc
-from ..protocol.busload import bus_load, frame_bits
+from . import command_help
 from .common import positive_number
 
 LOAD_LIMIT = 0.30
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("dbc", help="list the DBC's messages and the bus load they imply",
+    parser = sub.add_parser("dbc", help=command_help("dbc"),
                             description="List every message of the DBC with its ID, sender, cycle time and "
                                         "worst-case bus load (bit stuffing included). Exit 3 above 30 %%.")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the shipped dbc/dsg_hil.dbc)")
@@ -21,6 +20,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def _do_dbc(args: argparse.Namespace) -> int:
+    from ..protocol import load_dbc  # noqa: PLC0415 - cantools at run time only
+    from ..protocol.busload import bus_load, frame_bits  # noqa: PLC0415
+
     db = load_dbc(args.dbc)
     total, rows = bus_load(db, args.bitrate)
     senders = {m.name: ",".join(m.senders) for m in db.messages}

@@ -5,14 +5,18 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 from dataclasses import fields
+from typing import TYPE_CHECKING
 
-from ..physics.params import Params
+from . import command_help
 from .common import add_params_option, params_from
+
+if TYPE_CHECKING:
+    from ..physics.params import Params
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "params", help="list the model parameters and where each comes from",
+        "params", help=command_help("params"),
         description="Load and check a parameter file, then list every value with its source: 'paper' (with the "
                     "place in the paper), 'assumed' (with the reasoning) or 'calibrated' (with the target).")
     parser.add_argument("--source", choices=("paper", "assumed", "calibrated"), help="list only this source")

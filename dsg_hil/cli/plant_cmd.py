@@ -8,14 +8,14 @@ from contextlib import ExitStack
 
 from ..protocol.bus import bus_args, per_process_warning
 from ..protocol.faults import FaultError
-from ..runner import PeerTimeout
+from . import command_help
 from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "plant", help="run the plant process on a bus (the TCU runs elsewhere)",
+        "plant", help=command_help("plant"),
         description="Run the plant on a CAN bus against a TCU started separately (ecu-stub, or a real ECU on "
                     "can0). Real time by default: frames at their DBC cycle times, commands used as they "
                     "arrive, unpowered hydraulics when TCU_CMD is missing for 3 cycle times. Lockstep: the "
@@ -29,6 +29,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def _do_plant(args: argparse.Namespace) -> int:
+    from ..runner import PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+
     with ExitStack() as stack:
         runner, config, scenario = start(args, stack, "plant")
         if args.faults_by_side["tcu"]:

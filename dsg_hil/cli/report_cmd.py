@@ -8,10 +8,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from ..errors import InputError
-from ..protocol import load_dbc
-from ..protocol.bus import VIRTUAL_CHANNEL
-from ..validation import run_validation
-from .busopts import drive, finish, start
+from . import command_help
 from .common import add_params_option, params_from, progress
 
 CREEP_LOG = "creep.log"
@@ -19,7 +16,7 @@ CREEP_LOG = "creep.log"
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "report", help="figures and a 'paper vs dsg-hil' table: validation rig and creep run",
+        "report", help=command_help("report"),
         description="Run the Section III.C validation and the creep scenario (Section V.B) with the plant and the "
                     "TCU (ecu-stub) in lockstep on python-can's virtual bus, recording the traffic (candump -L) "
                     "into DIR; then write the paper's figures (Figs. 3-5, 8-12), report.md with the table 'paper "
@@ -37,6 +34,13 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_do_report)
 
 
+def run_validation(params, **kwargs):
+    """:func:`dsg_hil.validation.run_validation`, imported when the report runs (numpy, scipy)."""
+    from ..validation import run_validation as run  # noqa: PLC0415
+
+    return run(params, **kwargs)
+
+
 def _writable(out: Path) -> None:
     """Fail now, not after minutes of simulation."""
     try:
@@ -50,11 +54,14 @@ def _writable(out: Path) -> None:
 def _run_creep(args: argparse.Namespace, out: Path) -> Path:
     """The real loop, as ``dsg-hil run`` with no interface configured: plant and ecu-stub in lockstep on
     python-can's virtual bus, the traffic recorded to DIR/creep.log, the run's summary to DIR/summary.json."""
-    from .run import _tcu_in_process
+    from ..protocol.bus import VIRTUAL_CHANNEL  # noqa: PLC0415 - python-can when the run starts
+    from .busopts import drive, finish, start  # noqa: PLC0415
+    from .run import _tcu_in_process  # noqa: PLC0415
     log = out / CREEP_LOG
     run_args = argparse.Namespace(**vars(args), interface="virtual", channel=f"{VIRTUAL_CHANNEL}_report",
                                   config_context=None, mode="lockstep", log=str(log),
-                                  summary=str(out / "summary.json"), reply_timeout=5.0, startup_timeout=60.0)
+                                  summary=str(out / "summary.json"), reply_timeout=5.0, startup_timeout=60.0,
+                                  tcu_in_process=True)
     with ExitStack() as stack:
         runner, config, scenario = start(run_args, stack, "creep run")
         tcu = _tcu_in_process(config, runner.codec.db, runner, run_args)
@@ -66,6 +73,7 @@ def _run_creep(args: argparse.Namespace, out: Path) -> Path:
 
 def _do_report(args: argparse.Namespace) -> int:
     from ..plots import require_matplotlib
+    from ..protocol import load_dbc
     from ..report import write_report
     from ..report.log import read_log
     out = Path(args.out)

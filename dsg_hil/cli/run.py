@@ -8,21 +8,23 @@ import sys
 import threading
 import time
 from contextlib import ExitStack
-from typing import Any
-
-from cantools.database.can import Database
+from typing import TYPE_CHECKING, Any
 
 from ..errors import RunError
-from ..loop import answer_at_once, attach_tcu
 from ..protocol.bus import bus_args, open_bus
-from ..runner import PlantRunner
+from . import command_help
 from .busopts import add_bus_options, drive, finish, frames_line, start
 from .common import add_params_option, progress
+
+if TYPE_CHECKING:
+    from cantools.database.can import Database
+
+    from ..runner import PlantRunner
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "run", help="run the plant and the TCU (ecu-stub) together on a bus",
+        "run", help=command_help("run"),
         description="Run a scenario with the plant and the TCU: as two processes on a real bus (socketcan, "
                     "udp_multicast, ...: the TCU is started as 'ecu-stub' with the same bus options), or in one "
                     "process on python-can's 'virtual' interface. With no interface configured and no vcan0 "
@@ -31,16 +33,22 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--summary", metavar="FILE", help="write a JSON summary (creep and slip times, "
                         "peak temperatures, handovers, stop reason, frame counts)")
     add_params_option(parser)
-    parser.set_defaults(func=_do_run)
+    parser.set_defaults(func=_do_run, tcu_in_process=True)
 
 
 def _tcu_in_process(bus_config: dict, dbc: Database, runner: PlantRunner, args: argparse.Namespace) -> Any:
-    """The TCU side in this process (virtual bus only), its frames through the TCU-side faults."""
-    tcu, _ = attach_tcu(runner, open_bus(bus_config), dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0))
+    """The TCU side in this process (virtual bus only: the in-process bus's other end where there is one), its
+    frames through the TCU-side faults."""
+    from ..loop import attach_tcu  # noqa: PLC0415 - the TCU (cantools ...) when a run starts
+
+    bus = getattr(args, "tcu_bus", None) or open_bus(bus_config)
+    tcu, _ = attach_tcu(runner, bus, dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0))
     return tcu
 
 
 def _do_run(args: argparse.Namespace) -> int:
+    from ..loop import answer_at_once  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+
     with ExitStack() as stack:
         runner, config, scenario = start(args, stack, "run")
         t0 = time.monotonic()

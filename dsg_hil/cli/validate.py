@@ -7,13 +7,13 @@ import json
 from pathlib import Path
 
 from ..reference import TOL_MU, TOL_RISE_C, TOL_TORQUE_REL
-from ..validation import run_validation, validation_json
+from . import command_help
 from .common import add_params_option, check_output_path, params_from, positive_number, progress
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "validate", help="run the paper's single-clutch validation (Section III.C)",
+        "validate", help=command_help("validate"),
         description="Run the four Section III.C cases of the paper (clutch CL slipping 100 s at constant pressure "
                     "and relative speed from 40 degC: 0.2/0.2/0.3/0.3 MPa at 150/300/150/300 r/min) and print "
                     "them beside the published numbers. Exit status 3 if a number falls outside the accepted band "
@@ -40,6 +40,8 @@ def _do_validate(args: argparse.Namespace) -> int:
     if args.plots:  # fail before the long run, not after it
         from ..plots import require_matplotlib
         require_matplotlib()
+    from ..validation import run_validation, validation_json  # noqa: PLC0415 - numpy and scipy at run time only
+
     results = run_validation(params, dt=args.dt, progress=progress)
     all_ok = True
     print(f"{'Section III.C':<20} {'simulated':>10} {'paper':>10} {'deviation':>9}")

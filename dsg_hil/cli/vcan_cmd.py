@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 from .. import vcan
+from . import command_help
 from .common import progress
 
 # The end-to-end tests ship inside the package (dsg_hil/e2e), so this runs from a checkout and from a wheel alike.
@@ -18,7 +19,7 @@ DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
-        "vcan", help="run the vcan end-to-end tests (or a command) natively or in a throw-away VM",
+        "vcan", help=command_help("vcan"),
         description="Run COMMAND (default: the vcan end-to-end tests shipped with the package, 'pytest -m vcan "
                     "--pyargs dsg_hil.e2e') where a real SocketCAN vcan0 exists: natively if vcan0 is there or "
                     "can be created (modprobe vcan, ip link), else inside a throw-away VM with a stock kernel "

@@ -4,13 +4,18 @@ filled here, never by callers, at the positions the DBC gives them.
 Every message and signal the code uses is resolved once, at start-up: a missing one raises :class:`ProtocolError`
 naming it. Encoding clamps each value to its signal's DBC range, then encodes with ``strict=True``; decoding
 rejects (never clamps) a frame with a wrong DLC, CRC or a value outside its range.
+
+The frames are encoded and decoded by functions generated per message from the DBC (:mod:`.generated`), which
+do byte for byte what the cantools path here does, five times faster; ``reference=True`` keeps the cantools path
+for every message (the reference of the tests, the baseline of ``bench/closed_loop_speed.py``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import cast
@@ -20,6 +25,7 @@ from cantools.database.can import Database, Message, Signal
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
 from .errors import InputError
+from .generated import generate, unsupported
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
@@ -75,13 +81,19 @@ def signal_range(signal: Signal) -> tuple[float, float]:
 
 
 class Codec:
-    """Encode and decode the messages named in ``uses`` ({message: [signals the code reads or writes]})."""
+    """Encode and decode the messages named in ``uses`` ({message: [signals the code reads or writes]}).
 
-    def __init__(self, db: Database, uses: Mapping[str, Sequence[str]]) -> None:
+    ``reference``: encode and decode through cantools only (no generated functions)."""
+
+    def __init__(self, db: Database, uses: Mapping[str, Sequence[str]], *, reference: bool = False) -> None:
         self.db = db
+        self.reference = reference
         self._by_name: dict[str, Message] = {}
         self._by_id: dict[int, Message] = {}
         self._protection: dict[int, Protection] = {}
+        self._encoders: dict[str, Callable[[Mapping[str, float], int], bytes]] = {}
+        self._decoders: dict[int, Callable[[bytes], DecodedFrame]] = {}
+        self.sources: dict[str, str] = {}  # the generated functions' source, by message
         for name, signals in uses.items():
             try:
                 message = db.get_message_by_name(name)
@@ -100,6 +112,13 @@ class Codec:
                 raise ProtocolError(str(exc)) from None
             self._by_name[name] = message
             self._by_id[message.frame_id] = message
+            self._encoders[name] = partial(self._encode_reference, name)
+            self._decoders[message.frame_id] = partial(self._decode_reference, message)
+            protection = self._protection[message.frame_id]
+            if not reference and unsupported(message, protection) is None:
+                generated = generate(message, protection, FrameError, DecodedFrame)
+                self._encoders[name], self._decoders[message.frame_id] = generated.encode, generated.decode
+                self.sources[name] = generated.source
 
     # ---- lookup --------------------------------------------------------------------------------------------
     def message(self, name: str) -> Message:
@@ -120,6 +139,17 @@ class Codec:
     def encode(self, name: str, values: Mapping[str, float], counter: int) -> bytes:
         """Frame data for ``name``: values clamped to their DBC ranges (NaN -> the signal's initial value or
         its minimum), counter and CRC filled in. Signals not given take their DBC initial value (or 0)."""
+        return self._encoders[name](values, counter)
+
+    def decode(self, frame_id: int, data: bytes) -> DecodedFrame:
+        """Check DLC, CRC and ranges, then decode. Raises :class:`FrameError` with a reason."""
+        decoder = self._decoders.get(frame_id)
+        if decoder is None:
+            raise FrameError("unknown", f"frame 0x{frame_id:03X} is not one this node reads")
+        return decoder(data)
+
+    # ---- the cantools path (the reference) -----------------------------------------------------------------------
+    def _encode_reference(self, name: str, values: Mapping[str, float], counter: int) -> bytes:
         message = self._by_name[name]
         data: dict[str, float] = {}
         for signal in message.signals:
@@ -137,11 +167,8 @@ class Codec:
         data[CRC] = 0
         return protection.seal(message.encode(data, strict=True, scaling=True))
 
-    def decode(self, frame_id: int, data: bytes) -> DecodedFrame:
-        """Check DLC, CRC and ranges, then decode. Raises :class:`FrameError` with a reason."""
-        message = self._by_id.get(frame_id)
-        if message is None:
-            raise FrameError("unknown", f"frame 0x{frame_id:03X} is not one this node reads")
+    def _decode_reference(self, message: Message, data: bytes) -> DecodedFrame:
+        frame_id = message.frame_id
         if len(data) != message.length:
             raise FrameError("dlc", f"{message.name}: DLC {len(data)}, expected {message.length}")
         if not self._protection[frame_id].check(data):

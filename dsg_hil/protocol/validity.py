@@ -13,6 +13,7 @@ import can
 
 from .codec import Codec, DecodedFrame, FrameError
 from .e2e import MAX_DELTA
+from .frame import data_frame
 
 log = logging.getLogger(__name__)
 
@@ -37,10 +38,10 @@ class RxState:
     duplicates: int = 0  # byte-identical repeats of the last frame taken (retransmissions), ignored
     rejected: Tally[str] = field(default_factory=Tally)  # by cause: dlc, crc, range, malformed, counter
     last_data: bytes | None = None
+    deadline: float = field(init=False)  # TIMEOUT_CYCLES cycle times [s]
 
-    @property
-    def deadline(self) -> float:
-        return TIMEOUT_CYCLES * self.cycle_time
+    def __post_init__(self) -> None:
+        self.deadline = TIMEOUT_CYCLES * self.cycle_time
 
     def update(self, now: float, frame: DecodedFrame, data: bytes = b"") -> str | None:
         """Take a decoded frame; returns why it was not taken (repeated or out-of-order counter), else None."""
@@ -77,11 +78,16 @@ class RxMonitor:
         self.states = {name: RxState(name, codec.cycle_time(name), codec.protection(name).counter_modulus)
                        for name in names}
         self._ids = {codec.frame_id(name): name for name in names}
+        self._by_id = {frame_id: self.states[name] for frame_id, name in self._ids.items()}
         self.rejected: Tally[str] = Tally()
         self.received = 0
 
     def wants(self, msg: can.Message) -> bool:
         return not msg.is_extended_id and msg.arbitration_id in self._ids
+
+    def _state_of(self, msg: can.Message) -> RxState | None:
+        """The state of the message ``msg`` is a frame of, if it is one this node reads (as :meth:`wants`)."""
+        return None if msg.is_extended_id else self._by_id.get(msg.arbitration_id)
 
     def receive(self, msg: can.Message, now: float) -> DecodedFrame | None:
         """Take one frame. Returns the decoded frame if accepted, None if it is not ours, a duplicate or
@@ -93,10 +99,10 @@ class RxMonitor:
         """Take one frame: (``NEW``, frame) if accepted; (``DUPLICATE``, frame) for a byte-identical repeat of
         the last frame taken of its message (a retransmission: counted, not taken, not an error); (``REJECTED``,
         None) when it fails its checks; (``IGNORED``, None) when it is not ours."""
-        if msg.is_error_frame or msg.is_remote_frame or not self.wants(msg):
+        state = None if msg.is_error_frame or msg.is_remote_frame else self._state_of(msg)
+        if state is None:
             return IGNORED, None
         self.received += 1
-        state = self.states[self._ids[msg.arbitration_id]]
         data = bytes(msg.data)
         try:
             if msg.is_fd:
@@ -155,6 +161,9 @@ class TxScheduler:
         self.next_due = {name: start for name in names}
         self.counters = {name: 0 for name in names}
         self.sent = 0
+        self._periods = {name: codec.cycle_time(name) for name in names}
+        self._ids = {name: codec.frame_id(name) for name in names}
+        self._moduli = {name: codec.protection(name).counter_modulus for name in names}
 
     def due(self, now: float, eps: float = 1e-9) -> list[str]:
         """Messages due at ``now``, in DBC order; their next deadlines advance by whole cycle times."""
@@ -162,15 +171,15 @@ class TxScheduler:
         for name, due in self.next_due.items():
             if now + eps >= due:
                 names.append(name)
-                period = self.codec.cycle_time(name)
+                period = self._periods[name]
                 missed = int((now + eps - due) // period)
                 self.next_due[name] = due + (missed + 1) * period
         return names
 
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""
-        data = self.codec.encode(name, values, self.counters[name])
-        self.counters[name] = (self.counters[name] + 1) % self.codec.protection(name).counter_modulus
+        counter = self.counters[name]
+        data = self.codec.encode(name, values, counter)
+        self.counters[name] = (counter + 1) % self._moduli[name]
         self.sent += 1
-        return can.Message(arbitration_id=self.codec.frame_id(name), data=data, is_extended_id=False,
-                           dlc=len(data), timestamp=timestamp, is_rx=False)
+        return data_frame(self._ids[name], data, timestamp)

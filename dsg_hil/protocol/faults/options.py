@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING
 
-import can
-from cantools.database.can import Database
-
-from .injector import FaultInjector, FaultyBus
 from .spec import FaultSpec, parse_fault
+
+if TYPE_CHECKING:
+    import can
+    from cantools.database.can import Database
+
+    from .injector import FaultInjector
 
 
 def add_fault_arguments(parser: argparse.ArgumentParser, whose: str) -> None:
@@ -32,6 +35,8 @@ def with_faults(bus: can.BusABC, db: Database, specs: Iterable[FaultSpec], seed:
     """``bus`` behind an injector of ``specs`` (checked against the DBC now), or ``bus`` itself if there are
     none. ``clock()`` is the sender's time: simulated in lockstep, its run time in real time; negative before
     the run starts (the lockstep handshake is never faulted)."""
+    from .injector import FaultInjector, FaultyBus  # noqa: PLC0415 - python-can and cantools, when needed
+
     specs = list(specs)
     if not specs:
         return bus, None

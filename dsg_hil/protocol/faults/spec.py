@@ -25,9 +25,10 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from cantools.database.can import Database
+if TYPE_CHECKING:
+    from cantools.database.can import Database
 
 from ..errors import InputError
 

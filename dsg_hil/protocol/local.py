@@ -1,0 +1,85 @@
+"""A direct in-process bus: two ends, each frame sent on one received on the other, for the plant and a TCU in
+one process in lockstep (:func:`dsg_hil.loop.run_closed_loop`, ``dsg-hil run`` on ``virtual``).
+
+It does for two nodes what python-can's ``virtual`` interface does (the receiver gets its own copy of the frame,
+stamped with the wall-clock time of sending, ``is_rx`` set, on the bus's channel), without what costs there:
+a ``deepcopy`` of every frame and a locked ``queue.Queue`` per receiver. A received frame is a plain copy of the
+sent one (its data copied, never shared, so neither side can change the other's frame). Receiving with a timeout
+waits on a condition, so a sender in another thread wakes it; in one process nothing else ever waits.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+
+import can
+
+from .frame import data_frame
+
+_FIELDS = ("arbitration_id", "is_extended_id", "is_remote_frame", "is_error_frame", "dlc", "data", "is_fd",
+           "bitrate_switch", "error_state_indicator")
+
+
+def local_pair(channel: str = "local") -> tuple[LocalBus, LocalBus]:
+    """Two connected ends of one in-process bus."""
+    a, b = LocalBus(channel), LocalBus(channel)
+    a.peer, b.peer = b, a
+    return a, b
+
+
+class LocalBus(can.BusABC):
+    """One end of :func:`local_pair`: ``send``, ``recv`` and ``shutdown`` as python-can's buses have them."""
+
+    def __init__(self, channel: str) -> None:
+        self._queue: deque[can.Message] = deque()
+        self._ready = threading.Condition()
+        self._waiting = False
+        self.peer: LocalBus | None = None
+        self.channel = channel
+        self.channel_info = f"in-process bus {channel}"
+        super().__init__(channel=channel)
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self._is_shutdown:
+            raise can.CanOperationError("Cannot operate on a closed bus")
+        peer = self.peer
+        if peer is None or peer._is_shutdown:  # nobody listening: the frame is gone, as on a bus
+            return
+        if msg.is_remote_frame or msg.is_error_frame or msg.is_fd:  # not this contract's: copied the slow way
+            copy = can.Message(**{name: getattr(msg, name) for name in _FIELDS}, channel=self.channel, is_rx=True,
+                               timestamp=time.time())
+        else:
+            copy = data_frame(msg.arbitration_id, msg.data, time.time(), self.channel, True, msg.is_extended_id)
+        peer._queue.append(copy)
+        if peer._waiting:
+            with peer._ready:
+                peer._ready.notify_all()
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        if self._is_shutdown:
+            raise can.CanOperationError("Cannot operate on a closed bus")
+        if self._queue:
+            return self._queue.popleft()
+        if timeout is not None and timeout <= 0:
+            return None
+        end = None if timeout is None else time.monotonic() + timeout
+        with self._ready:
+            self._waiting = True  # set before the queue is looked at again: a sender then notifies
+            try:
+                while not self._queue:
+                    remaining = None if end is None else end - time.monotonic()
+                    if remaining is not None and remaining <= 0:
+                        return None
+                    self._ready.wait(remaining)
+                return self._queue.popleft()
+            finally:
+                self._waiting = False
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        return self.recv(timeout), False
+
+    def shutdown(self) -> None:
+        super().shutdown()
+        self._queue.clear()
