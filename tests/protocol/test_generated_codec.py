@@ -80,7 +80,7 @@ def same_decode(generated: Codec, reference: Codec, frame_id: int, data: bytes) 
         except FrameError as exc:
             results.append((exc.reason, str(exc)))
     assert results[0] == results[1], (hex(frame_id), data.hex())
-    return results[0][0]
+    return str(results[0][0])
 
 
 @pytest.fixture(scope="module", params=["shipped", "extra"])
