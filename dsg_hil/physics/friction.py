@@ -17,6 +17,8 @@ calibrated parameter (``friction.A_stribeck`` in the parameter file, with its ta
 Frictional memory: the plant feeds (6) a first-order lag of the slip speed magnitude (``tau_slip``), not the
 instantaneous slip; see :func:`slip_memory_step`.
 
+Compiled (:mod:`dsg_hil.physics.jit`): (6) and the slip memory, which the plant evaluates every step.
+
 Guards (stated, not hidden): ``P`` is floored at ``P_floor`` inside (6) only, because ``-0.005 ln(28.3 P)`` is
 unbounded as ``P -> 0`` (the torque (5) still uses the true pressure, so zero pressure gives zero torque);
 ``T <= 1 degC`` or ``D <= 0`` switches the first term off; ``n`` is the magnitude of the slip speed.
@@ -28,6 +30,7 @@ import math
 
 import numpy as np
 
+from .jit import compiled
 from .params import ClutchGeometry, Friction
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -48,6 +51,7 @@ def clutch_torque_capacity(mu: float, geometry: ClutchGeometry, pressure_pa: flo
     return mu * torque_per_mu(geometry, pressure_pa)
 
 
+@compiled
 def stribeck_term(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> float:
     """First term of (6) in the Stribeck reading (see module docstring); zero where D <= 0 or T <= 1 degC."""
     if T_c <= 1.0:
@@ -59,6 +63,7 @@ def stribeck_term(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> flo
     return f.A_stribeck * math.exp(-((0.028574 * abs(slip_rpm) / D) ** 5.16))
 
 
+@compiled
 def friction_coefficient(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> float:
     """Friction coefficient mu of the wet paper/steel pair, equation (6) in the Stribeck reading.
 
@@ -80,6 +85,7 @@ def friction_coefficient_grid(slip_rpm, T_c, P_mpa, f: Friction) -> np.ndarray:
     return np.vectorize(lambda n, T, P: friction_coefficient(n, T, P, f), otypes=[float])(slip_rpm, T_c, P_mpa)
 
 
+@compiled
 def slip_memory_step(slip_memory: float, slip_speed: float, dt: float, f: Friction) -> float:
     """Exact step of tau_slip * s' = |slip_speed| - s with the slip held over dt (any speed unit)."""
     target = abs(slip_speed)
