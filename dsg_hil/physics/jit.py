@@ -14,18 +14,25 @@ back to its user cache directory, and ``NUMBA_CACHE_DIR`` overrides both.
 from __future__ import annotations
 
 import functools
+import weakref
 from collections import namedtuple
 from dataclasses import fields, is_dataclass
 from typing import Any, Callable
 
+import numpy as np
+
 from . import params as _params
 
 _RECORDS: dict[type, type] = {}
+_OF_GROUP: dict[int, tuple] = {}  # id(group) -> record, while the group lives
 
 
 def record(group: Any) -> tuple:
     """A parameter group's values as a named tuple of floats with the same field names (compiled code reads
-    ``e.Kp_gov`` from it as Python reads it from the dataclass)."""
+    ``e.Kp_gov`` from it as Python reads it from the dataclass). Made once per group object."""
+    known = _OF_GROUP.get(id(group))
+    if known is not None:
+        return known
     cls = type(group)
     rec = _RECORDS.get(cls)
     if rec is None:
@@ -33,7 +40,10 @@ def record(group: Any) -> tuple:
         rec = namedtuple(name, [f.name for f in fields(group)], module=_params.__name__)  # type: ignore[misc]
         setattr(_params, name, rec)  # importable by name: numba's cache pickles the type by reference
         _RECORDS[cls] = rec
-    return rec(*(float(getattr(group, f.name)) for f in fields(group)))
+    values = rec(*(float(getattr(group, f.name)) for f in fields(group)))
+    _OF_GROUP[id(group)] = values
+    weakref.finalize(group, _OF_GROUP.pop, id(group), None)
+    return values
 
 
 class Compiled:
@@ -43,6 +53,7 @@ class Compiled:
         functools.update_wrapper(self, py_func)
         self.py_func = py_func
         self._dispatcher: Any = None
+        self._by_types: dict[tuple[type, ...], tuple[Callable[..., Any], frozenset[int]]] = {}  # see __call__
 
     @property
     def dispatcher(self) -> Any:
@@ -69,7 +80,23 @@ class Compiled:
         return self.dispatcher.compile(tuple(typeof(a) for a in args))
 
     def __call__(self, *args: Any) -> Any:
-        return self.dispatcher(*(record(a) if is_dataclass(a) else a for a in args))
+        key = tuple(map(type, args))  # floats, ints and records: their Python type fixes the numba type
+        entry = self._by_types.get(key)
+        if entry is None:
+            entry = self._by_types[key] = self._prepare(args)
+        fn, groups = entry
+        if groups:
+            args = tuple(record(a) if i in groups else a for i, a in enumerate(args))
+        return fn(*args)
+
+    def _prepare(self, args: tuple) -> tuple[Callable[..., Any], frozenset[int]]:
+        """How to call with arguments of these Python types: which are parameter groups (passed as records), and
+        the compiled function for them (numba's own dispatch where there are arrays: it types arrays fast)."""
+        groups = frozenset(i for i, a in enumerate(args) if is_dataclass(a))
+        args = tuple(record(a) if i in groups else a for i, a in enumerate(args))
+        if any(isinstance(a, np.ndarray) for a in args):
+            return self.dispatcher, groups
+        return self.specialize(*args), groups
 
 
 def compiled(py_func: Callable[..., Any]) -> Compiled:
