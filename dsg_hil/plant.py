@@ -29,8 +29,18 @@ from .physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_st
 from .physics.hydraulics import pressure_step
 from .physics.jit import compiled, record
 from .physics.params import Params
-from .physics.powertrain import (IDX, N_DOF, N_SPRING, N_STATE, Discrete, Model, build_model, road_load,
-                                 solve_contacts, vehicle_speed)
+from .physics.powertrain import (
+    IDX,
+    N_DOF,
+    N_SPRING,
+    N_STATE,
+    Discrete,
+    Model,
+    build_model,
+    road_load,
+    solve_contacts,
+    vehicle_speed,
+)
 from .physics.powertrain import discretize as discretize_powertrain
 from .physics.thermal import NODES, gearbox_network, heat_sources
 from .physics.thermal import discretize as discretize_network
@@ -174,11 +184,12 @@ class Plant:
                          record(params.vehicle), record(params.powertrain))
         self._s = self._initial_state(T_init, v_init)
         self.state = PlantState(self._s)
-        self._u = np.zeros(5)
+        self._u = np.zeros(6)  # P_CL_cmd, P_CH_cmd, brake, grade, engine speed setpoint, number of steps
         self._out = np.zeros(N_OUT)
         self.period = np.zeros(len(PERIOD))  # of the last advance, see PERIOD
         self._no_trace = np.zeros((0, N_OUT))
-        self._steps = advance_steps.specialize(*self._kernel_args(0, self._no_trace))
+        self._args = self._kernel_args(self._no_trace)
+        self._steps = advance_steps.specialize(*self._args)
         write_outputs(self._s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                       self._records[3], self._records[4], self._out)
         self._last = self._outputs(self._out)
@@ -217,15 +228,16 @@ class Plant:
         u[0], u[1], u[2] = inputs.P_CL_cmd, inputs.P_CH_cmd, inputs.brake
         u[3] = p.vehicle.beta if inputs.grade is None else inputs.grade
         u[4] = p.engine.omega_idle if inputs.engine_speed_request is None else inputs.engine_speed_request
+        u[5] = n_steps
         if trace is not None and (trace.shape != (n_steps, N_OUT) or trace.dtype != np.float64
                                   or not trace.flags.c_contiguous):
             raise ValueError(f"trace must be a C-contiguous float64 array of shape {(n_steps, N_OUT)}")
-        self._steps(*self._kernel_args(n_steps, self._no_trace if trace is None else trace))
+        self._steps(*(self._args if trace is None else self._kernel_args(trace)))
         self._last = self._outputs(self._out)
         return self._last
 
-    def _kernel_args(self, n_steps: int, trace: np.ndarray) -> tuple:
-        return (self._s, n_steps, self._u, self._Mx, self._Mu, self._VG, self._W, self._PhiT, self._T_const,
+    def _kernel_args(self, trace: np.ndarray) -> tuple:
+        return (self._s, self._u, self._Mx, self._Mu, self._VG, self._W, self._PhiT, self._T_const,
                 self._T_src, self._consts, *self._records, self._out, self.period, trace)
 
     def step(self, inputs: PlantInputs) -> PlantOutputs:
@@ -239,8 +251,8 @@ class Plant:
     @staticmethod
     def _outputs(row: np.ndarray) -> PlantOutputs:
         v = row.tolist()
-        return PlantOutputs(*v[:_O_LOCKED], v[_O_LOCKED] != 0.0, v[_O_LOCKED + 1] != 0.0, v[_O_LOCKED + 2] != 0.0,
-                            *v[_O_LOCKED + 3:])
+        v[_O_LOCKED:_O_LOCKED + 3] = [flag != 0.0 for flag in v[_O_LOCKED:_O_LOCKED + 3]]
+        return PlantOutputs._make(v)
 
 
 @compiled
@@ -283,13 +295,13 @@ _E, _1, _2, _3, _5 = (IDX[n] for n in ("e", "1", "2", "3", "5"))  # speeds as pl
 
 
 @compiled
-def advance_steps(s, n_steps, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en, hy, ve, pt, out, period, trace):
-    """``n_steps`` plant steps (module docstring) on the state array s in place, with the inputs
-    u = [P_CL_cmd, P_CH_cmd, brake, grade, engine speed setpoint] held; c = [N m per Pa of CL, CH (5), plate
-    capacities of CL, CH, dt]. Writes the outputs of the last step to ``out``, the period's peaks and sums to
+def advance_steps(s, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en, hy, ve, pt, out, period, trace):
+    """Plant steps (module docstring) on the state array s in place, with the inputs u = [P_CL_cmd, P_CH_cmd,
+    brake, grade, engine speed setpoint, number of steps] held; c = [N m per Pa of CL, CH (5), plate capacities of
+    CL, CH, dt]. Writes the outputs of the last step to ``out``, the period's peaks and sums to
     ``period`` and, if ``trace`` has rows, each step's outputs to them."""
     k_CL, k_CH, C_CL, C_CH, dt = c[0], c[1], c[2], c[3], c[4]
-    P_CL_cmd, P_CH_cmd, brake, grade, setpoint = u[0], u[1], u[2], u[3], u[4]
+    P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_steps = u[0], u[1], u[2], u[3], u[4], int(u[5])
     n_rows, n_x = Mx.shape
     n_T = PhiT.shape[0]
     free = np.empty(n_rows)
@@ -351,8 +363,10 @@ def advance_steps(s, n_steps, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en,
         s[S_P] = pressure_step(P_CL, P_CL_cmd, dt, hy)
         s[S_P + 1] = pressure_step(P_CH, P_CH_cmd, dt, hy)
         s[S_T] += dt
-        stuck = [1.0 if abs(f[i]) < cap[i] * (1.0 - 1e-9) else 0.0 for i in range(3)]
-        write_outputs(s, M_e, mu_CL, mu_CH, f[0], f[1], Q_CL, Q_CH, stuck[0], stuck[1], stuck[2],
+        stuck_CL = 1.0 if abs(f[0]) < cap[0] * (1.0 - 1e-9) else 0.0
+        stuck_CH = 1.0 if abs(f[1]) < cap[1] * (1.0 - 1e-9) else 0.0
+        held = 1.0 if abs(f[2]) < cap[2] * (1.0 - 1e-9) else 0.0
+        write_outputs(s, M_e, mu_CL, mu_CH, f[0], f[1], Q_CL, Q_CH, stuck_CL, stuck_CH, held,
                       Q_CL - C_CL * (T_new[I_CL] - T_plate_CL) / dt, Q_CH - C_CH * (T_new[I_CH] - T_plate_CH) / dt,
                       ve, pt, out)
         period[0] = max(period[0], T_new[I_CL])

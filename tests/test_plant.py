@@ -160,8 +160,18 @@ def test_advance_is_steps_in_one_call(params):
     assert stepped.state.array.tobytes() == advanced.state.array.tobytes()
     assert tuple(outs[-1]) == tuple(last) and last.Q_CL > 0.0
     np.testing.assert_array_equal(trace, np.array([tuple(o) for o in outs], dtype=float))
-    period = dict(zip(PERIOD, advanced.period))
+    period = dict(zip(PERIOD, advanced.period, strict=True))
     assert period["T_CL_max"] == max(o.T_CL for o in outs)
     assert period["E_CL"] == pytest.approx(sum(o.Q_CL for o in outs) * stepped.dt, rel=1e-12)
     with pytest.raises(ValueError, match="trace"):
         advanced.advance(inputs, 3, np.zeros((2, N_OUT)))
+
+
+def test_numba_is_imported_only_when_a_plant_steps():
+    """Commands that never step the plant (dsg-hil --help, dbc, params) do not pay numba's import."""
+    import subprocess
+    import sys
+
+    code = ("import sys, dsg_hil.cli, dsg_hil.plant, dsg_hil.rig, dsg_hil.runner; "
+            "assert 'numba' not in sys.modules, 'numba imported'")
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -71,10 +71,11 @@ def friction_coefficient(slip_rpm: float, T_c: float, P_mpa: float, f: Friction)
     """
     n = abs(slip_rpm)
     P = max(P_mpa, f.P_floor / 1e6)
+    exp_T = math.exp(-0.005 * T_c)  # = 1 / exp(0.005 T): one exponential for both terms
     return (
         stribeck_term(n, T_c, P, f)
-        + 0.01 * math.log(0.04398 * n + 1.0) / math.exp(0.005 * T_c)
-        + 0.08 * (math.exp(-0.005 * T_c) - 1.0) * (math.exp(-0.0022 * n) - 1.0)
+        + 0.01 * math.log(0.04398 * n + 1.0) * exp_T
+        + 0.08 * (exp_T - 1.0) * (math.exp(-0.0022 * n) - 1.0)
         - 0.005 * math.log(28.3 * P)
         + 0.035
     )

@@ -16,8 +16,9 @@ from __future__ import annotations
 import functools
 import weakref
 from collections import namedtuple
+from collections.abc import Callable
 from dataclasses import fields, is_dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -34,12 +35,11 @@ def record(group: Any) -> tuple:
     if known is not None:
         return known
     cls = type(group)
-    rec = _RECORDS.get(cls)
-    if rec is None:
+    if cls not in _RECORDS:
         name = f"{cls.__name__}Record"
-        rec = namedtuple(name, [f.name for f in fields(group)], module=_params.__name__)  # type: ignore[misc]
-        setattr(_params, name, rec)  # importable by name: numba's cache pickles the type by reference
-        _RECORDS[cls] = rec
+        _RECORDS[cls] = namedtuple(name, [f.name for f in fields(group)], module=_params.__name__)  # type: ignore[misc]
+        setattr(_params, name, _RECORDS[cls])  # importable by name: numba's cache pickles the type by reference
+    rec = _RECORDS[cls]
     values = rec(*(float(getattr(group, f.name)) for f in fields(group)))
     _OF_GROUP[id(group)] = values
     weakref.finalize(group, _OF_GROUP.pop, id(group), None)
