@@ -42,7 +42,7 @@ def rhs(plant: Plant, inputs: PlantInputs):
         mu_CH = friction_coefficient(mem_CH * RAD_S_TO_RPM, T[i_CH], P_CH / 1e6, p.friction)
         M_CL = math.copysign(mu_CL * k_CL * P_CL, slip_CL)
         M_CH = math.copysign(mu_CH * k_CH * P_CH, slip_CH)
-        v = vehicle_speed(x[IDX["5"]], p.powertrain, p.vehicle)
+        v = vehicle_speed(x[IDX["5"]], p.powertrain.i_b, p.vehicle.r_w)
         M_fixed, M_resist = road_load(v, grade, inputs.brake, p.vehicle)
         fuel, d_integral = engine.governor(x[IDX["e"]], integral, setpoint, p.engine)
         u = np.array([engine.net_torque(fuel, p.engine), M_CL, M_CH, M_fixed + math.copysign(M_resist, v)])

@@ -177,11 +177,11 @@ class Plant:
             [self.thermal.step(zero, heat_sources(params, *b)) - self._T_const for b in basis]))
         self._PhiT = np.ascontiguousarray(self.thermal.Phi)
         C = self.network.C
-        # N m per Pa of each clutch (5), plate capacities [J/K], dt
+        # N m per Pa of each clutch (5), plate capacities [J/K], dt, final drive ratio
         self._consts = np.array([torque_per_mu(params.clutch.CL, 1.0), torque_per_mu(params.clutch.CH, 1.0),
-                                 C[I_CL], C[I_CH], dt])
+                                 C[I_CL], C[I_CH], dt, params.powertrain.i_b])
         self._records = (record(params.friction), record(params.engine), record(params.hydraulics),
-                         record(params.vehicle), record(params.powertrain))
+                         record(params.vehicle))
         self._s = self._initial_state(T_init, v_init)
         self.state = PlantState(self._s)
         self._u = np.zeros(6)  # P_CL_cmd, P_CH_cmd, brake, grade, engine speed setpoint, number of steps
@@ -190,8 +190,8 @@ class Plant:
         self._no_trace = np.zeros((0, N_OUT))
         self._args = self._kernel_args(self._no_trace)
         self._steps = advance_steps.specialize(*self._args)
-        write_outputs(self._s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                      self._records[3], self._records[4], self._out)
+        write_outputs(self._s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self._consts[5],
+                      self._records[3], self._out)
         self._last = self._outputs(self._out)
 
     def _initial_state(self, T_init: float | dict[str, float], v_init: float) -> np.ndarray:
@@ -257,7 +257,7 @@ class Plant:
 
 @compiled
 def write_outputs(s, M_e, mu_CL, mu_CH, M_CL, M_CH, Q_CL, Q_CH, stuck_CL, stuck_CH, held, Q_diss_CL, Q_diss_CH,
-                  ve, pt, out):
+                  i_b, ve, out):
     """The outputs (:class:`PlantOutputs`' fields in order) from the state s and the step's torques and heat."""
     x = s[S_X:]
     T = s[S_TEMP:]
@@ -268,7 +268,7 @@ def write_outputs(s, M_e, mu_CL, mu_CH, M_CL, M_CH, Q_CL, Q_CH, stuck_CL, stuck_
     out[4] = x[_2]
     out[5] = x[_3]
     out[6] = x[_5]
-    out[7] = vehicle_speed(x[_5], pt, ve)
+    out[7] = vehicle_speed(x[_5], i_b, ve.r_w)
     out[8] = s[S_P]
     out[9] = s[S_P + 1]
     out[10] = T[_I_CLO]
@@ -295,12 +295,12 @@ _E, _1, _2, _3, _5 = (IDX[n] for n in ("e", "1", "2", "3", "5"))  # speeds as pl
 
 
 @compiled
-def advance_steps(s, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en, hy, ve, pt, out, period, trace):
+def advance_steps(s, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en, hy, ve, out, period, trace):
     """Plant steps (module docstring) on the state array s in place, with the inputs u = [P_CL_cmd, P_CH_cmd,
     brake, grade, engine speed setpoint, number of steps] held; c = [N m per Pa of CL, CH (5), plate capacities of
-    CL, CH, dt]. Writes the outputs of the last step to ``out``, the period's peaks and sums to
+    CL, CH, dt, final drive ratio i_b]. Writes the outputs of the last step to ``out``, the period's peaks and sums to
     ``period`` and, if ``trace`` has rows, each step's outputs to them."""
-    k_CL, k_CH, C_CL, C_CH, dt = c[0], c[1], c[2], c[3], c[4]
+    k_CL, k_CH, C_CL, C_CH, dt, i_b = c[0], c[1], c[2], c[3], c[4], c[5]
     P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_steps = u[0], u[1], u[2], u[3], u[4], int(u[5])
     n_rows, n_x = Mx.shape
     n_T = PhiT.shape[0]
@@ -319,7 +319,7 @@ def advance_steps(s, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en, hy, ve, 
         T = s[S_TEMP:S_TEMP + n_T]
         T_plate_CL, T_plate_CH = T[I_CL], T[I_CH]
         P_CL, P_CH = s[S_P], s[S_P + 1]
-        M_fixed, M_resist = road_load(vehicle_speed(x[_5], pt, ve), grade, brake, ve)
+        M_fixed, M_resist = road_load(vehicle_speed(x[_5], i_b, ve.r_w), grade, brake, ve)
         fuel, d_integral = governor(x[_E], s[S_GOV], setpoint, en)
         M_e = net_torque(fuel, en)
         # clutch capacities (5)-(6), mu at the remembered slip (static mu once stuck long enough)
@@ -368,7 +368,7 @@ def advance_steps(s, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en, hy, ve, 
         held = 1.0 if abs(f[2]) < cap[2] * (1.0 - 1e-9) else 0.0
         write_outputs(s, M_e, mu_CL, mu_CH, f[0], f[1], Q_CL, Q_CH, stuck_CL, stuck_CH, held,
                       Q_CL - C_CL * (T_new[I_CL] - T_plate_CL) / dt, Q_CH - C_CH * (T_new[I_CH] - T_plate_CH) / dt,
-                      ve, pt, out)
+                      i_b, ve, out)
         period[0] = max(period[0], T_new[I_CL])
         period[1] = max(period[1], T_new[I_CH])
         period[2] += Q_CL * dt

@@ -28,18 +28,27 @@ _RECORDS: dict[type, type] = {}
 _OF_GROUP: dict[int, tuple] = {}  # id(group) -> record, while the group lives
 
 
+def _record_class(cls: type) -> type:
+    name = f"{cls.__name__}Record"
+    rec = namedtuple(name, [f.name for f in fields(cls)], module=_params.__name__)  # type: ignore[misc]
+    setattr(_params, name, rec)  # importable by name: numba's cache pickles the type by reference
+    return rec
+
+
+# Every flat parameter group has its record class from the start: numba's cache index lists every signature a
+# function was ever compiled for, and unpickling it needs all their record types, used in this process or not.
+for _cls in list(vars(_params).values()):
+    if isinstance(_cls, type) and is_dataclass(_cls) and all(f.type in ("float", float) for f in fields(_cls)):
+        _RECORDS[_cls] = _record_class(_cls)
+
+
 def record(group: Any) -> tuple:
     """A parameter group's values as a named tuple of floats with the same field names (compiled code reads
     ``e.Kp_gov`` from it as Python reads it from the dataclass). Made once per group object."""
     known = _OF_GROUP.get(id(group))
     if known is not None:
         return known
-    cls = type(group)
-    if cls not in _RECORDS:
-        name = f"{cls.__name__}Record"
-        _RECORDS[cls] = namedtuple(name, [f.name for f in fields(group)], module=_params.__name__)  # type: ignore[misc]
-        setattr(_params, name, _RECORDS[cls])  # importable by name: numba's cache pickles the type by reference
-    rec = _RECORDS[cls]
+    rec = _RECORDS[type(group)]
     values = rec(*(float(getattr(group, f.name)) for f in fields(group)))
     _OF_GROUP[id(group)] = values
     weakref.finalize(group, _OF_GROUP.pop, id(group), None)

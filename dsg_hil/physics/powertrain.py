@@ -179,9 +179,9 @@ def solve_contacts(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f0: np.nd
 
 
 @compiled
-def vehicle_speed(omega_5: float, pt: Powertrain, vehicle: Vehicle) -> float:
-    """Vehicle speed [m/s] from shaft III speed (12)."""
-    return omega_5 / pt.i_b * vehicle.r_w
+def vehicle_speed(omega_5: float, i_b: float, r_w: float) -> float:
+    """Vehicle speed [m/s] from shaft III speed omega_5 [rad/s] (12): final drive ratio i_b, wheel radius r_w."""
+    return omega_5 / i_b * r_w
 
 
 @compiled
