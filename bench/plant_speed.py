@@ -5,8 +5,9 @@
 Cases (simulated seconds per wall second, errors against a tight reference):
 
 * ``vehicle``: the 100-s case of tests/test_continuous_reference.py (level road, engine governed at 2000 r/min,
-  vehicle rolling, CH pressure rising to 0.4 MPa, CH slipping throughout), the plant stepped as the runner steps it,
-  one ``advance`` of 10 steps per 10-ms control period; reference: solve_ivp Radau rtol 1e-10 on dsg_hil.continuous.
+  vehicle rolling, CH pressure rising to 0.4 MPa, CH slipping throughout), the plant stepped one ``advance`` of 10
+  steps per 10-ms control period; reference: solve_ivp Radau rtol 1e-10 on dsg_hil.continuous. Also timed with
+  one ``step`` call per 1-ms step (``plant_step_per_call_sim_s_per_wall_s``).
 * ``rig1``..``rig4``: the Section III.C rig cases (dsg_hil.rig), reference solve_ivp Radau rtol 1e-10 on the
   thermal network.
 * ``creep``: stick/slip of all three contacts (CL slipping against the brake, driving away and locking, slipping
@@ -14,15 +15,16 @@ Cases (simulated seconds per wall second, errors against a tight reference):
   reference is the same plant at a ten times finer step (0.1 ms): a convergence check, not an independent one.
 
 Co-simulation setting (``solve_ivp_ratio``): on the first ``--cosim-seconds`` of the vehicle case, solve_ivp
-restarted every 10 ms with the inputs held (as a co-simulation with a 10-ms controller must run it), its tolerance
-loosened as far as it stays at least as accurate as the plant against the tight reference; the ratio is the plant's
-simulated seconds per wall second over solve_ivp's.
+restarted every 10 ms with the inputs held (as a co-simulation with a 10-ms controller must run it) at the loosest
+tolerance of 1e-3, 1e-4, ... 1e-8 that is at least as accurate as the plant against the tight reference (errors
+sampled every 0.1 s); the ratio is the plant's simulated seconds per wall second over solve_ivp's.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import resource
 import time
 
 import numpy as np
@@ -67,15 +69,34 @@ def run_plant(plant: Plant, inputs_at, seconds: float, sample_every: float) -> t
     return np.array(speeds), np.array(temps), time.perf_counter() - t0
 
 
-def vehicle(params: Params, seconds: float) -> dict:
+def vehicle_run(params: Params, seconds: float, sample_every: float) -> dict:
+    """The vehicle case through the plant (one advance per period) and through the tight reference, sampled every
+    ``sample_every`` s: the plant's errors and wall time, and what solve_ivp needs to run it again."""
     plant, inputs = vehicle_case(params)
     y0, f = pack(plant), rhs(plant, inputs)
-    speeds, temps, wall = run_plant(plant, lambda t: inputs, seconds, 1.0)
-    t_eval = np.arange(1, len(speeds) + 1) * 1.0
+    speeds, temps, wall = run_plant(plant, lambda t: inputs, seconds, sample_every)
+    t_eval = np.arange(1, len(speeds) + 1) * sample_every
     ref = solve_ivp(f, (0.0, t_eval[-1] + 1e-9), y0, method="Radau", rtol=1e-10, atol=1e-10, t_eval=t_eval).y
-    err = errors(speeds, temps[:, 1], ref[:N_DOF].T, ref[I_TCH])
-    return {"name": "vehicle", "sim_s": seconds, "sim_s_per_wall_s": seconds / wall, "max_plate_error_c": err[0],
-            "max_speed_error_rel": err[1], "reference": "solve_ivp Radau rtol 1e-10"}
+    ref_speeds, ref_T = ref[:N_DOF].T, ref[I_TCH]
+    return {"errors": errors(speeds, temps[:, 1], ref_speeds, ref_T), "wall": wall, "y0": y0, "f": f,
+            "ref_speeds": ref_speeds, "ref_T": ref_T}
+
+
+def per_step(params: Params, seconds: float = 10.0) -> float:
+    """Simulated seconds per wall second of the vehicle case with one ``step`` call per 1-ms step (the runner's
+    present use) instead of one ``advance`` per period."""
+    plant, inputs = vehicle_case(params)
+    t0 = time.perf_counter()
+    for _ in range(int(round(seconds / plant.dt))):
+        plant.step(inputs)
+    return seconds / (time.perf_counter() - t0)
+
+
+def vehicle(params: Params, seconds: float) -> dict:
+    run = vehicle_run(params, seconds, 1.0)
+    return {"name": "vehicle", "sim_s": seconds, "sim_s_per_wall_s": seconds / run["wall"],
+            "max_plate_error_c": run["errors"][0], "max_speed_error_rel": run["errors"][1],
+            "reference": "solve_ivp Radau rtol 1e-10"}
 
 
 def rig(params: Params, ref_case) -> dict:
@@ -128,14 +149,9 @@ def creep(params: Params) -> dict:
 
 def cosim(params: Params, seconds: float) -> dict:
     """The plant and solve_ivp restarted every control period, on the vehicle case (module docstring)."""
-    plant, inputs = vehicle_case(params)
-    y0, f = pack(plant), rhs(plant, inputs)
-    speeds, temps, wall_plant = run_plant(plant, lambda t: inputs, seconds, 0.1)
-    t_eval = np.arange(1, len(speeds) + 1) * 0.1
-    ref = solve_ivp(f, (0.0, t_eval[-1] + 1e-9), y0, method="Radau", rtol=1e-10, atol=1e-10, t_eval=t_eval).y
-    ref_speeds, ref_T = ref[:N_DOF].T, ref[I_TCH]
-    err_plant = errors(speeds, temps[:, 1], ref_speeds, ref_T)
-    result = {"sim_s": seconds, "plant_sim_s_per_wall_s": seconds / wall_plant, "plant_errors": err_plant,
+    run = vehicle_run(params, seconds, 0.1)
+    y0, f, ref_speeds, ref_T, err_plant = run["y0"], run["f"], run["ref_speeds"], run["ref_T"], run["errors"]
+    result = {"sim_s": seconds, "plant_sim_s_per_wall_s": seconds / run["wall"], "plant_errors": err_plant,
               "solve_ivp": None}
     n = int(round(seconds / PERIOD))
     every = int(round(0.1 / PERIOD))
@@ -175,18 +191,22 @@ def main() -> None:
         "max_plate_error_c": max(c["max_plate_error_c"] for c in cases),
         "max_speed_error_rel": max(c["max_speed_error_rel"] for c in cases),
         "solve_ivp_ratio": None if ivp is None else co["plant_sim_s_per_wall_s"] / ivp["sim_s_per_wall_s"],
+        "plant_step_per_call_sim_s_per_wall_s": per_step(params),
         "compile_or_cache_load_s": warm_up,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "cases": cases,
         "cosim": co,
     }
     if args.json:
         print(json.dumps(summary))
         return
-    print(f"warm-up (numba compile or cache load): {warm_up:.2f} s")
+    print(f"warm-up (numba compile or cache load): {warm_up:.2f} s; peak RSS {summary['peak_rss_mb']:.0f} MB")
     print(f"{'case':<9}{'sim s / wall s':>15}{'max dT plate K':>16}{'max speed err':>15}  reference")
     for c in cases:
         print(f"{c['name']:<9}{c['sim_s_per_wall_s']:>15.0f}{c['max_plate_error_c']:>16.2e}"
               f"{c['max_speed_error_rel']:>15.2e}  {c['reference']}")
+    print(f"vehicle case, one step() call per 1-ms step: {summary['plant_step_per_call_sim_s_per_wall_s']:.0f} "
+          "sim s / wall s")
     print(f"co-simulation, 10-ms periods, {co['sim_s']:g} s of the vehicle case:")
     print(f"  plant      {co['plant_sim_s_per_wall_s']:10.1f} sim s / wall s, errors {co['plant_errors'][0]:.2e} K,"
           f" {co['plant_errors'][1]:.2e}")
