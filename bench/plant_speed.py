@@ -1,6 +1,6 @@
 """Plant speed and accuracy, measured side by side in one run.
 
-    python bench/plant_speed.py [--seconds 100] [--cosim-seconds 5] [--json]
+    python bench/plant_speed.py [--seconds 100] [--cosim-seconds 5] [--creep-seconds 3] [--json]
 
 Cases (simulated seconds per wall second, errors against a tight reference):
 
@@ -10,9 +10,12 @@ Cases (simulated seconds per wall second, errors against a tight reference):
   one ``step`` call per 1-ms step (``plant_step_per_call_sim_s_per_wall_s``).
 * ``rig1``..``rig4``: the Section III.C rig cases (dsg_hil.rig), reference solve_ivp Radau rtol 1e-10 on the
   thermal network.
-* ``creep``: stick/slip of all three contacts (CL slipping against the brake, driving away and locking, slipping
-  again until the vehicle is held, CH taking over); no solve_ivp reference handles the mode changes, so the
-  reference is the same plant at a ten times finer step (0.1 ms): a convergence check, not an independent one.
+* ``creep``: stick/slip (CL slipping against the held vehicle, brake released at 2 s, driving away), the first
+  ``--creep-seconds``; reference: solve_ivp Radau rtol 1e-8 with stick/slip as events
+  (dsg_hil.continuous.solve_hybrid; slow: every mode change restarts it).
+* ``creep_fine``: 30 s of stick/slip of all three contacts (the above, then CL locking, slipping again until the
+  vehicle is held, CH taking over, the brake holding); reference: the same plant at a ten times finer step (0.1 ms),
+  a convergence check, not an independent one.
 
 Co-simulation setting (``solve_ivp_ratio``): on the first ``--cosim-seconds`` of the vehicle case, solve_ivp
 restarted every 10 ms with the inputs held (as a co-simulation with a 10-ms controller must run it) at the loosest
@@ -30,7 +33,7 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from dsg_hil.continuous import pack, rhs
+from dsg_hil.continuous import pack, rhs, solve_hybrid
 from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
 from dsg_hil.physics.params import Params, load_params
 from dsg_hil.physics.powertrain import N_DOF, N_STATE
@@ -40,7 +43,7 @@ from dsg_hil.reference import RIG_CASES
 from dsg_hil.rig import RigCase, rig_configuration, run_rig
 
 PERIOD = 0.01  # s, the control period
-I_TCH = N_STATE + NODES.index("CH")
+I_TCL, I_TCH = N_STATE + NODES.index("CL"), N_STATE + NODES.index("CH")
 I_CL = NODES.index("CL")
 
 
@@ -134,17 +137,31 @@ def creep_inputs(t: float) -> PlantInputs:
     return PlantInputs(P_CH_cmd=0.2e6, brake=1.0)
 
 
-def creep(params: Params) -> dict:
-    seconds = 30.0
-    plant = Plant(params, T_init=80.0)
-    speeds, temps, wall = run_plant(plant, creep_inputs, seconds, 0.5)
-    fine = Plant(params, dt=1e-4, T_init=80.0)
-    ref_speeds, ref_temps, _ = run_plant(fine, creep_inputs, seconds, 0.5)
+CREEP_BREAKPOINTS = (2.0, 8.0, 14.0, 24.0)  # s, where creep_inputs changes
+
+
+def creep_case(name: str, speeds, temps, wall: float, seconds: float, ref_speeds, ref_temps, reference: str) -> dict:
     err_CL = errors(speeds, temps[:, 0], ref_speeds, ref_temps[:, 0])
     err_CH = errors(speeds, temps[:, 1], ref_speeds, ref_temps[:, 1])
-    return {"name": "creep", "sim_s": seconds, "sim_s_per_wall_s": seconds / wall,
-            "max_plate_error_c": max(err_CL[0], err_CH[0]), "max_speed_error_rel": err_CL[1],
-            "reference": "the plant at 0.1 ms (convergence, not solve_ivp)"}
+    return {"name": name, "sim_s": seconds, "sim_s_per_wall_s": seconds / wall,
+            "max_plate_error_c": max(err_CL[0], err_CH[0]), "max_speed_error_rel": err_CL[1], "reference": reference}
+
+
+def creep(params: Params, seconds: float) -> dict:
+    speeds, temps, wall = run_plant(Plant(params, T_init=80.0), creep_inputs, seconds, 0.5)
+    t_eval = np.arange(1, len(speeds) + 1) * 0.5
+    breakpoints = [b for b in CREEP_BREAKPOINTS if b < seconds] + [seconds]
+    ref, changes = solve_hybrid(Plant(params, T_init=80.0), creep_inputs, breakpoints, t_eval, rtol=1e-8)
+    return creep_case("creep", speeds, temps, wall, seconds, ref[:, :N_DOF], ref[:, [I_TCL, I_TCH]],
+                      f"solve_ivp Radau rtol 1e-8, stick/slip as events ({changes} mode changes)")
+
+
+def creep_fine(params: Params) -> dict:
+    seconds = 30.0
+    speeds, temps, wall = run_plant(Plant(params, T_init=80.0), creep_inputs, seconds, 0.5)
+    ref_speeds, ref_temps, _ = run_plant(Plant(params, dt=1e-4, T_init=80.0), creep_inputs, seconds, 0.5)
+    return creep_case("creep_fine", speeds, temps, wall, seconds, ref_speeds, ref_temps,
+                      "the plant at 0.1 ms (convergence, not solve_ivp)")
 
 
 def cosim(params: Params, seconds: float) -> dict:
@@ -176,6 +193,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=100.0, help="simulated duration of the vehicle case")
     ap.add_argument("--cosim-seconds", type=float, default=5.0, help="simulated duration of the co-simulation")
+    ap.add_argument("--creep-seconds", type=float, default=3.0,
+                    help="simulated duration of the creep case against solve_ivp with events (default 3)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
     params = load_params()
@@ -183,7 +202,8 @@ def main() -> None:
     Plant(params).advance(PlantInputs(), 10)  # compile (or load from numba's cache) before timing
     run_rig(params, RigCase(0.3, 300.0), 0.01)
     warm_up = time.perf_counter() - t0
-    cases = [vehicle(params, args.seconds), *(rig(params, r) for r in RIG_CASES), creep(params)]
+    cases = [vehicle(params, args.seconds), *(rig(params, r) for r in RIG_CASES), creep(params, args.creep_seconds),
+             creep_fine(params)]
     co = cosim(params, args.cosim_seconds)
     ivp = co["solve_ivp"]
     summary = {
