@@ -167,8 +167,8 @@ def test_advance_is_steps_in_one_call(params):
         advanced.advance(inputs, 3, np.zeros((2, N_OUT)))
 
 
-def test_numba_is_imported_only_when_a_plant_steps():
-    """Commands that never step the plant (dsg-hil --help, dbc, params) do not pay numba's import."""
+def test_numba_is_imported_only_when_a_plant_is_built():
+    """Commands that never build a plant (dsg-hil --help, dbc, params) do not pay numba's import."""
     import subprocess
     import sys
 
