@@ -58,18 +58,20 @@ def errors(speeds: np.ndarray, T_plate: np.ndarray, ref_speeds: np.ndarray, ref_
     return float(np.abs(T_plate - ref_T).max()), float((np.abs(speeds - ref_speeds) / scale).max())
 
 
-def run_plant(plant: Plant, inputs_at, seconds: float, sample_every: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Step ``plant`` one control period per call; (speeds, [T_CL, T_CH]) every ``sample_every`` s, wall s."""
+def run_plant(plant: Plant, inputs_at, seconds: float,
+              sample_every: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Step ``plant`` one control period per call; (speeds, [T_CL, T_CH]) every ``sample_every`` s, wall s, CPU s."""
     steps = int(round(PERIOD / plant.dt))
     per_sample = int(round(sample_every / PERIOD))
     speeds, temps = [], []
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(int(round(seconds / PERIOD))):
         out = plant.advance(inputs_at(k * PERIOD), steps)
         if (k + 1) % per_sample == 0:
             speeds.append(plant.state.x[:N_DOF])
             temps.append((out.T_CL, out.T_CH))
-    return np.array(speeds), np.array(temps), time.perf_counter() - t0
+    # wall seconds, and this process's CPU seconds (less sensitive than wall time to a busy machine)
+    return np.array(speeds), np.array(temps), time.perf_counter() - t0, time.process_time() - cpu0
 
 
 def vehicle_run(params: Params, seconds: float, sample_every: float) -> dict:
@@ -77,11 +79,11 @@ def vehicle_run(params: Params, seconds: float, sample_every: float) -> dict:
     ``sample_every`` s: the plant's errors and wall time, and what solve_ivp needs to run it again."""
     plant, inputs = vehicle_case(params)
     y0, f = pack(plant), rhs(plant, inputs)
-    speeds, temps, wall = run_plant(plant, lambda t: inputs, seconds, sample_every)
+    speeds, temps, wall, cpu = run_plant(plant, lambda t: inputs, seconds, sample_every)
     t_eval = np.arange(1, len(speeds) + 1) * sample_every
     ref = solve_ivp(f, (0.0, t_eval[-1] + 1e-9), y0, method="Radau", rtol=1e-10, atol=1e-10, t_eval=t_eval).y
     ref_speeds, ref_T = ref[:N_DOF].T, ref[I_TCH]
-    return {"errors": errors(speeds, temps[:, 1], ref_speeds, ref_T), "wall": wall, "y0": y0, "f": f,
+    return {"errors": errors(speeds, temps[:, 1], ref_speeds, ref_T), "wall": wall, "cpu": cpu, "y0": y0, "f": f,
             "ref_speeds": ref_speeds, "ref_T": ref_T}
 
 
@@ -98,6 +100,7 @@ def per_step(params: Params, seconds: float = 10.0) -> float:
 def vehicle(params: Params, seconds: float) -> dict:
     run = vehicle_run(params, seconds, 1.0)
     return {"name": "vehicle", "sim_s": seconds, "sim_s_per_wall_s": seconds / run["wall"],
+            "sim_s_per_cpu_s": seconds / run["cpu"],
             "max_plate_error_c": run["errors"][0], "max_speed_error_rel": run["errors"][1],
             "reference": "solve_ivp Radau rtol 1e-10"}
 
@@ -148,7 +151,7 @@ def creep_case(name: str, speeds, temps, wall: float, seconds: float, ref_speeds
 
 
 def creep(params: Params, seconds: float) -> dict:
-    speeds, temps, wall = run_plant(Plant(params, T_init=80.0), creep_inputs, seconds, 0.5)
+    speeds, temps, wall, _ = run_plant(Plant(params, T_init=80.0), creep_inputs, seconds, 0.5)
     t_eval = np.arange(1, len(speeds) + 1) * 0.5
     breakpoints = [b for b in CREEP_BREAKPOINTS if b < seconds] + [seconds]
     ref, changes = solve_hybrid(Plant(params, T_init=80.0), creep_inputs, breakpoints, t_eval, rtol=1e-8)
@@ -158,8 +161,8 @@ def creep(params: Params, seconds: float) -> dict:
 
 def creep_fine(params: Params) -> dict:
     seconds = 30.0
-    speeds, temps, wall = run_plant(Plant(params, T_init=80.0), creep_inputs, seconds, 0.5)
-    ref_speeds, ref_temps, _ = run_plant(Plant(params, dt=1e-4, T_init=80.0), creep_inputs, seconds, 0.5)
+    speeds, temps, wall, _ = run_plant(Plant(params, T_init=80.0), creep_inputs, seconds, 0.5)
+    ref_speeds, ref_temps, _, _ = run_plant(Plant(params, dt=1e-4, T_init=80.0), creep_inputs, seconds, 0.5)
     return creep_case("creep_fine", speeds, temps, wall, seconds, ref_speeds, ref_temps,
                       "the plant at 0.1 ms (convergence, not solve_ivp)")
 
@@ -208,6 +211,7 @@ def main() -> None:
     ivp = co["solve_ivp"]
     summary = {
         "plant_sim_s_per_wall_s": cases[0]["sim_s_per_wall_s"],
+        "plant_sim_s_per_cpu_s": cases[0]["sim_s_per_cpu_s"],
         "max_plate_error_c": max(c["max_plate_error_c"] for c in cases),
         "max_speed_error_rel": max(c["max_speed_error_rel"] for c in cases),
         "solve_ivp_ratio": None if ivp is None else co["plant_sim_s_per_wall_s"] / ivp["sim_s_per_wall_s"],
@@ -221,6 +225,7 @@ def main() -> None:
         print(json.dumps(summary))
         return
     print(f"warm-up (numba compile or cache load): {warm_up:.2f} s; peak RSS {summary['peak_rss_mb']:.0f} MB")
+    print(f"vehicle case: {summary['plant_sim_s_per_cpu_s']:.0f} sim s per CPU s of this process")
     print(f"{'case':<9}{'sim s / wall s':>15}{'max dT plate K':>16}{'max speed err':>15}  reference")
     for c in cases:
         print(f"{c['name']:<9}{c['sim_s_per_wall_s']:>15.0f}{c['max_plate_error_c']:>16.2e}"

@@ -60,7 +60,10 @@ def stribeck_term(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> flo
     D = (math.log(T_c) - 3.2) * (28.3 * P) ** 0.4 - 0.87
     if D <= 0.0:
         return 0.0
-    return f.A_stribeck * math.exp(-((0.028574 * abs(slip_rpm) / D) ** 5.16))
+    ratio = 0.028574 * abs(slip_rpm) / D
+    if ratio > 4.0:  # exp(-(ratio ** 5.16)) < exp(-1286) underflows to exactly 0: skip the power and exponential
+        return 0.0
+    return f.A_stribeck * math.exp(-(ratio**5.16))
 
 
 @compiled
