@@ -90,15 +90,15 @@ class PlantState:
         return self.array[S_X:S_X + N_STATE].copy()
 
     @property
-    def T(self) -> np.ndarray:  # noqa: N802 (thermal nodes, degC, order of NODES)
+    def T(self) -> np.ndarray:  # thermal nodes, degC, order of NODES
         return self.array[S_TEMP:S_TEMP + N_T].copy()
 
     @property
-    def P_CL(self) -> float:  # noqa: N802
+    def P_CL(self) -> float:  # Pa
         return float(self.array[S_P])
 
     @property
-    def P_CH(self) -> float:  # noqa: N802
+    def P_CH(self) -> float:  # Pa
         return float(self.array[S_P + 1])
 
     @property
