@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from .physics.jit import compiled
 from .physics.params import Params
 from .physics.thermal import NODES, discretize, gearbox_network, heat_sources
 
@@ -58,7 +59,8 @@ def rig_configuration(params: Params, T_start: float) -> Params:
 
 def run_rig(params: Params, case: RigCase, duration: float = 100.0, dt: float = 1e-3,
             T_start: float = 40.0, every: int = 100) -> RigTrace:
-    """Simulate the rig for ``duration`` s at step ``dt``; exact ZOH thermal step, friction evaluated per step."""
+    """Simulate the rig for ``duration`` s at step ``dt``; exact ZOH thermal step, friction evaluated per step
+    (compiled: :func:`rig_steps`)."""
     params = rig_configuration(params, T_start)
     geometry = params.clutch.CL
     net = gearbox_network(params)
@@ -73,22 +75,43 @@ def run_rig(params: Params, case: RigCase, duration: float = 100.0, dt: float = 
     drive = disc.Gamma @ ((net.g_E * net.T_E + q_base) / net.C)  # the constant part of the source term
     gamma_CL = disc.Gamma[:, I_CL] / net.C[I_CL]
     n_steps = int(round(duration / dt))
-    ts, temps, torques, mus = [], [], [], []
+    rows = list(range(0, n_steps, every)) + [n_steps]
+    samples = np.empty((len(rows), 3))  # T_CL, torque, mu at the sampled steps
+    work, to_env = rig_steps(T, n_steps, every, case.speed_rpm, case.pressure_mpa, k_mu, omega, disc.Phi, drive,
+                             gamma_CL, net.g_E, net.T_E, dt, params.friction, samples)
+    return RigTrace(case, np.array(rows) * dt, samples[:, 0], samples[:, 1], samples[:, 2], T,
+                    work, to_env, float(net.C @ (T - T0)), float(q.sum()) * n_steps * dt)
+
+
+@compiled
+def rig_steps(T, n_steps, every, speed_rpm, pressure_mpa, k_mu, omega, Phi, drive, gamma_CL, g_E, T_E, dt, fr,
+              samples):
+    """The rig's n_steps exact thermal steps on T in place, friction (5)-(6) at each step's start temperature;
+    T_CL, torque and mu every ``every`` steps and at the end into ``samples``. Returns (friction work, heat to E)
+    [J], the latter by the trapezoid rule."""
+    n = T.shape[0]
+    T_next = np.empty(n)
     work = to_env = 0.0
+    row = 0
     for k in range(n_steps + 1):
-        mu = friction_coefficient(case.speed_rpm, T[I_CL], case.pressure_mpa, params.friction)
+        mu = friction_coefficient(speed_rpm, T[I_CL], pressure_mpa, fr)
         M = mu * k_mu
         if k % every == 0 or k == n_steps:
-            ts.append(k * dt)
-            temps.append(T[I_CL])
-            torques.append(M)
-            mus.append(mu)
+            samples[row, 0], samples[row, 1], samples[row, 2] = T[I_CL], M, mu
+            row += 1
         if k == n_steps:
             break
         heat = M * omega
-        T_next = disc.Phi @ T + drive + gamma_CL * heat
+        out_before = out_after = 0.0
+        for i in range(n):
+            acc = drive[i] + gamma_CL[i] * heat
+            for j in range(n):
+                acc += Phi[i, j] * T[j]
+            T_next[i] = acc
+        for i in range(n):
+            out_before += g_E[i] * (T[i] - T_E)
+            out_after += g_E[i] * (T_next[i] - T_E)
         work += heat * dt
-        to_env += 0.5 * (net.heat_to_environment(T) + net.heat_to_environment(T_next)) * dt
-        T = T_next
-    return RigTrace(case, np.array(ts), np.array(temps), np.array(torques), np.array(mus), T,
-                    work, to_env, float(net.C @ (T - T0)), float(q.sum()) * n_steps * dt)
+        to_env += 0.5 * (out_before + out_after) * dt
+        T[:] = T_next
+    return work, to_env

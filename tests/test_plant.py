@@ -134,3 +134,46 @@ def test_heat_dissipated_is_the_heat_leaving_the_plate_nodes(params):
     assert out.Q_CL > 1000.0 and 0.0 < out.Q_diss_CL < out.Q_CL  # heats: not all generated heat leaves
     assert out.Q_diss_CL == pytest.approx(leaving[NODES.index("CL")], rel=1e-4)
     assert out.Q_diss_CH == pytest.approx(leaving[NODES.index("CH")], rel=1e-4, abs=1e-3)
+
+
+def test_two_runs_give_identical_state_arrays(params):
+    """Determinism of the compiled step: the same scenario, the same state bit for bit."""
+    def final_state():
+        plant = Plant(params, T_init={"CL": 120.0, "CH": 90.0, "Fo": 80.0})
+        for k in range(300):  # engage, lock, brake, slip: every branch of the contact law
+            plant.advance(PlantInputs(P_CL_cmd=0.9e6 if k < 200 else 0.3e6, brake=1.0 if 100 <= k < 150 else 0.0), 10)
+        return plant.state.array.copy()
+    first, second = final_state(), final_state()
+    assert first.tobytes() == second.tobytes()
+
+
+def test_advance_is_steps_in_one_call(params):
+    """advance(inputs, n) = n calls of step, bit for bit; its trace holds each step's outputs, its period the
+    peak plate temperatures and the friction energy of the steps."""
+    from dsg_hil.plant import N_OUT, PERIOD
+
+    inputs = PlantInputs(P_CL_cmd=0.6e6, brake=0.0)
+    stepped, advanced = Plant(params, T_init=100.0), Plant(params, T_init=100.0)
+    run(stepped, inputs, 0.5)
+    advanced.advance(inputs, 500)
+    outs = [stepped.step(inputs) for _ in range(10)]
+    trace = np.zeros((10, N_OUT))
+    last = advanced.advance(inputs, 10, trace)
+    assert stepped.state.array.tobytes() == advanced.state.array.tobytes()
+    assert tuple(outs[-1]) == tuple(last) and last.Q_CL > 0.0
+    np.testing.assert_array_equal(trace, np.array([tuple(o) for o in outs], dtype=float))
+    period = dict(zip(PERIOD, advanced.period, strict=True))
+    assert period["T_CL_max"] == max(o.T_CL for o in outs)
+    assert period["E_CL"] == pytest.approx(sum(o.Q_CL for o in outs) * stepped.dt, rel=1e-12)
+    with pytest.raises(ValueError, match="trace"):
+        advanced.advance(inputs, 3, np.zeros((2, N_OUT)))
+
+
+def test_numba_is_imported_only_when_a_plant_is_built():
+    """Commands that never build a plant (dsg-hil --help, dbc, params) do not pay numba's import."""
+    import subprocess
+    import sys
+
+    code = ("import sys, dsg_hil.cli, dsg_hil.plant, dsg_hil.rig, dsg_hil.runner; "
+            "assert 'numba' not in sys.modules, 'numba imported'")
+    subprocess.run([sys.executable, "-c", code], check=True)

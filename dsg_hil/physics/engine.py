@@ -6,9 +6,11 @@ torque of (7) is fuel torque minus drag. The integrator stops while the output s
 
 from __future__ import annotations
 
+from .jit import compiled
 from .params import Engine
 
 
+@compiled
 def full_load_torque(omega_e: float, e: Engine) -> float:
     """Full-load fuel torque [N m]: M_max up to omega_rated, falling linearly to zero at 1.2 omega_rated."""
     if omega_e <= e.omega_rated:
@@ -16,6 +18,7 @@ def full_load_torque(omega_e: float, e: Engine) -> float:
     return max(0.0, e.M_max * (1.0 - (omega_e - e.omega_rated) / (0.2 * e.omega_rated)))
 
 
+@compiled
 def governor(omega_e: float, integral: float, setpoint: float, e: Engine) -> tuple[float, float]:
     """Fuel torque [N m] and the integral's rate [N m/s] for engine speed omega_e [rad/s].
 
@@ -29,6 +32,7 @@ def governor(omega_e: float, integral: float, setpoint: float, e: Engine) -> tup
     return fuel, 0.0 if saturated else e.Ki_gov * error
 
 
+@compiled
 def net_torque(fuel: float, e: Engine) -> float:
     """Net engine torque M_e of (7) [N m]: fuel torque minus drag."""
     return fuel - e.M_drag

@@ -17,6 +17,8 @@ calibrated parameter (``friction.A_stribeck`` in the parameter file, with its ta
 Frictional memory: the plant feeds (6) a first-order lag of the slip speed magnitude (``tau_slip``), not the
 instantaneous slip; see :func:`slip_memory_step`.
 
+Compiled (:mod:`dsg_hil.physics.jit`): (6) and the slip memory, which the plant evaluates every step.
+
 Guards (stated, not hidden): ``P`` is floored at ``P_floor`` inside (6) only, because ``-0.005 ln(28.3 P)`` is
 unbounded as ``P -> 0`` (the torque (5) still uses the true pressure, so zero pressure gives zero torque);
 ``T <= 1 degC`` or ``D <= 0`` switches the first term off; ``n`` is the magnitude of the slip speed.
@@ -29,6 +31,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .jit import compiled
 from .params import ClutchGeometry, Friction
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -49,6 +52,7 @@ def clutch_torque_capacity(mu: float, geometry: ClutchGeometry, pressure_pa: flo
     return mu * torque_per_mu(geometry, pressure_pa)
 
 
+@compiled
 def stribeck_term(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> float:
     """First term of (6) in the Stribeck reading (see module docstring); zero where D <= 0 or T <= 1 degC."""
     if T_c <= 1.0:
@@ -57,9 +61,13 @@ def stribeck_term(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> flo
     D = (math.log(T_c) - 3.2) * (28.3 * P) ** 0.4 - 0.87
     if D <= 0.0:
         return 0.0
-    return f.A_stribeck * math.exp(-((0.028574 * abs(slip_rpm) / D) ** 5.16))
+    ratio = 0.028574 * abs(slip_rpm) / D
+    if ratio > 4.0:  # exp(-(ratio ** 5.16)) < exp(-1286) underflows to exactly 0: skip the power and exponential
+        return 0.0
+    return f.A_stribeck * math.exp(-(ratio**5.16))
 
 
+@compiled
 def friction_coefficient(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> float:
     """Friction coefficient mu of the wet paper/steel pair, equation (6) in the Stribeck reading.
 
@@ -67,10 +75,11 @@ def friction_coefficient(slip_rpm: float, T_c: float, P_mpa: float, f: Friction)
     """
     n = abs(slip_rpm)
     P = max(P_mpa, f.P_floor / 1e6)
+    exp_T = math.exp(-0.005 * T_c)  # = 1 / exp(0.005 T): one exponential for both terms
     return (
         stribeck_term(n, T_c, P, f)
-        + 0.01 * math.log(0.04398 * n + 1.0) / math.exp(0.005 * T_c)
-        + 0.08 * (math.exp(-0.005 * T_c) - 1.0) * (math.exp(-0.0022 * n) - 1.0)
+        + 0.01 * math.log(0.04398 * n + 1.0) * exp_T
+        + 0.08 * (exp_T - 1.0) * (math.exp(-0.0022 * n) - 1.0)
         - 0.005 * math.log(28.3 * P)
         + 0.035
     )
@@ -81,6 +90,7 @@ def friction_coefficient_grid(slip_rpm: ArrayLike, T_c: ArrayLike, P_mpa: ArrayL
     return np.vectorize(lambda n, T, P: friction_coefficient(n, T, P, f), otypes=[float])(slip_rpm, T_c, P_mpa)
 
 
+@compiled
 def slip_memory_step(slip_memory: float, slip_speed: float, dt: float, f: Friction) -> float:
     """Exact step of tau_slip * s' = |slip_speed| - s with the slip held over dt (any speed unit)."""
     target = abs(slip_speed)

@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import math
 
+from .jit import compiled
 from .params import Hydraulics
 
 
+@compiled
 def clamp_command(P_cmd: float, h: Hydraulics) -> float:
     """The pressure the valve can actually aim for [Pa]."""
     if not math.isfinite(P_cmd):
@@ -18,6 +20,7 @@ def clamp_command(P_cmd: float, h: Hydraulics) -> float:
     return min(max(P_cmd, 0.0), h.P_max)
 
 
+@compiled
 def pressure_step(P: float, P_cmd: float, dt: float, h: Hydraulics) -> float:
     """Pressure after dt [s] from P [Pa] with the command held: exact solution of tau P' = P_cmd - P."""
     target = clamp_command(P_cmd, h)

@@ -23,11 +23,11 @@ have modes up to ~690 Hz.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from .jit import compiled
 from .params import Powertrain, Vehicle
 from .thermal import zoh
 
@@ -130,11 +130,6 @@ class Discrete:
     V: np.ndarray
     W: np.ndarray
 
-    @property
-    def W_rows(self) -> tuple[tuple[float, ...], ...]:
-        """W as plain floats, for the contact solver's scalar loop."""
-        return tuple(tuple(float(w) for w in row) for row in self.W)
-
 
 def discretize(model: Model, dt: float) -> Discrete:
     if not dt > 0.0:
@@ -152,26 +147,28 @@ def discretize(model: Model, dt: float) -> Discrete:
     return Discrete(dt, E[:n, :n], Gamma, E[n:, :n], Gam[n:], V, V @ Gamma[:, CONTACT_INPUTS])
 
 
-def solve_contacts(v_free: Sequence[float], W: Sequence[Sequence[float]], cap: Sequence[float], f0: Sequence[float],
-                   iterations: int = 50, tol: float = 1e-9) -> list[float]:
+@compiled
+def solve_contacts(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f0: np.ndarray, iterations: int = 50,
+                   tol: float = 1e-9) -> np.ndarray:
     """Friction torques f (one per contact, |f_i| <= cap_i) of the implicit time-stepping friction law.
 
     With ``v = v_free + W f`` the contact velocities at the end of the step: a contact sticks (v_i = 0) when it
     can, with |f_i| < cap_i; otherwise it slips with f_i = cap_i sign(v_i), never reversing within the step.
     Projected Gauss-Seidel from ``f0`` in a fixed order (deterministic); W has a dominant negative diagonal.
-    Scalar arithmetic on purpose: three contacts, called every step.
+    Float arrays in and out (compiled: scalar loops cost nothing there).
     """
-    n = len(cap)
-    f = [min(max(float(f0[i]), -cap[i]), cap[i]) for i in range(n)]
-    scale = tol * (1.0 + max(cap))
+    n = cap.shape[0]
+    f = np.empty(n)
+    for i in range(n):
+        f[i] = min(max(f0[i], -cap[i]), cap[i])
+    scale = tol * (1.0 + cap.max())
     for _ in range(iterations):
         change = 0.0
         for i in range(n):
-            row = W[i]
             v_i = v_free[i]
             for j in range(n):
-                v_i += row[j] * f[j]
-            new = f[i] - v_i / row[i]
+                v_i += W[i, j] * f[j]
+            new = f[i] - v_i / W[i, i]
             new = cap[i] if new > cap[i] else (-cap[i] if new < -cap[i] else new)
             if abs(new - f[i]) > change:
                 change = abs(new - f[i])
@@ -181,11 +178,13 @@ def solve_contacts(v_free: Sequence[float], W: Sequence[Sequence[float]], cap: S
     return f
 
 
-def vehicle_speed(omega_5: float, pt: Powertrain, vehicle: Vehicle) -> float:
-    """Vehicle speed [m/s] from shaft III speed (12)."""
-    return omega_5 / pt.i_b * vehicle.r_w
+@compiled
+def vehicle_speed(omega_5: float, i_b: float, r_w: float) -> float:
+    """Vehicle speed [m/s] from shaft III speed omega_5 [rad/s] (12): final drive ratio i_b, wheel radius r_w."""
+    return omega_5 / i_b * r_w
 
 
+@compiled
 def road_load(v: float, grade: float, brake: float, vehicle: Vehicle) -> tuple[float, float]:
     """Road load (13) at the wheel without its acceleration term, split into (drive-independent, resisting) [N m].
 

@@ -50,7 +50,7 @@ def test_contacts_stick_when_they_can_and_slip_at_capacity_otherwise():
     assert f[0] == 5.0 and v[0] > 0.0  # slips forward at capacity, slip not reversed
     assert f[1] == -5.0 and v[1] < 0.0
     assert f[2] == 100.0 and v[2] > 0.0
-    assert solve_contacts(v_free, W, np.zeros(3), np.ones(3)) == [0.0, 0.0, 0.0]  # no capacity, no torque
+    assert solve_contacts(v_free, W, np.zeros(3), np.ones(3)).tolist() == [0.0, 0.0, 0.0]  # no capacity, no torque
 
 
 def test_exact_step_matches_fine_rk4(params):

@@ -1,0 +1,43 @@
+"""The compiled physics (dsg_hil.physics.jit): records of parameter groups, and the compiled code agreeing with
+its own source run by the interpreter."""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import fields, is_dataclass
+
+from dsg_hil.physics import jit
+from dsg_hil.physics import params as params_module
+from dsg_hil.physics.engine import governor
+from dsg_hil.physics.friction import friction_coefficient
+
+
+def test_every_flat_parameter_group_has_an_importable_record_type():
+    """numba's cache index pickles every signature a function was compiled for; reading it in a process that has
+    not used a group yet needs that group's record type by name (a stale index once failed with AttributeError)."""
+    flat = [c for c in vars(params_module).values() if isinstance(c, type) and is_dataclass(c)
+            and all(f.type in ("float", float) for f in fields(c))]
+    assert {"Friction", "Engine", "Hydraulics", "Vehicle", "Powertrain"} <= {c.__name__ for c in flat}
+    module = importlib.import_module(params_module.__name__)
+    for cls in flat:
+        assert getattr(module, f"{cls.__name__}Record") is type(jit.record(_example(cls)))
+
+
+def _example(cls):
+    return cls(**{f.name: 1.0 for f in fields(cls)})
+
+
+def test_record_holds_the_groups_values(params):
+    rec = jit.record(params.engine)
+    assert rec.Kp_gov == params.engine.Kp_gov and rec.M_max == params.engine.M_max
+    assert jit.record(params.engine) is rec  # made once per group
+
+
+def test_compiled_equals_its_source_interpreted(params):
+    """One implementation: the machine code and the same function run by Python agree (to rounding)."""
+    for n, T, P in ((0.0, 80.0, 0.3), (5.0, 150.0, 0.7), (300.0, 40.0, 0.0), (2000.0, 250.0, 1.5)):
+        mu = friction_coefficient(n, T, P, params.friction)
+        assert abs(mu - friction_coefficient.py_func(n, T, P, params.friction)) <= 1e-15
+    e = params.engine
+    assert governor(e.omega_idle - 5.0, 0.0, e.omega_idle, e) == governor.py_func(e.omega_idle - 5.0, 0.0,
+                                                                                  e.omega_idle, e)
