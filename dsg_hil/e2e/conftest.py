@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 from collections import defaultdict
+from collections.abc import Iterable
 from pathlib import Path
 
 import pytest
@@ -73,14 +74,15 @@ def console(name: str) -> str:
 
 
 class Candump:
-    """``candump -L vcan0`` writing to a file while the test runs."""
+    """``candump -L vcan0`` writing to a file while the test runs; ``ids``: only these (kernel filters)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, ids: Iterable[int] | None = None) -> None:
         self.path = path
         self.file = path.open("w")
+        channel = "vcan0" if ids is None else "vcan0," + ",".join(f"{ident:03X}:7FF" for ident in ids)
         # a receive buffer for ~8000 frames: a starved candump (emulation, a busy machine) would otherwise drop
         # frames from the recording when a sender catches up in a burst (canplayer does); root may force it
-        self.proc = subprocess.Popen(["candump", "-L", "-r", str(RCVBUF), "vcan0"], stdout=self.file,
+        self.proc = subprocess.Popen(["candump", "-L", "-r", str(RCVBUF), channel], stdout=self.file,
                                      stderr=subprocess.PIPE)
         time.sleep(0.3)
 
