@@ -75,6 +75,9 @@ def _do_vcan(args: argparse.Namespace) -> int:
         rc = subprocess.run(command, env={**os.environ, **env}).returncode
     else:
         kernel = vcan.find_kernel(args.kernel)
+        env |= vcan.compiled_code_env(outdir)
+        progress("compiling the plant's physics on the host for the VM (numba cache in the log directory)")
+        vcan.warm_compiled_code(env)
         progress(f"booting {kernel.name} under QEMU (software emulation) with vcan0; logs in {outdir}")
         rc = vcan.run_in_vm(vcan.vm_plan(command, outdir, kernel, env, Path.cwd()), args.timeout)
         tail = vcan.output_tail(outdir)
