@@ -22,13 +22,15 @@ import random
 import socket
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import can
 import can.cli
-from cantools.database.can import Message
 
 from .errors import InputError, RunError
+
+if TYPE_CHECKING:
+    from cantools.database.can import Message
 
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
