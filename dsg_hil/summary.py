@@ -30,8 +30,11 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
+
+import numpy as np
 
 from .reference import SAFETY_TEMPERATURE_C
 
@@ -130,6 +133,7 @@ class _Run:
     last: Sample | None = None
     tail: Sample | None = None  # last sample of the run
     window: deque[Sample] = field(default_factory=deque)
+    chunks: deque[tuple[np.ndarray, np.ndarray]] = field(default_factory=deque)  # add_rows' window: (t, rows)
 
     def values(self) -> tuple[Sample, Sample, Sample]:
         """(start, end, last) samples: the start and end values of mu and P, and the temperatures at the end."""
@@ -137,6 +141,13 @@ class _Run:
         start = self.settled or self.first or self.tail
         assert start is not None and last is not None, "a run is created with its first sample"
         return start, self.lagged or last, last
+
+
+def _in_order(total: float, terms: np.ndarray) -> float:
+    """``total`` plus ``terms`` added one by one, left to right (as a loop would: np.cumsum is sequential)."""
+    if not len(terms):
+        return total
+    return float(np.cumsum(np.concatenate(([total], terms)))[-1])
 
 
 def _r(x: float | None, nd: int) -> float | None:
@@ -261,6 +272,105 @@ class CreepMetrics:
             self.speed_min_creeping = v if self.speed_min_creeping is None else min(self.speed_min_creeping, v)
         self._t_last = t + dt
 
+    def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
+                 creep_request: bool, desired_speed: float) -> None:
+        """Consecutive samples as the rows of an array (columns named by ``fields``), ``creep_request`` and
+        ``desired_speed`` held over them: the same as :meth:`add` on each row in turn, to the last bit (sums are
+        taken in order, by ``np.cumsum``), without a Python step per row. ``sample`` makes a :class:`Sample` of
+        a row, for the few rows a run keeps."""
+        if len(rows) == 0:
+            return
+        col = {name: rows[:, fields.index(name)] for name in
+               ("t", "v", "omega_in", "omega_CL", "omega_CH", "P_CL", "P_CH", "T_CL", "T_CH", "M_CL", "M_CH",
+                "Q_CL", "Q_CH")}
+        t, v, omega_in = col["t"], col["v"], col["omega_in"]
+        M_CL, M_CH, P_CL, P_CH = col["M_CL"], col["M_CH"], col["P_CL"], col["P_CH"]
+        with np.errstate(invalid="ignore"):
+            cl = np.where(M_CL == M_CL, np.abs(M_CL) > TORQUE_MIN, P_CL > P_ENGAGED) \
+                & (np.abs(omega_in - col["omega_CL"]) > SLIP_MIN)
+            ch = np.where(M_CH == M_CH, np.abs(M_CH) > TORQUE_MIN, P_CH > P_ENGAGED) \
+                & (np.abs(omega_in - col["omega_CH"]) > SLIP_MIN)
+            both = cl & ch
+            known = (M_CL == M_CL) & (M_CH == M_CH)
+            a = np.where(known, np.abs(M_CL), P_CL)
+            b = np.where(known, np.abs(M_CH), P_CH)
+            code = np.where(both, np.where(a >= b, 1, 2), np.where(cl, 1, np.where(ch, 2, 0)))  # 0: none
+        slipping = code != 0
+        for name, k in (("CL", 1), ("CH", 2)):
+            self.slip_time[name] = _in_order(self.slip_time[name], np.where(code == k, dt, 0.0))
+        self.slip_overlap = _in_order(self.slip_overlap, np.where(both, dt, 0.0))
+        self._add_runs(rows, t, code, slipping & ~both, sample, dt)
+        for name in ("CL", "CH"):
+            T, Q = col[f"T_{name}"], col[f"Q_{name}"]
+            T_known = T[T == T]
+            if len(T_known):
+                peak, top = self.max_T[name], float(T_known.max())
+                if peak is None or top > peak:
+                    self.max_T[name] = top
+                self.above_limit[name] = _in_order(self.above_limit[name],
+                                                   np.where(T_known > SAFETY_TEMPERATURE_C, dt, 0.0))
+            self.energy[name] = _in_order(self.energy[name], Q[Q == Q] * dt)
+        back = v < 0.0
+        if back.any():
+            self.rollback_speed = min(self.rollback_speed, float(v[back].min()))
+            self.rollback_distance = _in_order(self.rollback_distance, -v[back] * dt)
+        if not creep_request:
+            self._end_rest()
+            return
+        moving = v > V_MOVING
+        self.creep_time = _in_order(self.creep_time, np.where(moving, dt, 0.0))
+        self.standstill_time = _in_order(self.standstill_time, np.where(np.abs(v) <= V_MOVING, dt, 0.0))
+        moved = self._moved | np.logical_or.accumulate(moving & (v >= ESTABLISHED * desired_speed))
+        last_moving = int(np.flatnonzero(moving)[-1]) if moving.any() else -1
+        if last_moving >= 0:
+            self._rest = None
+        if self._rest is None:  # the rest begins at the first standstill after the last motion, once moved
+            resting = np.flatnonzero(moved[last_moving + 1:])
+            if len(resting):
+                i = last_moving + 1 + int(resting[0])
+                self._rest = (float(t[i]), sample(rows[i]))
+        self._moved = bool(moved[-1])
+        driven = moved & slipping
+        if driven.any():
+            self._sq_speed_error = _in_order(self._sq_speed_error, (v[driven] - desired_speed) ** 2 * dt)
+            self._driven_time = _in_order(self._driven_time, np.full(int(driven.sum()), dt))
+            low = float(v[driven].min())
+            self.speed_min_creeping = low if self.speed_min_creeping is None else min(self.speed_min_creeping, low)
+        self._t_last = float(t[-1]) + dt
+
+    def _add_runs(self, rows: np.ndarray, t: np.ndarray, code: np.ndarray, alone: np.ndarray,
+                  sample: Callable[[np.ndarray], Sample], dt: float) -> None:
+        """The runs of :meth:`add_rows`: a segment of rows per run of the driving clutch."""
+        cuts = np.flatnonzero(code[1:] != code[:-1]) + 1
+        for lo, hi in zip([0, *cuts.tolist()], [*cuts.tolist(), len(code)], strict=True):
+            clutch = CLUTCHES.get(int(code[lo]))
+            runs = self.runs
+            if not runs or runs[-1].clutch != clutch:
+                runs.append(_Run(clutch, float(t[lo]), float(t[lo])))
+            run = runs[-1]
+            run.end, run.tail = float(t[hi - 1]) + dt, sample(rows[hi - 1])
+            own = np.flatnonzero(alone[lo:hi]) + lo
+            if not len(own):
+                continue
+            ts = t[own]
+            if run.first is None:
+                run.first = sample(rows[own[0]])
+            if run.settled is None:
+                later = np.flatnonzero(ts >= run.first.t + SETTLE_S - 1e-9)
+                if len(later):
+                    run.settled = sample(rows[own[later[0]]])
+            run.chunks.append((ts, rows[own]))
+            limit = ts[-1] - SETTLE_S + 1e-9  # the lagged sample: the newest of the run this long before the last
+            for k in range(len(run.chunks) - 1, -1, -1):
+                chunk_t, chunk_rows = run.chunks[k]
+                i = int(np.searchsorted(chunk_t, limit, side="right")) - 1
+                if i >= 0:
+                    run.lagged = sample(chunk_rows[i])
+                    for _ in range(k):
+                        run.chunks.popleft()
+                    break
+            run.last = sample(rows[own[-1]])
+
     def _end_rest(self) -> None:
         if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:
             self.stop = self._rest
@@ -351,6 +461,13 @@ class RunSummary:
         self.creep.add(out, self.dt, creeping, desired_speed)
         if fallback:
             self.fallback_time_s += self.dt
+
+    def on_period(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample],
+                  creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
+        """Plant steps as the rows of an array (:meth:`CreepMetrics.add_rows`): :meth:`on_step` on each row."""
+        self.creep.add_rows(rows, fields, sample, self.dt, creeping, desired_speed)
+        if fallback:
+            self.fallback_time_s = _in_order(self.fallback_time_s, np.full(len(rows), self.dt))
 
     def on_status(self, t: float, values: dict[str, float], truth: Sample) -> None:
         self.creep.status(t, values["State"], values["ActiveClutch"], values["T_CL_Pred"], values["T_CH_Pred"],
