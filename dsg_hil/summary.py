@@ -207,6 +207,7 @@ class CreepMetrics:
     _moved: bool = False
     _rest: tuple[float, Sample] | None = None
     _t_last: float = 0.0
+    _cols: tuple[tuple[str, ...], np.ndarray] | None = None  # add_rows: the row columns it reads
 
     def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
         """One sample ``s`` standing for the interval [s.t, s.t + dt).
@@ -275,80 +276,68 @@ class CreepMetrics:
     def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
                  creep_request: bool, desired_speed: float) -> None:
         """Consecutive samples as the rows of an array (columns named by ``fields``), ``creep_request`` and
-        ``desired_speed`` held over them: the same as :meth:`add` on each row in turn, to the last bit (sums are
-        taken in order, by ``np.cumsum``), without a Python step per row. ``sample`` makes a :class:`Sample` of
-        a row, for the few rows a run keeps."""
-        if len(rows) == 0:
+        ``desired_speed`` held over them: :meth:`add` on each row in turn, the per-row part compiled
+        (:func:`dsg_hil.creep_rows.creep_rows`, the same operations, so the same sums to the last bit). ``sample``
+        makes a :class:`Sample` of a row, for the few rows the runs and the rest keep."""
+        from .creep_rows import ACC, columns, kernel
+
+        n = len(rows)
+        if n == 0:
             return
-        col = {name: rows[:, fields.index(name)] for name in
-               ("t", "v", "omega_in", "omega_CL", "omega_CH", "P_CL", "P_CH", "T_CL", "T_CH", "M_CL", "M_CH",
-                "Q_CL", "Q_CH")}
-        t, v, omega_in = col["t"], col["v"], col["omega_in"]
-        M_CL, M_CH, P_CL, P_CH = col["M_CL"], col["M_CH"], col["P_CL"], col["P_CH"]
-        with np.errstate(invalid="ignore"):
-            cl = np.where(M_CL == M_CL, np.abs(M_CL) > TORQUE_MIN, P_CL > P_ENGAGED) \
-                & (np.abs(omega_in - col["omega_CL"]) > SLIP_MIN)
-            ch = np.where(M_CH == M_CH, np.abs(M_CH) > TORQUE_MIN, P_CH > P_ENGAGED) \
-                & (np.abs(omega_in - col["omega_CH"]) > SLIP_MIN)
-            both = cl & ch
-            known = (M_CL == M_CL) & (M_CH == M_CH)
-            a = np.where(known, np.abs(M_CL), P_CL)
-            b = np.where(known, np.abs(M_CH), P_CH)
-            code = np.where(both, np.where(a >= b, 1, 2), np.where(cl, 1, np.where(ch, 2, 0)))  # 0: none
-        slipping = code != 0
-        for name, k in (("CL", 1), ("CH", 2)):
-            self.slip_time[name] = _in_order(self.slip_time[name], np.where(code == k, dt, 0.0))
-        self.slip_overlap = _in_order(self.slip_overlap, np.where(both, dt, 0.0))
-        self._add_runs(rows, t, code, slipping & ~both, sample, dt)
+        rows = np.ascontiguousarray(rows, dtype=np.float64)
+        key = tuple(fields)
+        if self._cols is None or self._cols[0] != key:
+            self._cols = (key, columns(key))
+        nan = math.nan
+        acc = np.array([self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap,
+                        nan if self.max_T["CL"] is None else self.max_T["CL"],
+                        nan if self.max_T["CH"] is None else self.max_T["CH"],
+                        self.above_limit["CL"], self.above_limit["CH"], self.energy["CL"], self.energy["CH"],
+                        self.rollback_speed, self.rollback_distance, self.creep_time, self.standstill_time,
+                        float(self._moved), self._sq_speed_error, self._driven_time,
+                        nan if self.speed_min_creeping is None else self.speed_min_creeping, self._t_last,
+                        float(self._rest is not None), -1.0])
+        code = np.empty(n, dtype=np.int64)
+        alone = np.empty(n, dtype=np.bool_)
+        kernel()(rows, self._cols[1], dt, 1.0 if creep_request else 0.0, float(desired_speed), acc, code, alone)
+        a = dict(zip(ACC, acc.tolist(), strict=True))
+        self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap = a["slip_CL"], a["slip_CH"], a["overlap"]
         for name in ("CL", "CH"):
-            T, Q = col[f"T_{name}"], col[f"Q_{name}"]
-            T_known = T[T == T]
-            if len(T_known):
-                peak, top = self.max_T[name], float(T_known.max())
-                if peak is None or top > peak:
-                    self.max_T[name] = top
-                self.above_limit[name] = _in_order(self.above_limit[name],
-                                                   np.where(T_known > SAFETY_TEMPERATURE_C, dt, 0.0))
-            self.energy[name] = _in_order(self.energy[name], Q[Q == Q] * dt)
-        back = v < 0.0
-        if back.any():
-            self.rollback_speed = min(self.rollback_speed, float(v[back].min()))
-            self.rollback_distance = _in_order(self.rollback_distance, -v[back] * dt)
+            peak = a[f"max_T_{name}"]
+            self.max_T[name] = None if peak != peak else peak
+            self.above_limit[name], self.energy[name] = a[f"above_{name}"], a[f"energy_{name}"]
+        self.rollback_speed, self.rollback_distance = a["rollback_speed"], a["rollback_distance"]
+        self._add_runs(rows, code, alone, sample, dt)
         if not creep_request:
             self._end_rest()
             return
-        moving = v > V_MOVING
-        self.creep_time = _in_order(self.creep_time, np.where(moving, dt, 0.0))
-        self.standstill_time = _in_order(self.standstill_time, np.where(np.abs(v) <= V_MOVING, dt, 0.0))
-        moved = self._moved | np.logical_or.accumulate(moving & (v >= ESTABLISHED * desired_speed))
-        last_moving = int(np.flatnonzero(moving)[-1]) if moving.any() else -1
-        if last_moving >= 0:
+        self.creep_time, self.standstill_time, self._moved = a["creep"], a["standstill"], a["moved"] != 0.0
+        self._sq_speed_error, self._driven_time, self._t_last = a["sq_speed_error"], a["driven_time"], a["t_last"]
+        low = a["speed_min"]
+        self.speed_min_creeping = None if low != low else low
+        if a["resting"] == 0.0:
             self._rest = None
-        if self._rest is None:  # the rest begins at the first standstill after the last motion, once moved
-            resting = np.flatnonzero(moved[last_moving + 1:])
-            if len(resting):
-                i = last_moving + 1 + int(resting[0])
-                self._rest = (float(t[i]), sample(rows[i]))
-        self._moved = bool(moved[-1])
-        driven = moved & slipping
-        if driven.any():
-            self._sq_speed_error = _in_order(self._sq_speed_error, (v[driven] - desired_speed) ** 2 * dt)
-            self._driven_time = _in_order(self._driven_time, np.full(int(driven.sum()), dt))
-            low = float(v[driven].min())
-            self.speed_min_creeping = low if self.speed_min_creeping is None else min(self.speed_min_creeping, low)
-        self._t_last = float(t[-1]) + dt
+        elif a["rest_row"] >= 0.0:
+            row = rows[int(a["rest_row"])]
+            self._rest = (float(row[self._cols[1][0]]), sample(row))
 
-    def _add_runs(self, rows: np.ndarray, t: np.ndarray, code: np.ndarray, alone: np.ndarray,
-                  sample: Callable[[np.ndarray], Sample], dt: float) -> None:
-        """The runs of :meth:`add_rows`: a segment of rows per run of the driving clutch."""
-        cuts = np.flatnonzero(code[1:] != code[:-1]) + 1
-        for lo, hi in zip([0, *cuts.tolist()], [*cuts.tolist(), len(code)], strict=True):
+    def _add_runs(self, rows: np.ndarray, code: np.ndarray, alone: np.ndarray, sample: Callable[[np.ndarray], Sample],
+                  dt: float) -> None:
+        """The runs of :meth:`add_rows`: a segment of rows per run of the driving clutch (one in most periods)."""
+        assert self._cols is not None
+        t = rows[:, self._cols[1][0]]
+        n = len(code)
+        cuts = [0, n] if code[0] == code[-1] and (code == code[0]).all() else \
+            [0, *(np.flatnonzero(code[1:] != code[:-1]) + 1).tolist(), n]
+        for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
             clutch = CLUTCHES.get(int(code[lo]))
             runs = self.runs
             if not runs or runs[-1].clutch != clutch:
                 runs.append(_Run(clutch, float(t[lo]), float(t[lo])))
             run = runs[-1]
             run.end, run.tail = float(t[hi - 1]) + dt, sample(rows[hi - 1])
+            if clutch is None:
+                continue
             own = np.flatnonzero(alone[lo:hi]) + lo
             if not len(own):
                 continue
@@ -359,16 +348,14 @@ class CreepMetrics:
                 later = np.flatnonzero(ts >= run.first.t + SETTLE_S - 1e-9)
                 if len(later):
                     run.settled = sample(rows[own[later[0]]])
-            run.chunks.append((ts, rows[own]))
-            limit = ts[-1] - SETTLE_S + 1e-9  # the lagged sample: the newest of the run this long before the last
-            for k in range(len(run.chunks) - 1, -1, -1):
-                chunk_t, chunk_rows = run.chunks[k]
-                i = int(np.searchsorted(chunk_t, limit, side="right")) - 1
-                if i >= 0:
-                    run.lagged = sample(chunk_rows[i])
-                    for _ in range(k):
-                        run.chunks.popleft()
-                    break
+            chunks = run.chunks
+            chunks.append((ts, rows[own]))
+            limit = ts[-1] - SETTLE_S + 1e-9  # lagged: the run's newest sample alone this long before its last
+            while len(chunks) > 1 and chunks[1][0][0] <= limit:
+                chunks.popleft()
+            i = int(np.searchsorted(chunks[0][0], limit, side="right")) - 1
+            if i >= 0:
+                run.lagged = sample(chunks[0][1][i])
             run.last = sample(rows[own[-1]])
 
     def _end_rest(self) -> None:
