@@ -53,7 +53,7 @@ def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
         result = run_closed_loop(scenario, transport=transport, reference_codec=reference)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
-        Plant.advance = advance  # type: ignore[method-assign]
+        Plant.advance = advance
     periods, run = result.runner.n_periods, result.summary["wall_time_s"]  # run: the periods, without set-up
     return {"sim_s_per_wall_s": round(seconds / wall, 2), "sim_s_per_cpu_s": round(seconds / cpu, 2),
             "wall_s": round(wall, 3), "setup_s": round(wall - run, 3),

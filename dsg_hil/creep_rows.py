@@ -27,15 +27,15 @@ def creep_rows(rows, cols, dt, creep_request, desired_speed, acc, code, alone):
     """Accumulate ``rows`` into ``acc`` (:data:`ACC`) as ``CreepMetrics.add`` does row by row with
     ``creep_request`` (1.0 / 0.0) and ``desired_speed`` held; writes ``code`` and ``alone`` per row, and in
     ``acc[rest_row]`` the row whose sample starts the rest (-1: the rest did not start in these rows)."""
-    c_t, c_v, c_in, c_oCL, c_oCH, c_PCL, c_PCH, c_TCL, c_TCH, c_MCL, c_MCH, c_QCL, c_QCH = (
+    c_t, c_v, c_in, c_ocl, c_och, c_pcl, c_pch, c_tcl, c_tch, c_mcl, c_mch, c_qcl, c_qch = (
         cols[0], cols[1], cols[2], cols[3], cols[4], cols[5], cols[6], cols[7], cols[8], cols[9], cols[10],
         cols[11], cols[12])
     acc[19] = -1.0
     for k in range(rows.shape[0]):
         r = rows[k]
-        omega_in, M_CL, M_CH, P_CL, P_CH = r[c_in], r[c_MCL], r[c_MCH], r[c_PCL], r[c_PCH]
-        cl = (abs(M_CL) > TORQUE_MIN if M_CL == M_CL else P_CL > P_ENGAGED) and abs(omega_in - r[c_oCL]) > SLIP_MIN
-        ch = (abs(M_CH) > TORQUE_MIN if M_CH == M_CH else P_CH > P_ENGAGED) and abs(omega_in - r[c_oCH]) > SLIP_MIN
+        omega_in, M_CL, M_CH, P_CL, P_CH = r[c_in], r[c_mcl], r[c_mch], r[c_pcl], r[c_pch]
+        cl = (abs(M_CL) > TORQUE_MIN if M_CL == M_CL else P_CL > P_ENGAGED) and abs(omega_in - r[c_ocl]) > SLIP_MIN
+        ch = (abs(M_CH) > TORQUE_MIN if M_CH == M_CH else P_CH > P_ENGAGED) and abs(omega_in - r[c_och]) > SLIP_MIN
         both = cl and ch
         if both:
             if M_CL == M_CL and M_CH == M_CH:
@@ -51,8 +51,8 @@ def creep_rows(rows, cols, dt, creep_request, desired_speed, acc, code, alone):
             acc[clutch - 1] += dt
             acc[2] += dt if both else 0.0
         for i in range(2):
-            T = r[c_TCL] if i == 0 else r[c_TCH]
-            Q = r[c_QCL] if i == 0 else r[c_QCH]
+            T = r[c_tcl] if i == 0 else r[c_tch]
+            Q = r[c_qcl] if i == 0 else r[c_qch]
             if T == T:
                 peak = acc[3 + i]
                 if peak != peak or T > peak:

@@ -169,7 +169,7 @@ def test_rows_of_an_array_count_as_samples_one_by_one(chunk):
     t, n = 0.0, 0
     for seconds, creep, kw in RECORD:
         samples = []
-        for k in range(round(seconds / DT)):
+        for _ in range(round(seconds / DT)):
             drift = {"v": kw["v"] + 1e-4 * math.sin(n), "mu_CH": 0.06 + 1e-5 * n, "P_CL": kw.get("P_CL", 0.0) + n}
             samples.append(out(round(t, 9), **kw | drift))
             one.add(samples[-1], DT, creep, 0.1)
