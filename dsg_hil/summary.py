@@ -133,7 +133,6 @@ class _Run:
     last: Sample | None = None
     tail: Sample | None = None  # last sample of the run
     window: deque[Sample] = field(default_factory=deque)
-    chunks: deque[tuple[np.ndarray, np.ndarray]] = field(default_factory=deque)  # add_rows' window: (t, rows)
 
     def values(self) -> tuple[Sample, Sample, Sample]:
         """(start, end, last) samples: the start and end values of mu and P, and the temperatures at the end."""
@@ -148,6 +147,22 @@ def _in_order(total: float, terms: np.ndarray) -> float:
     if not len(terms):
         return total
     return float(np.cumsum(np.concatenate(([total], terms)))[-1])
+
+
+@dataclass
+class _Rows:
+    """The state of :meth:`CreepMetrics.add_rows` (see :mod:`dsg_hil.creep_rows`): the columns it reads, how a
+    row becomes a sample, the open run (RUN, SLOTS) and its window of rows (a ring)."""
+
+    fields: tuple[str, ...]
+    cols: np.ndarray
+    sample: Callable[[np.ndarray], Sample]
+    dt: float
+    run: np.ndarray
+    slots: np.ndarray
+    ring: np.ndarray
+    ring_t: np.ndarray
+    open: bool = False  # the last of CreepMetrics.runs is this run
 
 
 def _r(x: float | None, nd: int) -> float | None:
@@ -207,7 +222,7 @@ class CreepMetrics:
     _moved: bool = False
     _rest: tuple[float, Sample] | None = None
     _t_last: float = 0.0
-    _cols: tuple[tuple[str, ...], np.ndarray] | None = None  # add_rows: the row columns it reads
+    _rows: _Rows | None = None  # add_rows: its compiled code's state
 
     def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
         """One sample ``s`` standing for the interval [s.t, s.t + dt).
@@ -276,18 +291,24 @@ class CreepMetrics:
     def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
                  creep_request: bool, desired_speed: float) -> None:
         """Consecutive samples as the rows of an array (columns named by ``fields``), ``creep_request`` and
-        ``desired_speed`` held over them: :meth:`add` on each row in turn, the per-row part compiled
+        ``desired_speed`` held over them: :meth:`add` on each row in turn, compiled
         (:func:`dsg_hil.creep_rows.creep_rows`, the same operations, so the same sums to the last bit). ``sample``
-        makes a :class:`Sample` of a row, for the few rows the runs and the rest keep."""
-        from .creep_rows import ACC, columns, kernel
+        makes a :class:`Sample` of a row, for the rows a run keeps. A record is taken either by :meth:`add` or
+        by this, not both."""
+        from .creep_rows import ACC, RUN, SLOTS, columns, kernel
 
         n = len(rows)
         if n == 0:
             return
         rows = np.ascontiguousarray(rows, dtype=np.float64)
-        key = tuple(fields)
-        if self._cols is None or self._cols[0] != key:
-            self._cols = (key, columns(key))
+        st = self._rows
+        if st is None or st.fields != tuple(fields) or st.dt != dt:
+            self._materialise()
+            cap = int(SETTLE_S / dt) + 8  # the window: the samples of the last SETTLE_S and the new one
+            st = self._rows = _Rows(tuple(fields), columns(tuple(fields)), sample, dt, np.zeros(len(RUN)),
+                                    np.zeros((len(SLOTS), rows.shape[1])), np.zeros((cap, rows.shape[1])),
+                                    np.zeros(cap))
+            st.run[0] = -1.0  # no run open
         nan = math.nan
         acc = np.array([self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap,
                         nan if self.max_T["CL"] is None else self.max_T["CL"],
@@ -297,66 +318,44 @@ class CreepMetrics:
                         float(self._moved), self._sq_speed_error, self._driven_time,
                         nan if self.speed_min_creeping is None else self.speed_min_creeping, self._t_last,
                         float(self._rest is not None), -1.0])
-        code = np.empty(n, dtype=np.int64)
-        alone = np.empty(n, dtype=np.bool_)
-        kernel()(rows, self._cols[1], dt, 1.0 if creep_request else 0.0, float(desired_speed), acc, code, alone)
-        a = dict(zip(ACC, acc.tolist(), strict=True))
-        self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap = a["slip_CL"], a["slip_CH"], a["overlap"]
-        for name in ("CL", "CH"):
-            peak = a[f"max_T_{name}"]
-            self.max_T[name] = None if peak != peak else peak
-            self.above_limit[name], self.energy[name] = a[f"above_{name}"], a[f"energy_{name}"]
-        self.rollback_speed, self.rollback_distance = a["rollback_speed"], a["rollback_distance"]
-        self._add_runs(rows, code, alone, sample, dt)
+        assert len(acc) == len(ACC)
+        step, k, creep = kernel(), 0, 1.0 if creep_request else 0.0
+        while (k := step(rows, k, st.cols, dt, creep, desired_speed, acc, st.run, st.slots, st.ring,
+                         st.ring_t)) < n:
+            self._materialise()  # the driving clutch changes at row k: its run starts there
+            st.run[1:] = 0.0
+            t = float(rows[k, st.cols[0]])
+            self.runs.append(_Run(CLUTCHES.get(int(st.run[0])), t, t))
+            st.open = True
+        (self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap, max_T_CL, max_T_CH, self.above_limit["CL"],
+         self.above_limit["CH"], self.energy["CL"], self.energy["CH"], self.rollback_speed, self.rollback_distance,
+         creep_time, standstill_time, moved, sq_speed_error, driven_time, speed_min, t_last, resting,
+         rest_row) = acc.tolist()
+        self.max_T["CL"] = None if max_T_CL != max_T_CL else max_T_CL
+        self.max_T["CH"] = None if max_T_CH != max_T_CH else max_T_CH
         if not creep_request:
             self._end_rest()
             return
-        self.creep_time, self.standstill_time, self._moved = a["creep"], a["standstill"], a["moved"] != 0.0
-        self._sq_speed_error, self._driven_time, self._t_last = a["sq_speed_error"], a["driven_time"], a["t_last"]
-        low = a["speed_min"]
-        self.speed_min_creeping = None if low != low else low
-        if a["resting"] == 0.0:
+        self.creep_time, self.standstill_time, self._moved = creep_time, standstill_time, moved != 0.0
+        self._sq_speed_error, self._driven_time, self._t_last = sq_speed_error, driven_time, t_last
+        self.speed_min_creeping = None if speed_min != speed_min else speed_min
+        if resting == 0.0:
             self._rest = None
-        elif a["rest_row"] >= 0.0:
-            row = rows[int(a["rest_row"])]
-            self._rest = (float(row[self._cols[1][0]]), sample(row))
+        elif rest_row >= 0.0:
+            row = rows[int(rest_row)]
+            self._rest = (float(row[st.cols[0]]), sample(row))
 
-    def _add_runs(self, rows: np.ndarray, code: np.ndarray, alone: np.ndarray, sample: Callable[[np.ndarray], Sample],
-                  dt: float) -> None:
-        """The runs of :meth:`add_rows`: a segment of rows per run of the driving clutch (one in most periods)."""
-        assert self._cols is not None
-        t = rows[:, self._cols[1][0]]
-        n = len(code)
-        cuts = [0, n] if code[0] == code[-1] and (code == code[0]).all() else \
-            [0, *(np.flatnonzero(code[1:] != code[:-1]) + 1).tolist(), n]
-        for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
-            clutch = CLUTCHES.get(int(code[lo]))
-            runs = self.runs
-            if not runs or runs[-1].clutch != clutch:
-                runs.append(_Run(clutch, float(t[lo]), float(t[lo])))
-            run = runs[-1]
-            run.end, run.tail = float(t[hi - 1]) + dt, sample(rows[hi - 1])
-            if clutch is None:
-                continue
-            own = np.flatnonzero(alone[lo:hi]) + lo
-            if not len(own):
-                continue
-            ts = t[own]
-            if run.first is None:
-                run.first = sample(rows[own[0]])
-            if run.settled is None:
-                later = np.flatnonzero(ts >= run.first.t + SETTLE_S - 1e-9)
-                if len(later):
-                    run.settled = sample(rows[own[later[0]]])
-            chunks = run.chunks
-            chunks.append((ts, rows[own]))
-            limit = ts[-1] - SETTLE_S + 1e-9  # lagged: the run's newest sample alone this long before its last
-            while len(chunks) > 1 and chunks[1][0][0] <= limit:
-                chunks.popleft()
-            i = int(np.searchsorted(chunks[0][0], limit, side="right")) - 1
-            if i >= 0:
-                run.lagged = sample(chunks[0][1][i])
-            run.last = sample(rows[own[-1]])
+    def _materialise(self) -> None:
+        """The open run of :meth:`add_rows` (kept as rows by the compiled code) as samples on its _Run."""
+        st = self._rows
+        if st is None or not st.open:
+            return
+        run, state, make = self.runs[-1], st.run.tolist(), st.sample
+        run.end, run.tail = state[1], make(st.slots[4])
+        run.first = make(st.slots[0]) if state[3] else None
+        run.settled = make(st.slots[1]) if state[4] else None
+        run.lagged = make(st.slots[2]) if state[5] else None
+        run.last = make(st.slots[3]) if state[6] else None
 
     def _end_rest(self) -> None:
         if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:
@@ -385,6 +384,7 @@ class CreepMetrics:
                     self.pred_error[name] = (err, t)
 
     def as_json(self) -> dict:
+        self._materialise()
         self._end_rest()  # the record ends: a vehicle resting since long enough has stopped
         ph = phases(self.runs)
         first_ch = next((p for p in ph if p.clutch == "CH"), None)

@@ -179,7 +179,7 @@ def test_rows_of_an_array_count_as_samples_one_by_one(chunk):
             rows.add_rows(array[lo:lo + chunk], PlantOutputs._fields, lambda r: PlantOutputs(*r.tolist()), DT,
                           creep, 0.1)
     assert json.dumps(rows.as_json()) == json.dumps(one.as_json())
-    skip = ("runs", "_cols", "stop", "_rest")
+    skip = ("runs", "_rows", "stop", "_rest")
     assert {k: v for k, v in vars(rows).items() if k not in skip} == {k: v for k, v in vars(one).items()
                                                                         if k not in skip}
     assert one.stop is not None and rows.stop is not None and rows.stop[0] == one.stop[0]
