@@ -34,25 +34,26 @@ STARTUP_REPEATS = 3
 
 def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
     """One in-process lock-step run: sim s per wall s (and per CPU s of this process, less disturbed by other
-    load on the machine), and the time inside the plant's step against the rest of each period."""
+    load on the machine), and the time inside the plant's advance (a control period's steps in one call)
+    against the rest of each period."""
     scenario = load_scenario().with_duration(seconds)
     inside = [0.0, 0.0]  # wall, CPU
-    step = Plant.step
+    advance = Plant.advance
 
-    def timed_step(plant: Plant, inputs: PlantInputs):
+    def timed_advance(plant: Plant, inputs: PlantInputs, n_steps: int, trace=None):
         t0, c0 = time.perf_counter(), time.process_time()
-        out = step(plant, inputs)
+        out = advance(plant, inputs, n_steps, trace)
         inside[0] += time.perf_counter() - t0
         inside[1] += time.process_time() - c0
         return out
 
-    Plant.step = timed_step  # type: ignore[assignment]
+    Plant.advance = timed_advance  # type: ignore[assignment]
     try:
         t0, c0 = time.perf_counter(), time.process_time()
         result = run_closed_loop(scenario, transport=transport, reference_codec=reference)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
-        Plant.step = step
+        Plant.advance = advance
     periods, run = result.runner.n_periods, result.summary["wall_time_s"]  # run: the periods, without set-up
     return {"sim_s_per_wall_s": round(seconds / wall, 2), "sim_s_per_cpu_s": round(seconds / cpu, 2),
             "wall_s": round(wall, 3), "setup_s": round(wall - run, 3),

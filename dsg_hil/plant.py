@@ -192,7 +192,7 @@ class Plant:
         self._steps = advance_steps.specialize(*self._args)
         write_outputs(self._s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self._consts[5],
                       self._records[3], self._out)
-        self._last = self._outputs(self._out)
+        self._last = self.sample(self._out)
 
     def _initial_state(self, T_init: float | dict[str, float], v_init: float) -> np.ndarray:
         pt, veh, e = self.params.powertrain, self.params.vehicle, self.params.engine
@@ -233,7 +233,7 @@ class Plant:
                                   or not trace.flags.c_contiguous):
             raise ValueError(f"trace must be a C-contiguous float64 array of shape {(n_steps, N_OUT)}")
         self._steps(*(self._args if trace is None else self._kernel_args(trace)))
-        self._last = self._outputs(self._out)
+        self._last = self.sample(self._out)
         return self._last
 
     def _kernel_args(self, trace: np.ndarray) -> tuple:
@@ -249,7 +249,8 @@ class Plant:
         return self._last
 
     @staticmethod
-    def _outputs(row: np.ndarray) -> PlantOutputs:
+    def sample(row: np.ndarray) -> PlantOutputs:
+        """The outputs of a row of :meth:`advance`'s ``trace``."""
         v = row.tolist()
         v[_O_LOCKED:_O_LOCKED + 3] = [flag != 0.0 for flag in v[_O_LOCKED:_O_LOCKED + 3]]
         return PlantOutputs._make(v)

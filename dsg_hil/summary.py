@@ -30,8 +30,11 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
+
+import numpy as np
 
 from .reference import SAFETY_TEMPERATURE_C
 
@@ -139,6 +142,29 @@ class _Run:
         return start, self.lagged or last, last
 
 
+def _in_order(total: float, terms: np.ndarray) -> float:
+    """``total`` plus ``terms`` added one by one, left to right (as a loop would: np.cumsum is sequential)."""
+    if not len(terms):
+        return total
+    return float(np.cumsum(np.concatenate(([total], terms)))[-1])
+
+
+@dataclass
+class _Rows:
+    """The state of :meth:`CreepMetrics.add_rows` (see :mod:`dsg_hil.creep_rows`): the columns it reads, how a
+    row becomes a sample, the open run (RUN, SLOTS) and its window of rows (a ring)."""
+
+    fields: tuple[str, ...]
+    cols: np.ndarray
+    sample: Callable[[np.ndarray], Sample]
+    dt: float
+    run: np.ndarray
+    slots: np.ndarray
+    ring: np.ndarray
+    ring_t: np.ndarray
+    open: bool = False  # the last of CreepMetrics.runs is this run
+
+
 def _r(x: float | None, nd: int) -> float | None:
     return None if x is None or not math.isfinite(x) else round(x, nd) + 0.0  # no -0.0
 
@@ -196,6 +222,7 @@ class CreepMetrics:
     _moved: bool = False
     _rest: tuple[float, Sample] | None = None
     _t_last: float = 0.0
+    _rows: _Rows | None = None  # add_rows: its compiled code's state
 
     def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
         """One sample ``s`` standing for the interval [s.t, s.t + dt).
@@ -261,6 +288,75 @@ class CreepMetrics:
             self.speed_min_creeping = v if self.speed_min_creeping is None else min(self.speed_min_creeping, v)
         self._t_last = t + dt
 
+    def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
+                 creep_request: bool, desired_speed: float) -> None:
+        """Consecutive samples as the rows of an array (columns named by ``fields``), ``creep_request`` and
+        ``desired_speed`` held over them: :meth:`add` on each row in turn, compiled
+        (:func:`dsg_hil.creep_rows.creep_rows`, the same operations, so the same sums to the last bit). ``sample``
+        makes a :class:`Sample` of a row, for the rows a run keeps. A record is taken either by :meth:`add` or
+        by this, not both."""
+        from .creep_rows import ACC, RUN, SLOTS, columns, kernel
+
+        n = len(rows)
+        if n == 0:
+            return
+        rows = np.ascontiguousarray(rows, dtype=np.float64)
+        st = self._rows
+        if st is None or st.fields != tuple(fields) or st.dt != dt:
+            self._materialise()
+            cap = int(SETTLE_S / dt) + 8  # the window: the samples of the last SETTLE_S and the new one
+            st = self._rows = _Rows(tuple(fields), columns(tuple(fields)), sample, dt, np.zeros(len(RUN)),
+                                    np.zeros((len(SLOTS), rows.shape[1])), np.zeros((cap, rows.shape[1])),
+                                    np.zeros(cap))
+            st.run[0] = -1.0  # no run open
+        nan = math.nan
+        acc = np.array([self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap,
+                        nan if self.max_T["CL"] is None else self.max_T["CL"],
+                        nan if self.max_T["CH"] is None else self.max_T["CH"],
+                        self.above_limit["CL"], self.above_limit["CH"], self.energy["CL"], self.energy["CH"],
+                        self.rollback_speed, self.rollback_distance, self.creep_time, self.standstill_time,
+                        float(self._moved), self._sq_speed_error, self._driven_time,
+                        nan if self.speed_min_creeping is None else self.speed_min_creeping, self._t_last,
+                        float(self._rest is not None), -1.0])
+        assert len(acc) == len(ACC)
+        step, k, creep = kernel(), 0, 1.0 if creep_request else 0.0
+        while (k := step(rows, k, st.cols, dt, creep, desired_speed, acc, st.run, st.slots, st.ring,
+                         st.ring_t)) < n:
+            self._materialise()  # the driving clutch changes at row k: its run starts there
+            st.run[1:] = 0.0
+            t = float(rows[k, st.cols[0]])
+            self.runs.append(_Run(CLUTCHES.get(int(st.run[0])), t, t))
+            st.open = True
+        (self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap, max_T_CL, max_T_CH, self.above_limit["CL"],
+         self.above_limit["CH"], self.energy["CL"], self.energy["CH"], self.rollback_speed, self.rollback_distance,
+         creep_time, standstill_time, moved, sq_speed_error, driven_time, speed_min, t_last, resting,
+         rest_row) = acc.tolist()
+        self.max_T["CL"] = None if max_T_CL != max_T_CL else max_T_CL
+        self.max_T["CH"] = None if max_T_CH != max_T_CH else max_T_CH
+        if not creep_request:
+            self._end_rest()
+            return
+        self.creep_time, self.standstill_time, self._moved = creep_time, standstill_time, moved != 0.0
+        self._sq_speed_error, self._driven_time, self._t_last = sq_speed_error, driven_time, t_last
+        self.speed_min_creeping = None if speed_min != speed_min else speed_min
+        if resting == 0.0:
+            self._rest = None
+        elif rest_row >= 0.0:
+            row = rows[int(rest_row)]
+            self._rest = (float(row[st.cols[0]]), sample(row))
+
+    def _materialise(self) -> None:
+        """The open run of :meth:`add_rows` (kept as rows by the compiled code) as samples on its _Run."""
+        st = self._rows
+        if st is None or not st.open:
+            return
+        run, state, make = self.runs[-1], st.run.tolist(), st.sample
+        run.end, run.tail = state[1], make(st.slots[4])
+        run.first = make(st.slots[0]) if state[3] else None
+        run.settled = make(st.slots[1]) if state[4] else None
+        run.lagged = make(st.slots[2]) if state[5] else None
+        run.last = make(st.slots[3]) if state[6] else None
+
     def _end_rest(self) -> None:
         if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:
             self.stop = self._rest
@@ -288,6 +384,7 @@ class CreepMetrics:
                     self.pred_error[name] = (err, t)
 
     def as_json(self) -> dict:
+        self._materialise()
         self._end_rest()  # the record ends: a vehicle resting since long enough has stopped
         ph = phases(self.runs)
         first_ch = next((p for p in ph if p.clutch == "CH"), None)
@@ -351,6 +448,13 @@ class RunSummary:
         self.creep.add(out, self.dt, creeping, desired_speed)
         if fallback:
             self.fallback_time_s += self.dt
+
+    def on_period(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample],
+                  creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
+        """Plant steps as the rows of an array (:meth:`CreepMetrics.add_rows`): :meth:`on_step` on each row."""
+        self.creep.add_rows(rows, fields, sample, self.dt, creeping, desired_speed)
+        if fallback:
+            self.fallback_time_s = _in_order(self.fallback_time_s, np.full(len(rows), self.dt))
 
     def on_status(self, t: float, values: dict[str, float], truth: Sample) -> None:
         self.creep.status(t, values["State"], values["ActiveClutch"], values["T_CL_Pred"], values["T_CH_Pred"],

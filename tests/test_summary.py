@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import math
 
+import numpy as np
 import pytest
 
 from dsg_hil.plant import PlantOutputs
@@ -147,3 +149,39 @@ def test_run_summary_json_has_no_sentinels_and_one_wall_time():
     text = json.dumps(j, allow_nan=False)
     assert "-1000000000" not in text and "run_wall_time_s" not in j and "wall_time_s" in j
     assert j["speed_error_rms_mps"] is None and j["phases"] == []
+
+
+# Segments of a record exercising every definition: (seconds, creep requested, outputs)
+RECORD = [(1.0, False, {"v": 0.0}), (0.5, True, {"v": -0.04, **CL_SLIPS}), (1.5, True, {"v": 0.0, **CL_SLIPS}),
+          (2.03, True, {"v": 0.1, **CL_SLIPS, "T_CL": 249.0, "Q_CL": 1000.0}),
+          (0.17, True, {"v": 0.1, **CL_SLIPS, **CH_SLIPS, "M_CH": 100.0}),
+          (0.2, True, {"v": 0.1, **CL_SLIPS, **CH_SLIPS, "M_CL": 100.0, "P_CH": 1.2e6}),
+          (2.97, True, {"v": 0.12, **CH_SLIPS, "T_CL": 251.0, "T_CH": 250.5, "Q_CH": 3000.0}),
+          (1.0, True, {"v": 0.0, **CH_SLIPS}), (0.4, True, {"v": 0.1, "omega_CL": 20.0, "M_CL": float("nan"),
+                                                           "P_CL": 0.5e6}),
+          (3.0, True, {"v": 0.0, "T_CL": 246.0}), (1.0, False, {"v": 0.0, "T_CL": float("nan")})]
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 10, 1000])
+def test_rows_of_an_array_count_as_samples_one_by_one(chunk):
+    """add_rows (the plant's trace of a period) gives what add gives row by row, to the last bit."""
+    one, rows = CreepMetrics(), CreepMetrics()
+    t, n = 0.0, 0
+    for seconds, creep, kw in RECORD:
+        samples = []
+        for _ in range(round(seconds / DT)):
+            drift = {"v": kw["v"] + 1e-4 * math.sin(n), "mu_CH": 0.06 + 1e-5 * n, "P_CL": kw.get("P_CL", 0.0) + n}
+            samples.append(out(round(t, 9), **kw | drift))
+            one.add(samples[-1], DT, creep, 0.1)
+            t, n = t + DT, n + 1
+        array = np.array([[float(x) for x in s] for s in samples])
+        for lo in range(0, len(array), chunk):
+            rows.add_rows(array[lo:lo + chunk], PlantOutputs._fields, lambda r: PlantOutputs(*r.tolist()), DT,
+                          creep, 0.1)
+    assert json.dumps(rows.as_json()) == json.dumps(one.as_json())
+    skip = ("runs", "_rows", "stop", "_rest")
+    assert {k: v for k, v in vars(rows).items() if k not in skip} == {k: v for k, v in vars(one).items()
+                                                                        if k not in skip}
+    assert one.stop is not None and rows.stop is not None and rows.stop[0] == one.stop[0]
+    assert [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in rows.runs] == \
+        [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in one.runs]
