@@ -87,14 +87,15 @@ class TcuRunner:
         self.incomplete_answers = 0
 
     def inputs(self, now: float) -> TcuInputs:
-        valid = all(self.rx.valid(name, now) for name in REQUIRED)
-        v = {name: self.rx.values(name) for name in REQUIRED}
+        states = self.rx.states
+        required = [states[name] for name in REQUIRED]
         faults = 0
         for reason, n in self.rx.rejected.items():
             if n:
                 faults |= FAULT_BITS.get(reason, 0)
-        if not valid:
+        if not all(state.valid(now) for state in required):
             return TcuInputs(plant_valid=False, fault_bits=faults)
+        v = {name: state.values for name, state in zip(REQUIRED, required)}
         return TcuInputs(
             plant_valid=True,
             engine_speed_rpm=v["PLANT_ENGINE"]["EngineSpeed"],

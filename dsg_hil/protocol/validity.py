@@ -45,17 +45,19 @@ class RxState:
 
     def update(self, now: float, frame: DecodedFrame, data: bytes = b"") -> str | None:
         """Take a decoded frame; returns why it was not taken (repeated or out-of-order counter), else None."""
-        if self.last_counter is not None:
-            step = (frame.counter - self.last_counter) % self.counter_modulus
+        counter, last_counter = frame.counter, self.last_counter
+        if last_counter is not None:
+            step = (counter - last_counter) % self.counter_modulus
             if step == 0:  # also after a timeout: a sender whose counter froze never resynchronises
-                return f"counter {frame.counter} repeated"
-            resync = self.last_time is not None and not self.valid(now)  # timed out: any other step is taken
-            if step > MAX_DELTA and not resync:
-                return f"counter {frame.counter} after {self.last_counter}: out of order (step {step})"
-            if step != 1 and not resync:
-                self.counter_jumps += 1
-                self.lost += step - 1
-        self.last_counter = frame.counter
+                return f"counter {counter} repeated"
+            if step != 1:  # the usual step needs no further check
+                resync = self.last_time is not None and not self.valid(now)  # timed out: any other step is taken
+                if step > MAX_DELTA and not resync:
+                    return f"counter {counter} after {last_counter}: out of order (step {step})"
+                if not resync:
+                    self.counter_jumps += 1
+                    self.lost += step - 1
+        self.last_counter = counter
         self.last_data = data
         self.last_time = now
         self.values = frame.values
@@ -81,6 +83,7 @@ class RxMonitor:
         self._by_id = {frame_id: self.states[name] for frame_id, name in self._ids.items()}
         self.rejected: Tally[str] = Tally()
         self.received = 0
+        self._decode = codec.decode  # bound once: :meth:`take` runs for every frame
 
     def wants(self, msg: can.Message) -> bool:
         return not msg.is_extended_id and msg.arbitration_id in self._ids
@@ -99,15 +102,18 @@ class RxMonitor:
         """Take one frame: (``NEW``, frame) if accepted; (``DUPLICATE``, frame) for a byte-identical repeat of
         the last frame taken of its message (a retransmission: counted, not taken, not an error); (``REJECTED``,
         None) when it fails its checks; (``IGNORED``, None) when it is not ours."""
-        state = None if msg.is_error_frame or msg.is_remote_frame else self._state_of(msg)
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+            return IGNORED, None
+        frame_id = msg.arbitration_id
+        state = self._by_id.get(frame_id)
         if state is None:
             return IGNORED, None
         self.received += 1
         data = bytes(msg.data)
         try:
             if msg.is_fd:
-                raise FrameError("dlc", f"0x{msg.arbitration_id:03X}: CAN FD frame on a classic CAN contract")
-            frame = self.codec.decode(msg.arbitration_id, data)
+                raise FrameError("dlc", f"0x{frame_id:03X}: CAN FD frame on a classic CAN contract")
+            frame = self._decode(frame_id, data)
         except FrameError as exc:
             self._reject(state, exc.reason, str(exc))
             return REJECTED, None
@@ -164,22 +170,25 @@ class TxScheduler:
         self._periods = {name: codec.cycle_time(name) for name in names}
         self._ids = {name: codec.frame_id(name) for name in names}
         self._moduli = {name: codec.protection(name).counter_modulus for name in names}
+        self._encode = codec.encode
 
     def due(self, now: float, eps: float = 1e-9) -> list[str]:
         """Messages due at ``now``, in DBC order; their next deadlines advance by whole cycle times."""
         names = []
-        for name, due in self.next_due.items():
-            if now + eps >= due:
+        late = now + eps
+        next_due, periods = self.next_due, self._periods
+        for name, due in next_due.items():
+            if late >= due:
                 names.append(name)
-                period = self._periods[name]
-                missed = int((now + eps - due) // period)
-                self.next_due[name] = due + (missed + 1) * period
+                period = periods[name]
+                next_due[name] = due + (int((late - due) // period) + 1) * period
         return names
 
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""
-        counter = self.counters[name]
-        data = self.codec.encode(name, values, counter)
-        self.counters[name] = (counter + 1) % self._moduli[name]
+        counters = self.counters
+        counter = counters[name]
+        data = self._encode(name, values, counter)
+        counters[name] = (counter + 1) % self._moduli[name]
         self.sent += 1
         return data_frame(self._ids[name], data, timestamp)
