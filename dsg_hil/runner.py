@@ -111,7 +111,8 @@ class PlantRunner:
         self.sent += 1
         self.sent_by[self._names[msg.arbitration_id]] += 1
         self._period.append(msg)
-        self._log(msg)
+        for listener in self.listeners:  # as _log, inlined: seven frames a period
+            listener(msg)
 
     def _log(self, msg: can.Message) -> None:
         for listener in self.listeners:

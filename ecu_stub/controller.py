@@ -131,11 +131,11 @@ class CreepController:
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
+        T_pred, heat, cal = self._T_pred, self.heat, self.cal
         for c in ("CL", "CH"):
-            clutch = self.cal.clutch(c)
-            self.heat[c] = friction_heat(self.cal.friction, clutch, self._T_pred[c], inp.slip_rpm(c),
-                                         inp.pressure_mpa(c))
-            self._T_pred[c] = plate_step(clutch, self._T_pred[c], self.heat[c], inp.oil_c(c), dt)
+            clutch = cal.clutch(c)
+            heat[c] = friction_heat(cal.friction, clutch, T_pred[c], inp.slip_rpm(c), inp.pressure_mpa(c))
+            T_pred[c] = plate_step(clutch, T_pred[c], heat[c], inp.oil_c(c), dt)
 
     def pressure_for(self, clutch: str, force_n: float, inp: TcuInputs) -> float:
         """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu k_geom)."""

@@ -6,14 +6,15 @@ from __future__ import annotations
 
 import can
 
-_new = can.Message.__new__
+_Message = can.Message
+_new = _Message.__new__
 
 
 def data_frame(arbitration_id: int, data: bytes | bytearray, timestamp: float = 0.0, channel: str | None = None,
                is_rx: bool = False, is_extended_id: bool = False) -> can.Message:
     """``can.Message(arbitration_id=..., data=..., is_extended_id=..., dlc=len(data), timestamp=..., channel=...,
     is_rx=...)`` for a classic CAN data frame (at most 8 bytes: not checked here)."""
-    msg = _new(can.Message)
+    msg = _new(_Message)
     msg.timestamp = timestamp
     msg.arbitration_id = arbitration_id
     msg.is_extended_id = is_extended_id
