@@ -141,6 +141,14 @@ class Codec:
         its minimum), counter and CRC filled in. Signals not given take their DBC initial value (or 0)."""
         return self._encoders[name](values, counter)
 
+    def encoder(self, name: str) -> Callable[[Mapping[str, float], int], bytes]:
+        """:meth:`encode` of ``name`` as one callable ``(values, counter) -> data``, for a sender of it each cycle."""
+        return self._encoders[name]
+
+    def decoder(self, frame_id: int) -> Callable[[bytes], DecodedFrame]:
+        """:meth:`decode` of a frame id the codec knows as one callable ``data -> frame`` (KeyError if unknown)."""
+        return self._decoders[frame_id]
+
     def decode(self, frame_id: int, data: bytes) -> DecodedFrame:
         """Check DLC, CRC and ranges, then decode. Raises :class:`FrameError` with a reason."""
         decoder = self._decoders.get(frame_id)

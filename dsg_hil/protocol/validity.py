@@ -83,7 +83,7 @@ class RxMonitor:
         self._by_id = {frame_id: self.states[name] for frame_id, name in self._ids.items()}
         self.rejected: Tally[str] = Tally()
         self.received = 0
-        self._decode = codec.decode  # bound once: :meth:`take` runs for every frame
+        self._decoders = {frame_id: codec.decoder(frame_id) for frame_id in self._ids}  # take: one per frame
 
     def wants(self, msg: can.Message) -> bool:
         return not msg.is_extended_id and msg.arbitration_id in self._ids
@@ -113,7 +113,7 @@ class RxMonitor:
         try:
             if msg.is_fd:
                 raise FrameError("dlc", f"0x{frame_id:03X}: CAN FD frame on a classic CAN contract")
-            frame = self._decode(frame_id, data)
+            frame = self._decoders[frame_id](data)
         except FrameError as exc:
             self._reject(state, exc.reason, str(exc))
             return REJECTED, None
@@ -170,7 +170,7 @@ class TxScheduler:
         self._periods = {name: codec.cycle_time(name) for name in names}
         self._ids = {name: codec.frame_id(name) for name in names}
         self._moduli = {name: codec.protection(name).counter_modulus for name in names}
-        self._encode = codec.encode
+        self._encoders = {name: codec.encoder(name) for name in names}  # frame: one per frame
 
     def due(self, now: float, eps: float = 1e-9) -> list[str]:
         """Messages due at ``now``, in DBC order; their next deadlines advance by whole cycle times."""
@@ -188,7 +188,7 @@ class TxScheduler:
         """The next frame of ``name`` (counter advanced)."""
         counters = self.counters
         counter = counters[name]
-        data = self._encode(name, values, counter)
+        data = self._encoders[name](values, counter)
         counters[name] = (counter + 1) % self._moduli[name]
         self.sent += 1
         return data_frame(self._ids[name], data, timestamp)
