@@ -433,7 +433,7 @@ class RunSummary:
     realtime_factor: float | None = None  # simulated s per wall s of a real-time run
     wall_time_s: float | None = None  # of the run itself (after the lockstep handshake)
     command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
-    stop_reason: str | None = None  # how the run ended early (interrupted, terminated, peer_lost); else the creep's
+    stop_reason: str | None = None  # ended early: interrupted, terminated, peer_lost, no_peer; else the creep's
 
     @property
     def tcu_state(self) -> str:

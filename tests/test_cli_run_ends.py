@@ -179,6 +179,18 @@ def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
 
 
 
+
+def test_no_tcu_at_all_ends_with_a_summary(tmp_path):
+    """No TCU answers the presence probe: one line, exit 1, and the summary all the same (stop reason no_peer)."""
+    bus = ["--interface", "udp_multicast", "--channel", multicast_group()]
+    plant = subprocess.run([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", "5", "--startup-timeout",
+                            "0.5", "--summary", str(tmp_path / "s.json")], capture_output=True, text=True, timeout=120)
+    assert plant.returncode == 1, plant.stderr
+    assert plant.stderr.strip().splitlines()[-1].startswith("error: no TCU answered the lock-step presence probe")
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["stop_reason"] == "no_peer" and summary["frames"]["probes"] >= 1
+    assert summary["frames"]["by_message"]["PLANT_ENGINE"]["sent"] == 0  # nothing but probes went out
+
 @pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_ecu_stub_ends_on_a_signal_with_the_same_codes_as_dsg_hil(sig, status):
     tcu = subprocess.Popen([*ECU_STUB, "--interface", "udp_multicast", "--channel", multicast_group()],

@@ -30,9 +30,10 @@ if TYPE_CHECKING:
 
 def stop_reasons() -> tuple[tuple[type[BaseException], str], ...]:
     """How a run that ends early ends: the exception and the summary's stop reason."""
-    from ..runner import PeerLost  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+    from ..runner import PeerLost, PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
 
-    return (KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost")
+    return ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"),
+            (PeerTimeout, "no_peer"))  # after PeerLost, its subclass: no TCU answered the presence probe
 
 
 def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:

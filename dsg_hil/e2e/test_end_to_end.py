@@ -121,7 +121,8 @@ def test_dsg_hil_run_starts_the_tcu_as_a_process(outdir, duration):
     summary = outdir / "run.summary.json"
     log = outdir / "run.log"
     proc = subprocess.run([console("dsg-hil"), "run", *BUS, "--duration", str(min(duration, 5.0)), "--log", str(log),
-                           "--summary", str(summary), "--reply-timeout", "60"], capture_output=True, text=True,
+                           "--summary", str(summary), "--reply-timeout", "60", "--startup-timeout", "600"],
+                          capture_output=True, text=True,
                           timeout=900)
     assert proc.returncode == 0, proc.stderr
     data = json.loads(summary.read_text())
