@@ -140,19 +140,21 @@ def sim_sync_tick(db, data: bytes) -> int:
 def first_forgery(db, flood_bus, plant_sent):
     """The first random frame the end-to-end protection cannot tell from a real one, with the lock-step tick it
     came in (or None): on a message the plant sends and the TCU reads, passing the TCU's stateless checks (DLC,
-    CRC, ranges), yet not a frame the plant sent (its log: ``plant_sent``). Such a frame is the protection's
-    residual error (CRC-8: 1/256 of the frames with the right DLC, and 7/16 of those also pass the counter
-    check), about 0.1 per 100,000-frame flood; the test names it when it happens. (A random TCU_CMD would also
-    need its tick's echo, 1/256 more: not looked for.)"""
+    CRC, ranges) and its counter check (a step of 1 to MAX_DELTA from the last real frame of its message), yet
+    not a frame the plant sent (its log: ``plant_sent``). Such a frame is the protection's residual error (CRC-8:
+    1/256 of the frames with the right DLC, and 7/16 of those also pass the counter check), about 0.1 per
+    100,000-frame flood; the test names it when it happens. (A random TCU_CMD would also need its tick's echo,
+    1/256 more: not looked for.)"""
     real = {(ident, data) for _, ident, data in plant_sent}
     plant_ids = {db.get_message_by_name(name).frame_id for name in TCU_RX}  # all sent by the plant
     codec = Codec(db, TCU_USES)
     sync = db.get_message_by_name("SIM_SYNC").frame_id
-    tick = -1
+    tick, last = -1, {}
     for t, ident, data in flood_bus:
         if ident not in plant_ids:
             continue
         if (ident, data) in real:
+            last[ident] = codec.decode(ident, data).counter
             if ident == sync:
                 tick = sim_sync_tick(db, data)
             continue
@@ -162,6 +164,8 @@ def first_forgery(db, flood_bus, plant_sent):
             continue
         if ident == sync and int(frame.values["Tick"]) == SYNC_PROBE:  # presence probes: not in the plant's log
             continue
+        if ident in last and not 1 <= (frame.counter - last[ident]) % 16 <= MAX_DELTA:
+            continue  # the counter check refuses it
         return tick, t, ident, data
     return None
 
