@@ -225,19 +225,9 @@ class CreepMetrics:
     _rows: _Rows | None = None  # add_rows: its compiled code's state
 
     def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
-        """One sample ``s`` standing for the interval [s.t, s.t + dt).
-
-        Called every plant step, so :func:`driving_clutch` is written out here (the same operations), as a call
-        costs more than what it does."""
-        omega_in, M_CL, M_CH = s.omega_in, s.M_CL, s.M_CH
-        cl = (abs(M_CL) > TORQUE_MIN if M_CL == M_CL else s.P_CL > P_ENGAGED) and abs(omega_in - s.omega_CL) > SLIP_MIN
-        ch = (abs(M_CH) > TORQUE_MIN if M_CH == M_CH else s.P_CH > P_ENGAGED) and abs(omega_in - s.omega_CH) > SLIP_MIN
-        both = cl and ch
-        if both:
-            a, b = (abs(M_CL), abs(M_CH)) if M_CL == M_CL and M_CH == M_CH else (s.P_CL, s.P_CH)
-            clutch: str | None = "CL" if a >= b else "CH"
-        else:
-            clutch = "CL" if cl else "CH" if ch else None
+        """One sample ``s`` standing for the interval [s.t, s.t + dt) (real time; lock-step feeds whole periods
+        through :meth:`add_rows`)."""
+        clutch, both = driving_clutch(s)
         t = s.t
         if clutch is not None:
             self.slip_time[clutch] += dt
