@@ -201,7 +201,10 @@ class PlantRunner:
         resets it; so the run starts from the same state whenever the TCU came up, and no tick is lost to a TCU
         still starting. Then each tick is re-sent while its answer is late (see ``_await_answer``); a TCU silent
         for ``reply_timeout`` wall-clock seconds ends the run with :class:`PeerLost` (stop reason
-        ``peer_lost``), the summary being valid up to that point."""
+        ``peer_lost``), the summary being valid up to that point. Compiled code is loaded before the handshake:
+        once the TCU has answered, a pause of seconds (numba's cache loaded under emulation) would look to it
+        like a plant gone."""
+        self.summary.creep.prepare()
         self._handshake(startup_timeout, pump)
         self._running = True
         t0 = time.monotonic()

@@ -278,6 +278,14 @@ class CreepMetrics:
             self.speed_min_creeping = v if self.speed_min_creeping is None else min(self.speed_min_creeping, v)
         self._t_last = t + dt
 
+    @staticmethod
+    def prepare() -> None:
+        """Load :meth:`add_rows`' compiled code now (numba's cache; seconds under emulation) rather than at its
+        first call, in the middle of a run."""
+        from .creep_rows import kernel
+
+        kernel()
+
     def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
                  creep_request: bool, desired_speed: float) -> None:
         """Consecutive samples as the rows of an array (columns named by ``fields``), ``creep_request`` and

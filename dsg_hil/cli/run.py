@@ -83,7 +83,10 @@ def _do_run(args: argparse.Namespace) -> int:
                 faults += ["--fault-seed", str(args.fault_seed)]
                 progress("faults on the TCU's frames: passed to ecu-stub, which counts them (see its output)")
                 runner.faults_in_tcu = [spec.describe() for spec in args.faults_by_side["tcu"]]
-            cmd = [sys.executable, "-m", "ecu_stub", *bus_args(config), "--idle-exit", "2", *faults]
+            # the TCU waits for a silent plant as long as the plant waits for a silent TCU (--reply-timeout);
+            # at the end of the run it is stopped by the plant, so this only ends a TCU whose plant died
+            idle = f"{max(args.reply_timeout, 2.0):g}"
+            cmd = [sys.executable, "-m", "ecu_stub", *bus_args(config), "--idle-exit", idle, *faults]
             tcu_proc = subprocess.Popen(cmd)
             stack.callback(_stop_process, tcu_proc)
             time.sleep(0.5)

@@ -23,7 +23,7 @@ from dsg_hil.protocol.codec import FrameError
 from dsg_hil.protocol.e2e import MAX_DELTA
 from ecu_stub.runner import TCU_RX, TCU_USES
 
-from .conftest import BUS, Candump, console, parse_candump
+from .conftest import BUS, Candump, console, finish_while_progressing, parse_candump
 
 pytestmark = pytest.mark.vcan
 FLOOD_FRAMES = 100_000
@@ -108,8 +108,8 @@ def flooded_creep(db, outdir, name, duration, cangen, target):
                                   "-n", str(FLOOD_BATCH)], capture_output=True, text=True, timeout=600)
             assert gen.returncode == 0, gen.stderr
             batches += plant.poll() is None  # whole batches sent while the creep ran
-        plant_err = stop(plant)
-        tcu_err = stop(tcu)
+        plant_err = finish_while_progressing(plant, log)  # the rest of the creep: every tick must run
+        tcu_err = stop(tcu, timeout=120)
     finally:
         for proc in (plant, tcu):
             if proc.poll() is None:
