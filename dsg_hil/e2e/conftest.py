@@ -25,6 +25,7 @@ from dsg_hil.vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
 BUS = ["--interface", "socketcan", "--channel", "vcan0"]
 DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
 RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]
+TCU_IDLE_EXIT = "10"  # [s] ecu-stub ends once the plant is this long silent: well above a loaded machine's pauses
 STALL = 300.0  # [s] a process whose record does not grow for this long has stalled (emulation under load: slow)
 
 
@@ -134,7 +135,7 @@ def run_pair(outdir, name, mode, duration, extra=()):
     ``frames`` are candump's, in timestamp order (its file order is delivery order, which on several CPUs can put
     a reply before the frame it answers); in lockstep, from the start of the run (see ``lockstep_run``)."""
     dump = Candump(outdir / f"{name}.candump.log")
-    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "3"], stderr=subprocess.PIPE, text=True)
+    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", TCU_IDLE_EXIT], stderr=subprocess.PIPE, text=True)
     summary = outdir / f"{name}.summary.json"
     try:
         plant = subprocess.Popen([console("dsg-hil"), "plant", *BUS, "--mode", mode, "--duration", str(duration),

@@ -23,7 +23,7 @@ from dsg_hil.protocol.codec import FrameError
 from dsg_hil.protocol.e2e import MAX_DELTA
 from ecu_stub.runner import TCU_RX, TCU_USES
 
-from .conftest import BUS, Candump, console, finish_while_progressing, parse_candump
+from .conftest import BUS, TCU_IDLE_EXIT, Candump, console, finish_while_progressing, parse_candump
 
 pytestmark = pytest.mark.vcan
 FLOOD_FRAMES = 100_000
@@ -98,7 +98,7 @@ def flooded_creep(db, outdir, name, duration, cangen, target):
     records the frames on the DBC's IDs (the ones a node may take; all of them would starve it: it kept 54k of
     920k). Returns what the test judges, ``injected`` counting whole batches sent while the creep ran."""
     dump = Candump(outdir / f"{name}.candump.log", [m.frame_id for m in db.messages])
-    tcu = start_tcu("--idle-exit", "3")
+    tcu = start_tcu("--idle-exit", TCU_IDLE_EXIT)
     plant, log, summary = start_plant(outdir, name, "lockstep", duration, "--reply-timeout", "60")
     batches = 0
     try:
