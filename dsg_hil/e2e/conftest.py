@@ -26,6 +26,7 @@ BUS = ["--interface", "socketcan", "--channel", "vcan0"]
 DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
 RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]
 TCU_IDLE_EXIT = "10"  # [s] ecu-stub ends once the plant is this long silent: well above a loaded machine's pauses
+STARTUP = 900.0  # [s] for the first frames of a run (imports and compiled code loaded under emulation)
 STALL = 300.0  # [s] a process whose record does not grow for this long has stalled (emulation under load: slow)
 
 
@@ -110,11 +111,12 @@ def parse_candump(path: Path) -> list[tuple[float, int, bytes]]:
     return frames
 
 
-def finish_while_progressing(proc, record, stall: float = STALL) -> str:
+def finish_while_progressing(proc, record, stall: float = STALL, startup: float = STARTUP) -> str:
     """Wait for ``proc`` to end for as long as it makes progress (its ``record`` file grows: a loaded machine may
-    take minutes to finish a creep, and that is no failure); a process silent for ``stall`` s has stalled: killed,
-    and the test fails saying so. Orchestration only: no figure is judged on this wait."""
-    size, last_change = -1, time.monotonic()
+    take minutes to finish a creep, and that is no failure). A record still empty after ``startup`` s, or not
+    grown for ``stall`` s since, means a process that never started or has stalled: it is killed and the test
+    fails saying so. Orchestration only: no figure is judged on this wait."""
+    size, last_change = 0, time.monotonic()
     try:
         while True:
             try:
@@ -123,7 +125,9 @@ def finish_while_progressing(proc, record, stall: float = STALL) -> str:
                 now_size = record.stat().st_size if record.exists() else 0
                 if now_size != size:
                     size, last_change = now_size, time.monotonic()
-                assert time.monotonic() - last_change < stall, f"{record.name} has not grown for {stall:g} s: stalled"
+                idle = time.monotonic() - last_change
+                assert size or idle < startup, f"{record.name} still empty after {startup:g} s: never started"
+                assert not size or idle < stall, f"{record.name} has not grown for {stall:g} s: stalled"
     finally:
         if proc.poll() is None:
             proc.kill()
