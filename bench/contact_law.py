@@ -12,7 +12,9 @@ START. :class:`Stepper` is the same step in plain numpy (the plant's matrices an
   (linear in the torques as v_end is, the same projected Gauss-Seidel). A torque held over the step does work
   f dt v_mean, so a stuck contact does none and a slipping one dissipates |f| dt |v_mean|, at any step.
 * ``mu_at="mid"``: mu at the slip memory half a step on (predicted from the step's mean slip, then the contacts
-  solved again): the friction-slope feedback no longer lags a step.
+  solved again): the friction-slope feedback no longer lags half a step.
+* ``P_mean=True``: the capacities (5) with each pressure's exact mean over the step instead of its value at the
+  start (a pressure rising with tau no longer acts half a step late).
 
 Measured (``modes``, linearised about the reference's state): while the vehicle is held and CL slips (t = 1.9 s),
 the output gear train's 87.7-Hz mode (CL/CH outputs and shaft II against the held shaft III) has 0.286 % damping;
@@ -32,6 +34,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import math
 import time
 from collections.abc import Callable
 
@@ -41,7 +44,7 @@ from plant_speed import CREEP_BREAKPOINTS, PERIOD, creep_inputs, errors, run_pla
 from dsg_hil.continuous import rhs, solve_hybrid
 from dsg_hil.physics.engine import governor, net_torque
 from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_step
-from dsg_hil.physics.hydraulics import pressure_step
+from dsg_hil.physics.hydraulics import clamp_command, pressure_step
 from dsg_hil.physics.params import Params, load_params
 from dsg_hil.physics.powertrain import CONTACT_INPUTS, IDX, N_DOF, N_STATE, road_load, solve_contacts, vehicle_speed
 from dsg_hil.physics.thermal import NODES, heat_sources
@@ -49,16 +52,22 @@ from dsg_hil.plant import Plant, PlantInputs
 
 I_CL, I_CH = NODES.index("CL"), NODES.index("CH")
 N_T = len(NODES)
-VARIANTS = (("end", "start"), ("end", "mid"), ("mean", "start"), ("mean", "mid"))  # the plant's is the first
+# (law, mu_at, P_mean): the plant's, each change alone, and the proposal (the last)
+VARIANTS = (("end", "start", False), ("end", "mid", False), ("mean", "start", False), ("mean", "mid", False),
+            ("mean", "mid", True))
+PLANT, PROPOSAL = VARIANTS[0], VARIANTS[-1]
 STEPS = (1e-3, 2e-3, 5e-3, 1e-2)
 
 
 class Stepper:
     """The plant's step with a choice of contact law and of where mu is evaluated (module docstring)."""
 
-    def __init__(self, params: Params, dt: float, law: str = "end", mu_at: str = "start", T_init: float = 80.0):
+    def __init__(self, params: Params, dt: float, law: str = "end", mu_at: str = "start", P_mean: bool = False,
+                 T_init: float = 80.0):
         self.plant = Plant(params, dt=dt, T_init=T_init)
-        self.p, self.dt, self.law, self.mu_at = params, dt, law, mu_at
+        self.p, self.dt, self.law, self.mu_at, self.P_mean = params, dt, law, mu_at, P_mean
+        # the mean over dt of P_cmd + (P - P_cmd) exp(-t / tau), as a weight of (P - P_cmd)
+        self.mean_weight = params.hydraulics.tau / dt * (1.0 - math.exp(-dt / params.hydraulics.tau))
         d = self.plant.disc
         self.Phi, self.Gamma = d.Phi, d.Gamma
         end, mean = (d.V @ d.Phi, d.V @ d.Gamma), (d.V @ d.Phi_int / dt, d.V @ d.Gamma_int / dt)
@@ -70,11 +79,11 @@ class Stepper:
         self.governor_integral, self.f, self.memory = s.governor_integral, s.contact_torques, s.slip_memory
         self.stuck = np.zeros(3, dtype=bool)
 
-    def capacities(self, memory: np.ndarray, M_resist: float) -> np.ndarray:
+    def capacities(self, memory: np.ndarray, P: np.ndarray, M_resist: float) -> np.ndarray:
         p, k = self.p, self.plant._consts
-        mu_CL = friction_coefficient(memory[0] * RAD_S_TO_RPM, self.T[I_CL], self.P[0] / 1e6, p.friction)
-        mu_CH = friction_coefficient(memory[1] * RAD_S_TO_RPM, self.T[I_CH], self.P[1] / 1e6, p.friction)
-        return np.array([mu_CL * k[0] * self.P[0], mu_CH * k[1] * self.P[1], M_resist])
+        mu_CL = friction_coefficient(memory[0] * RAD_S_TO_RPM, self.T[I_CL], P[0] / 1e6, p.friction)
+        mu_CH = friction_coefficient(memory[1] * RAD_S_TO_RPM, self.T[I_CH], P[1] / 1e6, p.friction)
+        return np.array([mu_CL * k[0] * P[0], mu_CH * k[1] * P[1], M_resist])
 
     def step(self, inputs: PlantInputs) -> None:
         p, dt, x = self.p, self.dt, self.x
@@ -86,12 +95,17 @@ class Stepper:
         M_e = net_torque(fuel, p.engine)
         of_x, of_u = self.V_law
         v_free = of_x @ x + of_u @ np.array([M_e, 0.0, 0.0, M_fixed])
-        cap = self.capacities(self.memory, M_resist)
+        P = self.P
+        if self.P_mean:
+            target = np.array([clamp_command(inputs.P_CL_cmd, p.hydraulics),
+                               clamp_command(inputs.P_CH_cmd, p.hydraulics)])
+            P = target + (self.P - target) * self.mean_weight
+        cap = self.capacities(self.memory, P, M_resist)
         f = solve_contacts(v_free, self.W, cap, self.f)
         slip_mean = self.mean_velocities(M_e, f, M_fixed)
         if self.mu_at == "mid":
             memory = np.array([slip_memory_step(self.memory[i], slip_mean[i], dt / 2, p.friction) for i in range(2)])
-            cap = self.capacities(memory, M_resist)
+            cap = self.capacities(memory, P, M_resist)
             f = solve_contacts(v_free, self.W, cap, f)
             slip_mean = self.mean_velocities(M_e, f, M_fixed)
         Q = np.maximum(f[:2] * slip_mean[:2], 0.0)  # friction heat (4), W
@@ -152,16 +166,16 @@ def linearised_modes(params: Params, y0: np.ndarray, inputs: PlantInputs, stuck:
 
     out: dict[str, list | str] = {"continuous": modes(np.linalg.eigvals(jacobian(continuous, 1e-6)))}
     for dt in dts:
-        for law, mu_at in VARIANTS:
-            stepper = Stepper(params, dt, law, mu_at)
+        for variant in VARIANTS:
+            stepper = Stepper(params, dt, *variant)
             step_map = functools.partial(map_of_step, stepper, y0, inputs, stuck)
             try:
                 lam = np.linalg.eigvals(jacobian(step_map, 1e-7)).astype(complex)
             except ModeChangeError as e:  # this step does not even keep the contacts' modes: nothing to linearise
-                out[f"{law}/{mu_at} {dt * 1e3:g} ms"] = str(e)
+                out[label(variant, dt)] = str(e)
                 continue
             lam = lam[np.abs(lam) > 1e-12]
-            out[f"{law}/{mu_at} {dt * 1e3:g} ms"] = modes(np.log(lam) / dt)
+            out[label(variant, dt)] = modes(np.log(lam) / dt)
     return out
 
 
@@ -191,15 +205,21 @@ def creep(params: Params, seconds: float) -> tuple[dict, np.ndarray]:
     return compare(params, seconds, ref_speeds, ref_T), ref
 
 
-def compare(params: Params, seconds: float, ref_speeds: np.ndarray, ref_T: np.ndarray) -> dict:
+def label(variant: tuple[str, str, bool], dt: float) -> str:
+    law, mu_at, P_mean = variant
+    return f"{law}/{mu_at}{'/P_mean' if P_mean else ''} {dt * 1e3:g} ms"
+
+
+def compare(params: Params, seconds: float, ref_speeds: np.ndarray, ref_T: np.ndarray,
+            variants: tuple[tuple[str, str, bool], ...] = VARIANTS) -> dict:
     """Each variant at each step on creep_inputs: its errors against the reference samples (every period)."""
     out: dict[str, dict] = {}
     for dt in STEPS:
-        for law, mu_at in VARIANTS:
-            name = f"{law}/{mu_at} {dt * 1e3:g} ms"
+        for variant in variants:
+            name = label(variant, dt)
             t0 = time.process_time()
             try:
-                speeds, temps = Stepper(params, dt, law, mu_at).run(creep_inputs, seconds)
+                speeds, temps = Stepper(params, dt, *variant).run(creep_inputs, seconds)
             except FloatingPointError as e:
                 out[name] = {"diverged": str(e)}
                 continue
@@ -229,7 +249,7 @@ def main() -> None:
     if args.long_seconds > 0:
         ref_speeds, ref_T, _, _ = run_plant(Plant(params, dt=1e-4, T_init=80.0), creep_inputs, args.long_seconds,
                                             PERIOD)
-        result["long"] = compare(params, args.long_seconds, ref_speeds, ref_T)
+        result["long"] = compare(params, args.long_seconds, ref_speeds, ref_T, (PLANT, PROPOSAL))
     if args.json:
         print(json.dumps(result))
         return
@@ -239,14 +259,14 @@ def main() -> None:
         print(f"{case}: {'variant':<20}{'dT plate K':>11}{'speed/FS':>10}{'r/min':>9}{'vehicle mm/s':>14}")
         for name, r in result[case].items():
             if "diverged" in r:
-                print(f"  {name:<26}{r['diverged']}")
+                print(f"  {name:<30}{r['diverged']}")
                 continue
-            print(f"  {name:<26}{r['max_plate_error_c']:>11.4f}{r['max_speed_error_fs']:>10.4f}"
+            print(f"  {name:<30}{r['max_plate_error_c']:>11.4f}{r['max_speed_error_fs']:>10.4f}"
                   f"{r['max_speed_error_rpm']:>9.2f}{r['max_vehicle_speed_error_mm_s']:>14.1f}")
     for key in ("modes_vehicle_held_CL_slipping", "modes_CL_locked_vehicle_rolling"):
         print(f"{key} (Hz, damping %):")
         for name, modes in result[key].items():
-            print(f"  {name:<22}" + (modes if isinstance(modes, str) else
+            print(f"  {name:<30}" + (modes if isinstance(modes, str) else
                                      "  ".join(f"{hz:7.1f} {z:+7.3f}" for hz, z in modes if hz < 200.0)))
 
 
