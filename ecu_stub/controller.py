@@ -45,7 +45,7 @@ FAULT_PLANT_MISSING = 0x01
 BRAKE_PRESSED_PCT = 5.0
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # not frozen: built every control period, a frozen one costs several times more
 class TcuInputs:
     plant_valid: bool
     engine_speed_rpm: float = 0.0
@@ -73,7 +73,7 @@ class TcuInputs:
         return self.T_oil_CL_c if clutch == "CL" else self.T_oil_CH_c
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # (as TcuInputs)
 class TcuOutputs:
     P_CL_cmd_mpa: float
     P_CH_cmd_mpa: float

@@ -20,7 +20,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import CodeType
-from typing import Any
+from typing import Any, cast
 
 from cantools.database.can import Message, Signal
 from cantools.database.conversion import BaseConversion, IdentityConversion, LinearIntegerConversion
@@ -142,7 +142,8 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
         if signal.name == COUNTER:
             enc.append(f"    {acc} |= ((counter % {protection.counter_modulus}) & {mask}){_shifted(shift)}")
         elif signal.name != CRC:
-            default = _clamped(signal.initial if signal.initial is not None else min(max(0.0, lo), hi), lo, hi)
+            default = _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi),
+                               lo, hi)  # a number: see unsupported()
             enc += [f"    v = get({signal.name!r})", "    if v is None:", f"        v = {default!r}",
                     "    else:", "        v = float(v)",  # a value in range costs two comparisons, no more
                     f"        if not {lo!r} <= v <= {hi!r}:",
