@@ -79,6 +79,7 @@ class PlantRunner:
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._cmd_id, self._sync_id = codec.frame_id("TCU_CMD"), codec.frame_id(SYNC)
+        self._status_every = round(codec.cycle_time("TCU_STATUS") / self.period)  # in control periods
         self._period: list[tuple[int, bytes, float]] = []  # lock-step: this period's frames, for re-sending
         self._held: list[can.Message] | None = None  # lock-step: frames taken, logged when the answer is complete
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
@@ -361,7 +362,7 @@ class PlantRunner:
     def _status_expected(self, t: float) -> bool:
         """Whether this tick's answer should hold a TCU_STATUS: due now on its DBC cycle from tick 0, as the last
         one due came (so a TCU sending it on a schedule of its own costs no retries after tick 0)."""
-        every = round(self.codec.cycle_time("TCU_STATUS") / self.period)
+        every = self._status_every
         state = self.rx.states["TCU_STATUS"]
         if self.tick % every or (state.last_time is not None and abs(state.last_time - t) < 1e-9):
             return False

@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import can
 
-from dsg_hil.protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
+from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
 from dsg_hil.protocol.frame import data_frame
 from dsg_hil.protocol.validity import DUPLICATE, IGNORED, NEW
 
@@ -141,15 +141,16 @@ class TcuRunner:
 
         In lock-step, time is the plant's: frames arriving before a tick belong to it (tick time = the previous
         tick's + one cycle), so validity and controller time never depend on the wall clock."""
-        stamp = self._sim_now + self.cycle if self.lockstep else now
-        return self._handle(*self.rx.take(msg, stamp), now)
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id or msg.is_fd:
+            status, _ = self.rx.take(msg, now)  # not ours, or one of ours as a CAN FD frame: rejected
+            return status != IGNORED
+        return self.handle_data(msg.arbitration_id, bytes(msg.data), now)
 
     def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
-        """:meth:`handle` of a frame received as (ID, data) from the in-process bus."""
+        """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data (as the in-process
+        bus hands it over)."""
         stamp = self._sim_now + self.cycle if self.lockstep else now
-        return self._handle(*self.rx.take_data(frame_id, data, stamp), now)
-
-    def _handle(self, status: str, frame: DecodedFrame | None, now: float) -> bool:
+        status, frame = self.rx.take_data(frame_id, data, stamp)
         if status not in (NEW, DUPLICATE):
             return status != IGNORED
         assert frame is not None  # NEW and DUPLICATE come decoded
