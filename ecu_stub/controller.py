@@ -131,11 +131,11 @@ class CreepController:
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
-        T_pred, heat, cal = self._T_pred, self.heat, self.cal
-        for c in ("CL", "CH"):
-            clutch = cal.clutch(c)
-            heat[c] = friction_heat(cal.friction, clutch, T_pred[c], inp.slip_rpm(c), inp.pressure_mpa(c))
-            T_pred[c] = plate_step(clutch, T_pred[c], heat[c], inp.oil_c(c), dt)
+        T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm
+        for c, clutch, out_rpm, P, T_oil in (("CL", cal.CL, inp.cl_out_rpm, inp.P_CL_mpa, inp.T_oil_CL_c),
+                                             ("CH", cal.CH, inp.ch_out_rpm, inp.P_CH_mpa, inp.T_oil_CH_c)):
+            heat[c] = friction_heat(cal.friction, clutch, T_pred[c], clutch_in - out_rpm, P)  # slip as slip_rpm(c)
+            T_pred[c] = plate_step(clutch, T_pred[c], heat[c], T_oil, dt)
 
     def pressure_for(self, clutch: str, force_n: float, inp: TcuInputs) -> float:
         """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu k_geom)."""
