@@ -21,7 +21,7 @@ TIMEOUT_CYCLES = 3.0
 NEW, DUPLICATE, REJECTED, IGNORED = "new", "duplicate", "rejected", "ignored"
 
 
-@dataclass
+@dataclass(slots=True)
 class RxState:
     """Validity of one received message: fresh within ``TIMEOUT_CYCLES`` cycle times, counter moving by the
     rules of :mod:`.e2e` (resynchronised by the first frame after a timeout)."""
