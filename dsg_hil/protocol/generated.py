@@ -118,7 +118,8 @@ def unsupported(message: Message, protection: Protection) -> str | None:
 
 
 def generate(message: Message, protection: Protection, frame_error: type, decoded_frame: type) -> GeneratedMessage:
-    """The encode and decode functions of ``message`` (check :func:`unsupported` first)."""
+    """The encode and decode functions of ``message`` (check :func:`unsupported` first); decode raises
+    ``frame_error`` and returns a ``decoded_frame``, a NamedTuple of (name, values, counter)."""
     from .codec import raw_range, signal_range  # noqa: PLC0415 - the codec imports this module
 
     name, length, k = message.name, message.length, protection.crc_byte
@@ -165,13 +166,14 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
         if signal.name not in (COUNTER, CRC):
             out.append(f"{signal.name!r}: {_as_float(conversion, f'v{i}')}")
     counter_index = next(i for i, s in enumerate(message.signals) if s.name == COUNTER)
-    dec.append(f"    return DecodedFrame({name!r}, {{{', '.join(out)}}}, v{counter_index})")  # an int: not scaled
+    # DecodedFrame(...) without its Python-level __new__ (a NamedTuple's is tuple.__new__ with the fields)
+    dec.append(f"    return NEW(DecodedFrame, ({name!r}, {{{', '.join(out)}}}, v{counter_index}))")  # an int counter
     if any(s.byte_order == "big_endian" for s in message.signals):
         enc.append(f"    F |= from_bytes(G.to_bytes({length}, 'big'), 'little')")
     enc.append(f"    return (F | ({crc}){_shifted(8 * k)}).to_bytes({length}, 'little')")
     source = "\n".join(enc) + "\n\n\n" + "\n".join(dec) + "\n"
     namespace: dict = {"FrameError": frame_error, "DecodedFrame": decoded_frame, "INF": math.inf,
-                       "from_bytes": int.from_bytes, **crc_tables}  # int.from_bytes: looked up once, not per call
+                       "from_bytes": int.from_bytes, "NEW": tuple.__new__, **crc_tables}  # each looked up once
     exec(_compiled(source, name), namespace)  # noqa: S102 - our own source
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
 
