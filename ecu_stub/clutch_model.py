@@ -21,40 +21,30 @@ from .calibration import Clutch, FrictionMap
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 
 
-def friction_coefficient(m: FrictionMap, T_c: float, slip_rpm: float, P_mpa: float) -> float:
-    """mu from the map: trilinear in (T, |slip|, P), clamped at the edges. On each axis the index i and weight w
-    of x between grid[i] and grid[i+1] (written out three times: four calls a control period, the TCU's costliest
-    arithmetic; the same operations in the same order as ever, so the same floats)."""
-    grid = m.T_grid_c
-    if T_c <= grid[0]:
-        i, wt = 0, 0.0
-    elif T_c >= grid[-1]:
-        i, wt = len(grid) - 2, 1.0
-    else:
-        i = bisect_right(grid, T_c) - 1
-        wt = (T_c - grid[i]) / (grid[i + 1] - grid[i])
-    grid, x = m.slip_grid_rpm, abs(slip_rpm)
+def _locate(grid: tuple[float, ...], x: float) -> tuple[int, float]:
+    """Index i and weight w of x between grid[i] and grid[i+1], clamped to the grid."""
     if x <= grid[0]:
-        j, ws = 0, 0.0
-    elif x >= grid[-1]:
-        j, ws = len(grid) - 2, 1.0
-    else:
-        j = bisect_right(grid, x) - 1
-        ws = (x - grid[j]) / (grid[j + 1] - grid[j])
-    grid = m.P_grid_mpa
-    if P_mpa <= grid[0]:
-        k, wp = 0, 0.0
-    elif P_mpa >= grid[-1]:
-        k, wp = len(grid) - 2, 1.0
-    else:
-        k = bisect_right(grid, P_mpa) - 1
-        wp = (P_mpa - grid[k]) / (grid[k + 1] - grid[k])
+        return 0, 0.0
+    if x >= grid[-1]:
+        return len(grid) - 2, 1.0
+    i = bisect_right(grid, x) - 1
+    return i, (x - grid[i]) / (grid[i + 1] - grid[i])
+
+
+def friction_coefficient(m: FrictionMap, T_c: float, slip_rpm: float, P_mpa: float) -> float:
+    """mu from the map: trilinear in (T, |slip|, P), clamped at the edges."""
+    i, wt = _locate(m.T_grid_c, T_c)
+    j, ws = _locate(m.slip_grid_rpm, abs(slip_rpm))
+    k, wp = _locate(m.P_grid_mpa, P_mpa)
     lo, hi = m.mu[i], m.mu[i + 1]  # the four corners in (T, slip), each interpolated in P; summed in this order
     a, b, c, d = lo[j], lo[j + 1], hi[j], hi[j + 1]
     vt, vs, vp = 1 - wt, 1 - ws, 1 - wp
-    k1 = k + 1
-    return (((0.0 + vt * vs * (vp * a[k] + wp * a[k1])) + vt * ws * (vp * b[k] + wp * b[k1]))
-            + wt * vs * (vp * c[k] + wp * c[k1])) + wt * ws * (vp * d[k] + wp * d[k1])
+    mu = 0.0
+    mu += vt * vs * (vp * a[k] + wp * a[k + 1])
+    mu += vt * ws * (vp * b[k] + wp * b[k + 1])
+    mu += wt * vs * (vp * c[k] + wp * c[k + 1])
+    mu += wt * ws * (vp * d[k] + wp * d[k + 1])
+    return mu
 
 
 def torque_per_mpa(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
