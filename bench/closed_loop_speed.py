@@ -3,10 +3,14 @@ it runs now (generated codec, direct in-process bus) and as it ran before (canto
 where a control period goes (the plant's physics against everything around it); the plant alone; plant and TCU as
 two processes on udp_multicast; the start-up of every command; peak memory.
 
-    python bench/closed_loop_speed.py [--seconds 60] [--udp-seconds 20] [--json] [--baseline-tree DIR]
+    python bench/closed_loop_speed.py [--seconds 60] [--udp-seconds 20] [--json] [--baseline-tree DIR] [--rounds 3]
 
-``--baseline-tree``: also time the two-process run and the start-ups with the package of another checkout (e.g.
-the main one before these changes), through PYTHONPATH. Figures are simulated seconds per wall second.
+``--baseline-tree``: also time the one-process closed loop, the two-process run and the start-ups with the package
+of another checkout (e.g. the main one before these changes), through PYTHONPATH. The one-process loops of both
+trees run as fresh processes, alternating, ``--rounds`` times each, the best of each kept (a busy machine only
+ever slows a run down); ``closed_loop_vs_baseline_tree`` compares them in simulated seconds per CPU second of the
+process (less disturbed by other load than wall time), ``..._wall`` in wall time. Figures are simulated seconds
+per wall second unless named per CPU second.
 """
 
 from __future__ import annotations
@@ -61,6 +65,29 @@ def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
             "rest_us_per_period": round(1e6 * (run - inside[0]) / periods, 1),
             "rest_cpu_us_per_period": round(1e6 * (cpu - inside[1]) / periods, 1),
             "frames_sent": result.summary["frames"]["sent"]}
+
+
+def closed_loop_in(tree: str | None, seconds: float) -> dict:
+    """:func:`closed_loop` (the in-process bus, generated codec) in a fresh process on ``tree``'s package."""
+    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--closed-loop-only", "--seconds",
+                           str(seconds)], capture_output=True, text=True, check=True, env=env_for(tree),
+                          cwd=NEUTRAL_CWD, timeout=60 * seconds + 120)
+    return json.loads(proc.stdout)
+
+
+def side_by_side(tree: str, seconds: float, rounds: int) -> dict:
+    """The one-process closed loop on this package and on ``tree``'s, alternating; the best run of each."""
+    best: dict[str, dict] = {}
+    for _ in range(rounds):
+        for key, which in (("this", None), ("baseline", tree)):
+            run = closed_loop_in(which, seconds)
+            if key not in best or run["sim_s_per_cpu_s"] > best[key]["sim_s_per_cpu_s"]:
+                best[key] = run
+    return {"this_tree": best["this"], "baseline_tree": best["baseline"],
+            "closed_loop_vs_baseline_tree": round(best["this"]["sim_s_per_cpu_s"]
+                                                  / best["baseline"]["sim_s_per_cpu_s"], 2),
+            "closed_loop_vs_baseline_tree_wall": round(best["this"]["sim_s_per_wall_s"]
+                                                       / best["baseline"]["sim_s_per_wall_s"], 2)}
 
 
 def plant_alone(seconds: float) -> float:
@@ -122,8 +149,14 @@ def main() -> None:
     ap.add_argument("--udp-seconds", type=float, default=20.0, help="simulated duration on udp_multicast "
                                                                      "(default 20; 0: skip)")
     ap.add_argument("--baseline-tree", metavar="DIR", help="another checkout to time the subprocess figures with")
+    ap.add_argument("--rounds", type=int, default=3, help="with --baseline-tree: runs of each tree (default 3)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--closed-loop-only", action="store_true", help=argparse.SUPPRESS)  # see closed_loop_in
     args = ap.parse_args()
+    if args.closed_loop_only:
+        closed_loop(0.5, "local", False)
+        print(json.dumps(closed_loop(args.seconds, "local", False)))
+        return
 
     for transport, reference in (("local", False), ("virtual", True)):  # warm up: imports, caches, first calls
         closed_loop(0.5, transport, reference)
@@ -148,6 +181,8 @@ def main() -> None:
     out["startup_s"] = startup(None)
     out["startup_max_s"] = max(out["startup_s"].values())
     if args.baseline_tree:
+        out["side_by_side"] = side_by_side(args.baseline_tree, args.seconds, args.rounds)
+        out["closed_loop_vs_baseline_tree"] = out["side_by_side"]["closed_loop_vs_baseline_tree"]
         out["baseline_tree"] = {"path": args.baseline_tree, "startup_s": startup(args.baseline_tree)}
         if args.udp_seconds > 0:
             out["baseline_tree"]["udp_multicast"] = udp_two_processes(args.udp_seconds, args.baseline_tree)
@@ -162,6 +197,15 @@ def main() -> None:
               f"{r['rest_us_per_period']:>8.0f}")
     print(f"speed-up {out['closed_loop_speedup']:.2f}x (in CPU time {out['closed_loop_speedup_cpu']:.2f}x); "
           f"around the physics now {100 * out['share_around_physics']:.0f} % of a period")
+    if "side_by_side" in out:
+        sbs = out["side_by_side"]
+        for label, r in (("this tree (best of the rounds)", sbs["this_tree"]),
+                         (f"{args.baseline_tree} (best of the rounds)", sbs["baseline_tree"])):
+            print(f"{label:<46}{r['sim_s_per_wall_s']:>13.1f}{r['period_us']:>11.0f}"
+                  f"{r['physics_us_per_period']:>9.0f}{r['rest_us_per_period']:>8.0f}   {r['sim_s_per_cpu_s']:.1f} "
+                  "sim s/CPU s")
+        print(f"this tree against {args.baseline_tree}: {sbs['closed_loop_vs_baseline_tree']:.2f}x per CPU s, "
+              f"{sbs['closed_loop_vs_baseline_tree_wall']:.2f}x in wall time")
     print(f"plant alone: {plant:.1f} sim s / wall s; peak RSS of this process {rss_mb:.0f} MB")
     if "udp_multicast" in out:
         print(f"two processes on udp_multicast ({args.udp_seconds:g} s): {out['udp_multicast']}")

@@ -30,6 +30,7 @@ from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_si
 from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from .protocol.errors import RunError
 from .protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
+from .protocol.frame import data_frame
 from .protocol.validity import IGNORED, NEW, REJECTED
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
@@ -77,8 +78,12 @@ class PlantRunner:
         self.probes = 0  # lock-step presence probes sent before tick 0 (not logged)
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
-        self._period: list[can.Message] = []  # lock-step: this period's frames, for re-sending
+        self._cmd_id, self._sync_id = codec.frame_id("TCU_CMD"), codec.frame_id(SYNC)
+        self._status_every = round(codec.cycle_time("TCU_STATUS") / self.period)  # in control periods
+        self._period: list[tuple[int, bytes, float]] = []  # lock-step: this period's frames, for re-sending
         self._held: list[can.Message] | None = None  # lock-step: frames taken, logged when the answer is complete
+        self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
+        self._recv_data: Callable[[float], tuple[int, bytes] | can.Message | None] | None = None
         self._silent_s = 0.0  # lock-step: wall time waited in vain on ticks given up since the TCU was last heard
         self._cmd_on_bus: float | None = None
         self._traces: dict[int, np.ndarray] = {}  # by number of steps: the plant's trace of a period (_advance)
@@ -86,6 +91,14 @@ class PlantRunner:
         self.injectors: dict[str, FaultInjector | None] = {}  # by side, see ``inject``
         self.fault_seed = 0
         self.faults_in_tcu: list[str] = []  # faults passed on to a TCU process, which counts them itself
+        self._bind_bus()
+
+    def _bind_bus(self) -> None:
+        """Frames as (ID, data), no :class:`can.Message` built unless a listener wants one, where the bus is the
+        direct in-process one (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped: no plant-side faults)."""
+        self._send_data = getattr(self.bus, "send_data", None)
+        self._recv_data = getattr(self.bus, "recv_data", None)
+        self._channel = getattr(self.bus, "channel", None)  # of the frames received as (ID, data), when logged
 
     def clock(self) -> float:
         """The plant's time for the frames it sends (fault windows): simulated time, which is run time in real
@@ -96,6 +109,7 @@ class PlantRunner:
         """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock."""
         self.bus, self.injectors["plant"] = with_faults(self.bus, self.codec.db, specs, seed, self.clock)
         self.fault_seed = seed
+        self._bind_bus()
 
     def fault_summary(self) -> dict:
         """The summary's ``faults``: frames each fault hit (re-sends included), by side and in all; and those
@@ -106,13 +120,26 @@ class PlantRunner:
         return counts
 
     # ---- frames --------------------------------------------------------------------------------------------
-    def _emit(self, msg: can.Message) -> None:
+    def _send(self, frame_id: int, data: bytes, stamp: float) -> can.Message | None:
+        """Put a frame on the bus; returns its message, None if none was built (see ``_bind_bus``)."""
+        if self._send_data is not None:
+            self._send_data(frame_id, data)
+            return None
+        msg = data_frame(frame_id, data, stamp)
         self.bus.send(msg)
+        return msg
+
+    def _emit(self, frame_id: int, data: bytes, stamp: float) -> None:
+        """Send a frame of this period (a first transmission: counted, kept for re-sending, logged)."""
+        msg = self._send(frame_id, data, stamp)
         self.sent += 1
-        self.sent_by[self._names[msg.arbitration_id]] += 1
-        self._period.append(msg)
-        for listener in self.listeners:  # as _log, inlined: seven frames a period
-            listener(msg)
+        self.sent_by[self._names[frame_id]] += 1
+        self._period.append((frame_id, data, stamp))
+        if self.listeners:
+            if msg is None:
+                msg = data_frame(frame_id, data, stamp)
+            for listener in self.listeners:
+                listener(msg)
 
     def _log(self, msg: can.Message) -> None:
         for listener in self.listeners:
@@ -123,8 +150,9 @@ class PlantRunner:
         if not names:  # real time: most 1-ms steps send nothing, so build no signal values for them
             return
         values = plant_signals(self.out, self.scenario.driver_at(t))
+        data, ids = self.tx.data, self.tx.ids
         for name in names:
-            self._emit(self.tx.frame(name, values[name], timestamp=stamp))
+            self._emit(ids[name], data(name, values[name]), stamp)
 
     def _take(self, msg: can.Message, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
         """Handle one received frame: (status, frame) as :meth:`RxMonitor.take`; only new frames are used and
@@ -134,15 +162,28 @@ class PlantRunner:
             return status, frame
         assert frame is not None  # a NEW frame comes decoded
         msg.timestamp = stamp
-        if self._held is not None:
-            self._held.append(msg)
-        else:
-            self._log(msg)
+        self._use(frame, msg)
+        return status, frame
+
+    def _take_data(self, frame_id: int, data: bytes, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
+        """:meth:`_take` of a frame received as (ID, data) from the in-process bus (see ``_bind_bus``)."""
+        status, frame = self.rx.take_data(frame_id, data, now)
+        if status == NEW:
+            assert frame is not None  # a NEW frame comes decoded
+            self._use(frame, data_frame(frame_id, data, stamp, self._channel, True) if self.listeners else None)
+        return status, frame
+
+    def _use(self, frame: DecodedFrame, msg: can.Message | None) -> None:
+        """A new frame from the TCU: logged (``msg``: None with no listeners), its values used."""
+        if msg is not None and self.listeners:
+            if self._held is not None:
+                self._held.append(msg)
+            else:
+                self._log(msg)
         if frame.name == "TCU_CMD":
             self.P_cmd = (frame.values["P_CL_Cmd"] * 1e6, frame.values["P_CH_Cmd"] * 1e6)
         elif frame.name == "TCU_STATUS":
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
-        return status, frame
 
     def _check_command(self, now: float) -> None:
         valid = self.rx.valid("TCU_CMD", now)
@@ -205,6 +246,7 @@ class PlantRunner:
         once the TCU has answered, a pause of seconds (numba's cache loaded under emulation) would look to it
         like a plant gone."""
         self.summary.creep.prepare()
+        self._bind_bus()
         self._handshake(startup_timeout, pump)
         self._running = True
         t0 = time.monotonic()
@@ -213,7 +255,7 @@ class PlantRunner:
                 t = self.tick * self.period
                 self._period.clear()
                 self._publish_due(t, stamp=t)
-                self._emit(self.sync.frame(SYNC, {"Tick": self.tick}, timestamp=t))
+                self._emit(self._sync_id, self.sync.data(SYNC, {"Tick": self.tick}), t)
                 if pump is not None:
                     pump()
                 if not self._await_answer(t, reply_timeout, pump):
@@ -260,7 +302,8 @@ class PlantRunner:
         up; the plant's own time between waits does not count, nor does a stall of the plant: what arrived
         meanwhile is read first): PeerLost. The answer's frames are logged when it is complete, TCU_CMD last,
         as the TCU sends them, whatever retries brought them."""
-        cmd_id = self.codec.frame_id("TCU_CMD")
+        cmd_id = self._cmd_id
+        recv = self._recv_data or self.bus.recv
         echo = self.tick & 0xFF
         retries, interval = 0, self.retry_first_s
         since = time.monotonic()  # silence is counted from here, plus ``_silent_s`` of ticks given up
@@ -270,12 +313,17 @@ class PlantRunner:
         try:
             while True:
                 lost_at = since + reply_timeout - self._silent_s
-                msg = self.bus.recv(timeout=max(0.0, min(next_retry, lost_at) - time.monotonic()))
+                msg = recv(max(0.0, min(next_retry, lost_at) - time.monotonic()))
                 if msg is not None:
-                    status, frame = self._take(msg, t, stamp=t)
+                    if isinstance(msg, tuple):
+                        frame_id = msg[0]
+                        status, frame = self._take_data(frame_id, msg[1], t, stamp=t)
+                    else:
+                        frame_id = msg.arbitration_id
+                        status, frame = self._take(msg, t, stamp=t)
                     if status != IGNORED:
                         since, self._silent_s = time.monotonic(), 0.0
-                    if status == REJECTED and msg.arbitration_id == cmd_id and not have_cmd:
+                    if status == REJECTED and frame_id == cmd_id and not have_cmd:
                         next_retry = time.monotonic()  # a command that failed its checks: ask again at once
                     elif status == NEW and frame is not None and frame.name == "TCU_CMD" \
                             and int(frame.values["SyncEcho"]) == echo:
@@ -306,14 +354,15 @@ class PlantRunner:
                     if pump is not None:
                         pump()
         finally:
-            for msg in sorted(self._held, key=lambda m: m.arbitration_id == cmd_id):
-                self._log(msg)
+            if self._held:
+                for msg in sorted(self._held, key=lambda m: m.arbitration_id == cmd_id):
+                    self._log(msg)
             self._held = None
 
     def _status_expected(self, t: float) -> bool:
         """Whether this tick's answer should hold a TCU_STATUS: due now on its DBC cycle from tick 0, as the last
         one due came (so a TCU sending it on a schedule of its own costs no retries after tick 0)."""
-        every = round(self.codec.cycle_time("TCU_STATUS") / self.period)
+        every = self._status_every
         state = self.rx.states["TCU_STATUS"]
         if self.tick % every or (state.last_time is not None and abs(state.last_time - t) < 1e-9):
             return False
@@ -321,9 +370,9 @@ class PlantRunner:
         return self.tick == 0 or (state.last_time is not None and abs(state.last_time - previous) < 1e-9)
 
     def _resend_period(self) -> None:
-        for msg in self._period:
-            self.bus.send(msg)
-            self.retries[self._names[msg.arbitration_id]] += 1
+        for frame_id, data, stamp in self._period:
+            self._send(frame_id, data, stamp)
+            self.retries[self._names[frame_id]] += 1
 
     # ---- real time ------------------------------------------------------------------------------------------
     def run_realtime(self, clock: Callable[[], float] = time.monotonic) -> RunSummary:
@@ -333,6 +382,7 @@ class PlantRunner:
         up makes the run late, which is counted and reported as ``realtime_factor``."""
         start = clock()
         self._running = True
+        self._bind_bus()
         dt = self.plant.dt
         n_steps = int(round(self.scenario.duration_s / dt))
         for k in range(n_steps):

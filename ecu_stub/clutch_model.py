@@ -13,8 +13,8 @@ clutch) and its calibration:
 
 from __future__ import annotations
 
-import bisect
 import math
+from bisect import bisect_right
 
 from .calibration import Clutch, FrictionMap
 
@@ -27,7 +27,7 @@ def _locate(grid: tuple[float, ...], x: float) -> tuple[int, float]:
         return 0, 0.0
     if x >= grid[-1]:
         return len(grid) - 2, 1.0
-    i = bisect.bisect_right(grid, x) - 1
+    i = bisect_right(grid, x) - 1
     return i, (x - grid[i]) / (grid[i + 1] - grid[i])
 
 
@@ -54,8 +54,8 @@ def torque_per_mpa(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa
 
 def friction_heat(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
     """Friction power into the plates [W], equation (4): torque (5) times slip speed."""
-    P = max(P_mpa, 0.0)
-    return torque_per_mpa(m, c, T_c, slip_rpm, P) * P * abs(slip_rpm) * RPM_TO_RAD_S
+    P = max(P_mpa, 0.0)  # torque_per_mpa written out (the same products in the same order)
+    return friction_coefficient(m, T_c, slip_rpm, P) * c.k_geom_m3 * 1e6 * P * abs(slip_rpm) * RPM_TO_RAD_S
 
 
 def plate_step(c: Clutch, T_c: float, heat_w: float, T_oil_c: float, dt: float) -> float:

@@ -45,7 +45,7 @@ FAULT_PLANT_MISSING = 0x01
 BRAKE_PRESSED_PCT = 5.0
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # not frozen: built every control period, a frozen one costs several times more
 class TcuInputs:
     plant_valid: bool
     engine_speed_rpm: float = 0.0
@@ -73,7 +73,7 @@ class TcuInputs:
         return self.T_oil_CL_c if clutch == "CL" else self.T_oil_CH_c
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # (as TcuInputs)
 class TcuOutputs:
     P_CL_cmd_mpa: float
     P_CH_cmd_mpa: float
@@ -131,11 +131,11 @@ class CreepController:
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
-        T_pred, heat, cal = self._T_pred, self.heat, self.cal
-        for c in ("CL", "CH"):
-            clutch = cal.clutch(c)
-            heat[c] = friction_heat(cal.friction, clutch, T_pred[c], inp.slip_rpm(c), inp.pressure_mpa(c))
-            T_pred[c] = plate_step(clutch, T_pred[c], heat[c], inp.oil_c(c), dt)
+        T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm
+        for c, clutch, out_rpm, P, T_oil in (("CL", cal.CL, inp.cl_out_rpm, inp.P_CL_mpa, inp.T_oil_CL_c),
+                                             ("CH", cal.CH, inp.ch_out_rpm, inp.P_CH_mpa, inp.T_oil_CH_c)):
+            heat[c] = friction_heat(cal.friction, clutch, T_pred[c], clutch_in - out_rpm, P)  # slip as slip_rpm(c)
+            T_pred[c] = plate_step(clutch, T_pred[c], heat[c], T_oil, dt)
 
     def pressure_for(self, clutch: str, force_n: float, inp: TcuInputs) -> float:
         """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu k_geom)."""

@@ -23,6 +23,7 @@ from collections.abc import Callable
 import can
 
 from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
+from dsg_hil.protocol.frame import data_frame
 from dsg_hil.protocol.validity import DUPLICATE, IGNORED, NEW
 
 from .controller import CreepController, TcuInputs, TcuOutputs
@@ -60,6 +61,10 @@ class TcuRunner:
         for name in TCU_USES:
             codec.message(name)
         self.codec, self.bus = codec, bus
+        # the direct in-process bus (dsg_hil.protocol.local, unwrapped): frames as (ID, data), no can.Message
+        self._send_data: Callable[[int, bytes], None] | None = getattr(bus, "send_data", None)
+        self._recv_data: Callable[[float], tuple[int, bytes] | can.Message | None] | None = \
+            getattr(bus, "recv_data", None)
         self.controller = controller or CreepController()
         self.rx = RxMonitor(codec, list(TCU_RX))
         self.tx = TxScheduler(codec, list(TCU_TX))
@@ -75,7 +80,7 @@ class TcuRunner:
         self.heard_plant_at: float | None = None
         self.last: TcuOutputs | None = None
         self._answered: int | None = None  # lock-step: the tick last answered (SYNC_PROBE: the probe) ...
-        self._answer: list[can.Message] = []  # ... the frames sent for it, re-sent when it is repeated ...
+        self._answer: list[tuple[int, bytes]] = []  # ... the frames (ID, data) sent for it, re-sent if repeated ...
         self._answer_sends = 0  # ... and how often they were sent
         self._pending: int | None = None  # lock-step: a tick not answered for want of plant frames ...
         self._pending_sights = 0  # ... and how often it was seen
@@ -88,52 +93,46 @@ class TcuRunner:
 
     def inputs(self, now: float) -> TcuInputs:
         states = self.rx.states
-        required = [states[name] for name in REQUIRED]
         faults = 0
-        for reason, n in self.rx.rejected.items():
-            if n:
-                faults |= FAULT_BITS.get(reason, 0)
-        if not all(state.valid(now) for state in required):
-            return TcuInputs(plant_valid=False, fault_bits=faults)
-        v = {name: state.values for name, state in zip(REQUIRED, required)}
-        return TcuInputs(
-            plant_valid=True,
-            engine_speed_rpm=v["PLANT_ENGINE"]["EngineSpeed"],
-            clutch_in_rpm=v["PLANT_SPEEDS"]["ClutchInputSpeed"],
-            cl_out_rpm=v["PLANT_SPEEDS"]["CLOutputSpeed"],
-            ch_out_rpm=v["PLANT_SPEEDS"]["CHOutputSpeed"],
-            v_mps=v["PLANT_VEHICLE"]["VehicleSpeed"],
-            P_CL_mpa=v["PLANT_PRESSURE"]["P_CL"],
-            P_CH_mpa=v["PLANT_PRESSURE"]["P_CH"],
-            T_oil_CL_c=v["PLANT_OIL_TEMP"]["T_OilCL"],
-            T_oil_CH_c=v["PLANT_OIL_TEMP"]["T_OilCH"],
-            T_sump_c=v["PLANT_OIL_TEMP"]["T_Sump"],
-            creep_request=v["DRIVER"]["CreepRequest"] >= 0.5,
-            brake_pct=v["DRIVER"]["BrakePedal"],
-            desired_speed_mps=v["DRIVER"]["DesiredCreepSpeed"],
-            fault_bits=faults,
-        )
+        if self.rx.rejected:
+            for reason, n in self.rx.rejected.items():
+                if n:
+                    faults |= FAULT_BITS.get(reason, 0)
+        engine, speeds, vehicle, pressure, oil, driver = required = [states[name] for name in REQUIRED]
+        for state in required:  # as state.valid(now), written out: six a period
+            if state.last_time is None or not now - state.last_time <= state.deadline + 1e-9:
+                return TcuInputs(plant_valid=False, fault_bits=faults)
+        e, s, v, p, o, d = engine.values, speeds.values, vehicle.values, pressure.values, oil.values, driver.values
+        return TcuInputs(True, e["EngineSpeed"], s["ClutchInputSpeed"], s["CLOutputSpeed"], s["CHOutputSpeed"],
+                         v["VehicleSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"], o["T_Sump"],
+                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults)
 
-    def control(self, now: float, echo: int = 0) -> list[can.Message]:
+    def control(self, now: float, echo: int = 0) -> list[tuple[int, bytes]]:
         """One controller cycle at ``now``: compute, then send TCU_STATUS when due and TCU_CMD, last (in lock-step
-        it completes the answer to the tick); returns the frames sent."""
+        it completes the answer to the tick); returns the frames sent, as (ID, data)."""
         self.now = now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
-        values = {
-            "TCU_CMD": {"P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa, "SyncEcho": echo},
-            "TCU_STATUS": {"State": self.states[out.state], "ActiveClutch": self.clutches[out.active_clutch],
-                           "BrakeRequest": float(out.brake_request), "T_CL_Pred": out.T_CL_pred_c,
-                           "T_CH_Pred": out.T_CH_pred_c, "FaultBits": out.fault_bits},
-        }
-        due = sorted(self.tx.due(now), key=lambda name: name == "TCU_CMD")
-        frames = [self.tx.frame(name, values[name]) for name in due]
+        tx, frames = self.tx, []
+        due = tx.due(now)
+        if "TCU_STATUS" in due:
+            frames.append((tx.ids["TCU_STATUS"], tx.data("TCU_STATUS", {
+                "State": self.states[out.state], "ActiveClutch": self.clutches[out.active_clutch],
+                "BrakeRequest": float(out.brake_request), "T_CL_Pred": out.T_CL_pred_c,
+                "T_CH_Pred": out.T_CH_pred_c, "FaultBits": out.fault_bits})))
+        if "TCU_CMD" in due:
+            frames.append((tx.ids["TCU_CMD"], tx.data("TCU_CMD", {
+                "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa, "SyncEcho": echo})))
         self._send(frames)
         return frames
 
-    def _send(self, frames: list[can.Message]) -> None:
-        for msg in frames:
-            self.bus.send(msg)
+    def _send(self, frames: list[tuple[int, bytes]]) -> None:
+        send_data = self._send_data
+        for frame_id, data in frames:
+            if send_data is not None:
+                send_data(frame_id, data)
+            else:
+                self.bus.send(data_frame(frame_id, data))
             self.sent += 1
 
     def handle(self, msg: can.Message, now: float) -> bool:
@@ -142,8 +141,16 @@ class TcuRunner:
 
         In lock-step, time is the plant's: frames arriving before a tick belong to it (tick time = the previous
         tick's + one cycle), so validity and controller time never depend on the wall clock."""
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id or msg.is_fd:
+            status, _ = self.rx.take(msg, now)  # not ours, or one of ours as a CAN FD frame: rejected
+            return status != IGNORED
+        return self.handle_data(msg.arbitration_id, bytes(msg.data), now)
+
+    def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
+        """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data (as the in-process
+        bus hands it over)."""
         stamp = self._sim_now + self.cycle if self.lockstep else now
-        status, frame = self.rx.take(msg, stamp)
+        status, frame = self.rx.take_data(frame_id, data, stamp)
         if status not in (NEW, DUPLICATE):
             return status != IGNORED
         assert frame is not None  # NEW and DUPLICATE come decoded
@@ -209,7 +216,7 @@ class TcuRunner:
         self.controller = type(self.controller)(self.controller.cal)
         self.rx = RxMonitor(self.codec, list(TCU_RX))
         self.tx = TxScheduler(self.codec, list(TCU_TX))
-        self._answer = [self.tx.frame("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF})]
+        self._answer = [(self.tx.ids["TCU_CMD"], self.tx.data("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF}))]
         self._answered, self._answer_sends = SYNC_PROBE, 0
         self._pending, self._pending_sights = None, 0
         self._sim_now = self.now = -self.cycle  # the next tick is tick 0
@@ -230,8 +237,12 @@ class TcuRunner:
 
     def pump(self) -> None:
         """Handle every frame already waiting (for an in-process peer on python-can's virtual bus)."""
-        while (msg := self.bus.recv(timeout=0.0)) is not None:
-            self.handle(msg, self._sim_now)
+        recv = self._recv_data or self.bus.recv
+        while (item := recv(0.0)) is not None:
+            if isinstance(item, tuple):
+                self.handle_data(item[0], item[1], self._sim_now)
+            else:
+                self.handle(item, self._sim_now)
 
     def run(self, duration: float | None = None, clock: Callable[[], float] = time.monotonic,
             idle_timeout: float | None = None, should_stop: Callable[[], bool] = lambda: False) -> None:

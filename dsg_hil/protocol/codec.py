@@ -14,11 +14,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from functools import partial
 from importlib import resources
 from pathlib import Path
-from typing import cast
+from typing import NamedTuple, cast
 
 import cantools
 from cantools.database.can import Database, Message, Signal
@@ -42,8 +41,10 @@ class FrameError(ValueError):
         self.reason = reason
 
 
-@dataclass(frozen=True)
-class DecodedFrame:
+class DecodedFrame(NamedTuple):
+    """A frame that passed its checks: its message, signal values (Counter and CRC apart) and counter. A named
+    tuple: built for every frame received, at a fraction of a frozen dataclass's cost."""
+
     name: str
     values: dict[str, float]
     counter: int

@@ -20,7 +20,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import CodeType
-from typing import Any
+from typing import Any, cast
 
 from cantools.database.can import Message, Signal
 from cantools.database.conversion import BaseConversion, IdentityConversion, LinearIntegerConversion
@@ -50,15 +50,24 @@ def _to_raw(conversion: BaseConversion) -> list[str]:
     if isinstance(conversion, IdentityConversion):
         return ["    r = round(v)"]
     if isinstance(conversion, LinearIntegerConversion):  # divmod first, as cantools does (exact when it can)
-        return [f"    d = v - {conversion.offset!r}", f"    q, m = divmod(d, {conversion.scale!r})",
+        return [f"    d = v{_minus(conversion.offset)}", f"    q, m = divmod(d, {conversion.scale!r})",
                 f"    r = round(q) if m == 0 else round(d / {conversion.scale!r})"]
+    if not conversion.offset:
+        return [f"    r = round(v / {conversion.scale!r})"]
     return [f"    r = round((v - {conversion.offset!r}) / {conversion.scale!r})"]
+
+
+def _minus(offset: float) -> str:
+    """Source subtracting ``offset``; nothing for 0 (x - 0 is x for every float, -0.0 included)."""
+    return f" - {offset!r}" if offset else ""
 
 
 def _to_physical(conversion: BaseConversion, raw: str) -> str:
     """Source of cantools' ``raw_to_scaled`` (no value table) applied to the expression ``raw``."""
     if isinstance(conversion, IdentityConversion):
         return raw
+    if not conversion.offset and not (isinstance(conversion.scale, float) and conversion.scale < 0):
+        return f"{raw} * {conversion.scale!r}"  # + 0 changes nothing but the -0.0 of a negative scale
     return f"{raw} * {conversion.scale!r} + {conversion.offset!r}"
 
 
@@ -109,22 +118,21 @@ def unsupported(message: Message, protection: Protection) -> str | None:
 
 
 def generate(message: Message, protection: Protection, frame_error: type, decoded_frame: type) -> GeneratedMessage:
-    """The encode and decode functions of ``message`` (check :func:`unsupported` first)."""
+    """The encode and decode functions of ``message`` (check :func:`unsupported` first); decode raises
+    ``frame_error`` and returns a ``decoded_frame``, a NamedTuple of (name, values, counter)."""
     from .codec import raw_range, signal_range  # noqa: PLC0415 - the codec imports this module
 
     name, length, k = message.name, message.length, protection.crc_byte
+    crc, crc_tables = _crc_expression(protection)
     enc = ["def encode(values, counter):", "    get = values.get", "    F = G = 0"]
     dec = ["def decode(data):",
            f"    if len(data) != {length}:",
            f"        raise FrameError('dlc', f'{name}: DLC {{len(data)}}, expected {length}')",
-           f"    crc = {_crc_after_header(protection)}",
-           *([f"    for b in data[:{k}]:", "        crc = TABLE[crc ^ b]"] if k else []),
-           f"    for b in data[{k + 1}:]:", "        crc = TABLE[crc ^ b]",
-           f"    if data[{k}] != crc ^ 0xFF:",
-           f"        raise FrameError('crc', '{name}: CRC mismatch')",
-           "    F = int.from_bytes(data, 'little')"]
+           "    F = from_bytes(data, 'little')",
+           f"    if {_field('F', 8 * k, 255)} != {crc}:",
+           f"        raise FrameError('crc', '{name}: CRC mismatch')"]
     if any(s.byte_order == "big_endian" for s in message.signals):
-        dec.append("    G = int.from_bytes(data, 'big')")
+        dec.append("    G = from_bytes(data, 'big')")
     out = []
     for i, signal in enumerate(message.signals):
         conversion = _conversion(signal)
@@ -133,41 +141,130 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
         lo, hi = signal_range(signal)
         # encode: clamp (NaN or missing: the default), to raw, into the frame
         if signal.name == COUNTER:
-            enc.append(f"    {acc} |= ((counter % {protection.counter_modulus}) & {mask}) << {shift}")
+            enc.append(f"    {acc} |= ((counter % {protection.counter_modulus}) & {mask}){_shifted(shift)}")
         elif signal.name != CRC:
-            default = signal.initial if signal.initial is not None else min(max(0.0, lo), hi)
-            enc += [f"    v = get({signal.name!r})",
-                    f"    v = float({default!r} if v is None or not isfinite(v) else v)",
-                    f"    if v < {lo!r}:", f"        v = {lo!r}",
-                    f"    if v > {hi!r}:", f"        v = {hi!r}",
-                    *_to_raw(conversion), f"    {acc} |= (r & {mask}) << {shift}"]
+            default = _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi),
+                               lo, hi)  # a number: see unsupported()
+            enc += [f"    v = get({signal.name!r})", "    if v is None:", f"        v = {default!r}",
+                    "    else:", "        v = float(v)",  # a value in range costs two comparisons, no more
+                    f"        if not {_compared(lo)} <= v <= {_compared(hi)}:",
+                    f"            v = {default!r} if v != v or v == INF or v == -INF else {lo!r} if v < "
+                    f"{_compared(lo)} else {hi!r}",
+                    *_to_raw(conversion), f"    {acc} |= (r & {mask}){_shifted(shift)}"]
         # decode: from the frame, to physical, range check
-        dec.append(f"    r = ({acc} >> {shift}) & {mask}")
+        bits_lo, bits_hi = raw_range(signal)
+        checked = not lo - 1e-9 <= bits_lo <= bits_hi <= hi + 1e-9  # else no value of its bits is out of range
+        if signal.name == CRC and not checked:
+            continue  # checked above, its value not returned
+        dec.append(f"    r = {_field(acc, shift, mask)}")
         if signal.is_signed:
             dec.append(f"    if r & {1 << (signal.length - 1)}:\n        r -= {1 << signal.length}")
         dec.append(f"    v{i} = {_to_physical(conversion, 'r')}")
-        bits_lo, bits_hi = raw_range(signal)
-        if not lo - 1e-9 <= bits_lo <= bits_hi <= hi + 1e-9:  # else no value of its bits is out of range
+        if checked:
             dec += [f"    if not ({lo - 1e-9!r} <= v{i} <= {hi + 1e-9!r}):",
                     f"        raise FrameError('range', f'{name}.{signal.name} = {{v{i}}} outside [{lo:g}, {hi:g}]')"]
         if signal.name not in (COUNTER, CRC):
-            out.append(f"{signal.name!r}: float(v{i})")
+            out.append(f"{signal.name!r}: {_as_float(conversion, f'v{i}')}")
     counter_index = next(i for i, s in enumerate(message.signals) if s.name == COUNTER)
-    dec.append(f"    return DecodedFrame({name!r}, {{{', '.join(out)}}}, int(v{counter_index}))")
+    # DecodedFrame(...) without its Python-level __new__ (a NamedTuple's is tuple.__new__ with the fields)
+    dec.append(f"    return NEW(DecodedFrame, ({name!r}, {{{', '.join(out)}}}, v{counter_index}))")  # an int counter
     if any(s.byte_order == "big_endian" for s in message.signals):
-        enc.append(f"    F |= int.from_bytes(G.to_bytes({length}, 'big'), 'little')")
-    enc += [f"    data = F.to_bytes({length}, 'little')",
-            f"    crc = {_crc_after_header(protection)}",
-            *([f"    for b in data[:{k}]:", "        crc = TABLE[crc ^ b]"] if k else []),
-            f"    for b in data[{k + 1}:]:", "        crc = TABLE[crc ^ b]",
-            f"    return (F | ((crc ^ 0xFF) << {8 * k})).to_bytes({length}, 'little')"]
+        enc.append(f"    F |= from_bytes(G.to_bytes({length}, 'big'), 'little')")
+    enc.append(f"    return (F | ({crc}){_shifted(8 * k)}).to_bytes({length}, 'little')")
     source = "\n".join(enc) + "\n\n\n" + "\n".join(dec) + "\n"
-    from .crc import _TABLE  # noqa: PLC0415
-
-    namespace: dict = {"FrameError": frame_error, "DecodedFrame": decoded_frame, "TABLE": _TABLE,
-                       "isfinite": math.isfinite}
+    namespace: dict = {"FrameError": frame_error, "DecodedFrame": decoded_frame, "INF": math.inf,
+                       "from_bytes": int.from_bytes, "NEW": tuple.__new__, **crc_tables}  # each looked up once
     exec(_compiled(source, name), namespace)  # noqa: S102 - our own source
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
+
+
+def _clamped(default: float, lo: float, hi: float) -> float:
+    """A missing or non-finite value's replacement as the cantools path has it: float, then clamped."""
+    v = float(default)
+    if v < lo:
+        v = lo
+    if v > hi:
+        v = hi
+    return v
+
+
+def _compared(bound: float) -> str:
+    """Source of a range bound that a float is compared with: as a float when that is exact (a float compares
+    with a float faster than with an int, and to the same result)."""
+    return repr(float(bound)) if float(bound) == bound else repr(bound)
+
+
+def _shifted(shift: int) -> str:
+    return f" << {shift}" if shift else ""
+
+
+def _field(acc: str, shift: int, mask: int) -> str:
+    """Source of the bits ``mask`` at ``shift`` of the integer ``acc``."""
+    return f"({acc} >> {shift}) & {mask}" if shift else f"{acc} & {mask}"
+
+
+def _as_float(conversion: BaseConversion, value: str) -> str:
+    """``float(value)``, written only where the conversion can give an int (a float scale gives floats)."""
+    return value if isinstance(conversion.scale, float) else f"float({value})"
+
+
+def _crc_expression(protection: Protection) -> tuple[str, dict[str, bytes]]:
+    """Source of the frame's CRC (final XOR included) from ``F``, its data as a little-endian integer with the
+    CRC byte ignored, and the tables it reads. The CRC is affine in the data bytes (the table of a CRC without
+    reflection is linear: T[a ^ b] = T[a] ^ T[b]), so it is a constant (the frame ID's bytes, then zeros) XOR
+    what each data byte contributes given how many covered bytes follow it (:func:`_byte_contribution`); two
+    neighbouring data bytes are looked up as one 16-bit index (:func:`_pair_contribution`): 4 look-ups for a
+    frame of 8 bytes instead of 7 steps of the register."""
+    from .crc import _TABLE  # noqa: PLC0415
+
+    covered = [p for p in range(protection.length) if p != protection.crc_byte]
+    following = {p: len(covered) - 1 - q for q, p in enumerate(covered)}  # covered bytes after byte p
+    constant = _crc_after_header(protection)
+    for _ in covered:
+        constant = _TABLE[constant]
+    terms, tables = [str(constant ^ 0xFF)], {}
+    p = 0
+    while p < protection.length:
+        if p not in following:
+            p += 1
+        elif p + 1 in following:
+            name = f"P{following[p]}_{following[p + 1]}"
+            tables[name] = _pair_contribution(following[p], following[p + 1])
+            terms.append(f"{name}[{_field('F', 8 * p, 0xFFFF)}]")
+            p += 2
+        else:
+            name = f"L{following[p]}"
+            tables[name] = _byte_contribution(following[p])
+            terms.append(f"{name}[{_field('F', 8 * p, 255)}]")
+            p += 1
+    return " ^ ".join(terms), tables
+
+
+@functools.lru_cache(maxsize=64)
+def _byte_contribution(following: int) -> bytes:
+    """What a data byte adds (XOR) to the CRC register when ``following`` more bytes follow it, by its value."""
+    from .crc import _TABLE  # noqa: PLC0415
+
+    table = []
+    for byte in range(256):
+        crc = _TABLE[byte]
+        for _ in range(following):
+            crc = _TABLE[crc]
+        table.append(crc)
+    return bytes(table)
+
+
+@functools.lru_cache(maxsize=64)
+def _pair_contribution(low_following: int, high_following: int) -> bytes:
+    """:func:`_byte_contribution` of two neighbouring bytes at once, by low byte + 256 x high byte (64 KiB)."""
+    low, high = _byte_contribution(low_following), _byte_contribution(high_following)
+    return b"".join(low.translate(_xor_with(h)) for h in high)
+
+
+@functools.lru_cache(maxsize=256)
+def _xor_with(c: int) -> bytes:
+    """A ``bytes.translate`` table giving x ^ c for every byte x."""
+    return bytes(x ^ c for x in range(256))
 
 
 @functools.lru_cache(maxsize=256)

@@ -2,10 +2,16 @@
 one process in lockstep (:func:`dsg_hil.loop.run_closed_loop`, ``dsg-hil run`` on ``virtual``).
 
 It does for two nodes what python-can's ``virtual`` interface does (the receiver gets its own copy of the frame,
-stamped with the wall-clock time of sending, ``is_rx`` set, on the bus's channel), without what costs there:
-a ``deepcopy`` of every frame and a locked ``queue.Queue`` per receiver. A received frame is a plain copy of the
-sent one (its data copied, never shared, so neither side can change the other's frame). Receiving with a timeout
-waits on a condition, so a sender in another thread wakes it; in one process nothing else ever waits.
+stamped with the wall-clock time it was received, ``is_rx`` set, on the bus's channel), without what costs
+there: a ``deepcopy`` of every frame and a locked ``queue.Queue`` per receiver. Receiving with a timeout waits
+on a condition, so a sender in another thread wakes it; in one process nothing else ever waits.
+
+A classic data frame with an 11-bit ID travels as its ID and data alone (``bytes``: neither side can change
+the other's frame), and a node that knows this bus hands those over directly, with no :class:`can.Message`
+built for them at all (:meth:`LocalBus.send_data`, :meth:`LocalBus.recv_data`: the plant's and ecu-stub's
+lock-step hot path, which builds a message only for a listener); ``recv`` builds the message python-can's
+``virtual`` would have delivered. Any other frame (remote, error, CAN FD, 29-bit ID) travels as a copy of its
+message.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ class LocalBus(can.BusABC):
     """One end of :func:`local_pair`: ``send``, ``recv`` and ``shutdown`` as python-can's buses have them."""
 
     def __init__(self, channel: str) -> None:
-        self._queue: deque[can.Message] = deque()
+        self._queue: deque[tuple[int, bytes] | can.Message] = deque()
         self._ready = threading.Condition()
         self._waiting = False
         self.peer: LocalBus | None = None
@@ -42,22 +48,38 @@ class LocalBus(can.BusABC):
         super().__init__(channel=channel)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if msg.is_remote_frame or msg.is_error_frame or msg.is_fd or msg.is_extended_id:  # copied the slow way
+            copy = can.Message(**{name: getattr(msg, name) for name in _FIELDS}, channel=self.channel, is_rx=True,
+                               timestamp=time.time())
+            copy.data = bytearray(msg.data)  # never shared
+            self._put(copy)
+        else:
+            self._put((msg.arbitration_id, bytes(msg.data)))
+
+    def send_data(self, frame_id: int, data: bytes) -> None:
+        """Send a classic data frame with an 11-bit ID: ``send`` of ``data_frame(frame_id, data)``, cheaper."""
+        self._put((frame_id, data))
+
+    def _put(self, item: tuple[int, bytes] | can.Message) -> None:
         if self._is_shutdown:
             raise can.CanOperationError("Cannot operate on a closed bus")
         peer = self.peer
         if peer is None or peer._is_shutdown:  # nobody listening: the frame is gone, as on a bus
             return
-        if msg.is_remote_frame or msg.is_error_frame or msg.is_fd:  # not this contract's: copied the slow way
-            copy = can.Message(**{name: getattr(msg, name) for name in _FIELDS}, channel=self.channel, is_rx=True,
-                               timestamp=time.time())
-        else:
-            copy = data_frame(msg.arbitration_id, msg.data, time.time(), self.channel, True, msg.is_extended_id)
-        peer._queue.append(copy)
+        peer._queue.append(item)
         if peer._waiting:
             with peer._ready:
                 peer._ready.notify_all()
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
+        item = self.recv_data(timeout)
+        if isinstance(item, tuple):
+            return data_frame(item[0], item[1], time.time(), self.channel, True)
+        return item
+
+    def recv_data(self, timeout: float | None = None) -> tuple[int, bytes] | can.Message | None:
+        """``recv`` without building a message for a classic data frame with an 11-bit ID: (ID, data) for one,
+        the message for any other frame, None when none came within ``timeout``."""
         if self._is_shutdown:
             raise can.CanOperationError("Cannot operate on a closed bus")
         if self._queue:

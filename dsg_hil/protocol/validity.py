@@ -21,7 +21,7 @@ TIMEOUT_CYCLES = 3.0
 NEW, DUPLICATE, REJECTED, IGNORED = "new", "duplicate", "rejected", "ignored"
 
 
-@dataclass
+@dataclass(slots=True)
 class RxState:
     """Validity of one received message: fresh within ``TIMEOUT_CYCLES`` cycle times, counter moving by the
     rules of :mod:`.e2e` (resynchronised by the first frame after a timeout)."""
@@ -80,17 +80,18 @@ class RxMonitor:
         self.states = {name: RxState(name, codec.cycle_time(name), codec.protection(name).counter_modulus)
                        for name in names}
         self._ids = {codec.frame_id(name): name for name in names}
-        self._by_id = {frame_id: self.states[name] for frame_id, name in self._ids.items()}
+        self._by_id = {frame_id: (self.states[name], codec.decoder(frame_id))  # take: one look-up per frame
+                       for frame_id, name in self._ids.items()}
         self.rejected: Tally[str] = Tally()
         self.received = 0
-        self._decoders = {frame_id: codec.decoder(frame_id) for frame_id in self._ids}  # take: one per frame
 
     def wants(self, msg: can.Message) -> bool:
         return not msg.is_extended_id and msg.arbitration_id in self._ids
 
     def _state_of(self, msg: can.Message) -> RxState | None:
         """The state of the message ``msg`` is a frame of, if it is one this node reads (as :meth:`wants`)."""
-        return None if msg.is_extended_id else self._by_id.get(msg.arbitration_id)
+        known = None if msg.is_extended_id else self._by_id.get(msg.arbitration_id)
+        return None if known is None else known[0]
 
     def receive(self, msg: can.Message, now: float) -> DecodedFrame | None:
         """Take one frame. Returns the decoded frame if accepted, None if it is not ours, a duplicate or
@@ -104,22 +105,35 @@ class RxMonitor:
         None) when it fails its checks; (``IGNORED``, None) when it is not ours."""
         if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
             return IGNORED, None
-        frame_id = msg.arbitration_id
-        state = self._by_id.get(frame_id)
-        if state is None:
+        if msg.is_fd:
+            frame_id = msg.arbitration_id
+            if frame_id not in self._by_id:
+                return IGNORED, None
+            self.received += 1
+            self._reject(self._by_id[frame_id][0], "dlc", f"0x{frame_id:03X}: CAN FD frame on a classic CAN contract")
+            return REJECTED, None
+        return self.take_data(msg.arbitration_id, bytes(msg.data), now)
+
+    def take_data(self, frame_id: int, data: bytes, now: float) -> tuple[str, DecodedFrame | None]:
+        """:meth:`take` of a classic data frame with an 11-bit ID, given by its ID and data."""
+        known = self._by_id.get(frame_id)
+        if known is None:
             return IGNORED, None
+        state, decode = known
         self.received += 1
-        data = bytes(msg.data)
         try:
-            if msg.is_fd:
-                raise FrameError("dlc", f"0x{frame_id:03X}: CAN FD frame on a classic CAN contract")
-            frame = self._decoders[frame_id](data)
+            frame = decode(data)
         except FrameError as exc:
             self._reject(state, exc.reason, str(exc))
             return REJECTED, None
         if data == state.last_data:
             state.duplicates += 1
             return DUPLICATE, frame
+        counter, last = frame.counter, state.last_counter
+        if last is not None and counter == (last + 1) % state.counter_modulus:  # RxState.update's usual case
+            state.last_counter, state.last_data, state.last_time, state.values = counter, data, now, frame.values
+            state.received += 1
+            return NEW, frame
         refused = state.update(now, frame, data)
         if refused is not None:
             self._reject(state, "counter", f"{frame.name}: {refused}")
@@ -168,7 +182,7 @@ class TxScheduler:
         self.counters = {name: 0 for name in names}
         self.sent = 0
         self._periods = {name: codec.cycle_time(name) for name in names}
-        self._ids = {name: codec.frame_id(name) for name in names}
+        self.ids = {name: codec.frame_id(name) for name in names}
         self._moduli = {name: codec.protection(name).counter_modulus for name in names}
         self._encoders = {name: codec.encoder(name) for name in names}  # frame: one per frame
 
@@ -186,9 +200,12 @@ class TxScheduler:
 
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""
+        return data_frame(self.ids[name], self.data(name, values), timestamp)
+
+    def data(self, name: str, values: dict[str, float]) -> bytes:
+        """The data of the next frame of ``name`` (counter advanced), whose ID is ``ids[name]``."""
         counters = self.counters
         counter = counters[name]
-        data = self._encoders[name](values, counter)
         counters[name] = (counter + 1) % self._moduli[name]
         self.sent += 1
-        return data_frame(self._ids[name], data, timestamp)
+        return self._encoders[name](values, counter)

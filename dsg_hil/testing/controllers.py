@@ -48,7 +48,7 @@ class PythonControllerTcu(TcuRunner):
         super().__init__(codec, bus)
         self.user = controller
 
-    def control(self, now: float, echo: int = 0) -> list[can.Message]:
+    def control(self, now: float, echo: int = 0) -> list[tuple[int, bytes]]:
         self.now = now
         inputs = {name: dict(self.rx.values(name)) for name in REQUIRED if self.rx.valid(name, now)}
         values = {"TCU_CMD": {**self.user.step(now, inputs), "SyncEcho": echo}}
@@ -56,7 +56,7 @@ class PythonControllerTcu(TcuRunner):
         if status is not None:
             values["TCU_STATUS"] = dict(status(now))
         due = sorted(self.tx.due(now), key=lambda name: name == "TCU_CMD")  # TCU_CMD last, as ecu-stub
-        frames = [self.tx.frame(name, values[name]) for name in due if name in values]
+        frames = [(self.tx.ids[name], self.tx.data(name, values[name])) for name in due if name in values]
         self._send(frames)
         return frames
 
