@@ -26,7 +26,7 @@ BUS = ["--interface", "socketcan", "--channel", "vcan0"]
 DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
 RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]
 TCU_IDLE_EXIT = "10"  # [s] ecu-stub ends once the plant is this long silent: well above a loaded machine's pauses
-STARTUP = 900.0  # [s] for the first frames of a run (imports and compiled code loaded under emulation)
+STARTUP = 1800.0  # [s] for the first frames of a run (imports and compiled code loaded under emulation)
 STALL = 300.0  # [s] a process whose record does not grow for this long has stalled (emulation under load: slow)
 
 
