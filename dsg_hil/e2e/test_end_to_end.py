@@ -10,7 +10,18 @@ import sys
 
 import pytest
 
-from .conftest import BUS, DBC, Candump, assert_counters_increment, by_id, console, first_transmissions, run_pair
+from .conftest import (
+    BUS,
+    DBC,
+    STARTUP,
+    Candump,
+    assert_counters_increment,
+    by_id,
+    console,
+    finish_while_progressing,
+    first_transmissions,
+    run_pair,
+)
 
 pytestmark = pytest.mark.vcan
 
@@ -120,11 +131,11 @@ def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
 def test_dsg_hil_run_starts_the_tcu_as_a_process(outdir, duration):
     summary = outdir / "run.summary.json"
     log = outdir / "run.log"
-    proc = subprocess.run([console("dsg-hil"), "run", *BUS, "--duration", str(min(duration, 5.0)), "--log", str(log),
-                           "--summary", str(summary), "--reply-timeout", "60", "--startup-timeout", "600"],
-                          capture_output=True, text=True,
-                          timeout=900)
-    assert proc.returncode == 0, proc.stderr
+    proc = subprocess.Popen([console("dsg-hil"), "run", *BUS, "--duration", str(min(duration, 5.0)), "--log", str(log),
+                             "--summary", str(summary), "--reply-timeout", "60", "--startup-timeout", f"{STARTUP:g}"],
+                            stderr=subprocess.PIPE, text=True)
+    err = finish_while_progressing(proc, log)
+    assert proc.returncode == 0, err
     data = json.loads(summary.read_text())
     assert data["interface"] == "socketcan:vcan0" and data["frames"]["received"] > 0
     assert log.read_text().splitlines()[0].split()[1] == "vcan0"

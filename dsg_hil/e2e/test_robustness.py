@@ -23,7 +23,7 @@ from dsg_hil.protocol.codec import FrameError
 from dsg_hil.protocol.e2e import MAX_DELTA
 from ecu_stub.runner import TCU_RX, TCU_USES
 
-from .conftest import BUS, TCU_IDLE_EXIT, Candump, console, finish_while_progressing, parse_candump
+from .conftest import BUS, STARTUP, TCU_IDLE_EXIT, Candump, console, finish_while_progressing, parse_candump
 
 pytestmark = pytest.mark.vcan
 FLOOD_FRAMES = 100_000
@@ -49,7 +49,7 @@ def wait_for(predicate, timeout: float, what: str) -> None:
         time.sleep(0.05)
 
 
-def first_tick(db, plant, timeout: float = 600.0) -> None:
+def first_tick(db, plant, timeout: float = STARTUP) -> None:
     """Wait until the lock-step run proper has begun: the first PLANT_ENGINE frame (after the presence handshake)."""
     engine = db.get_message_by_name("PLANT_ENGINE").frame_id
     with can.Bus(interface="socketcan", channel="vcan0", can_filters=[{"can_id": engine, "can_mask": 0x7FF}]) as bus:
@@ -266,13 +266,13 @@ def tcu_killed(db, outdir):
     tcu, second = start_tcu(), None
     plant, log, summary = start_plant(outdir, "tcu_kill", "realtime", 600)  # stopped below
     try:
-        wait_for(lambda: on_bus(dump, cmd_id) >= 50, 600, "the TCU's commands")
+        wait_for(lambda: on_bus(dump, cmd_id) >= 50, STARTUP, "the TCU's commands")
         tcu.send_signal(signal.SIGKILL)
         tcu.wait(timeout=30)
         before = on_bus(dump, cmd_id)
         time.sleep(1.0)
         second = start_tcu("--idle-exit", "2")
-        wait_for(lambda: on_bus(dump, cmd_id) >= before + 100, 600, "the restarted TCU's commands")
+        wait_for(lambda: on_bus(dump, cmd_id) >= before + 100, STARTUP, "the restarted TCU's commands")
         plant.send_signal(signal.SIGTERM)
         plant_err = stop(plant, timeout=120)
         stop(second)
@@ -331,7 +331,7 @@ def plant_killed(db, outdir):
     tcu = start_tcu("--idle-exit", "3")
     plant, _, _ = start_plant(outdir, "plant_kill", "realtime", 600)  # killed below
     try:
-        wait_for(lambda: on_bus(dump, status_id) >= 20, 600, "the TCU's statuses")
+        wait_for(lambda: on_bus(dump, status_id) >= 20, STARTUP, "the TCU's statuses")
         plant.send_signal(signal.SIGKILL)
         plant.wait(timeout=30)
         tcu_err = stop(tcu, timeout=120)
