@@ -19,14 +19,21 @@ energy, :attr:`Plant.period`). :meth:`Plant.step` is one step of it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from .physics.engine import governor, net_torque
-from .physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_step, torque_per_mu
-from .physics.hydraulics import pressure_step
+from .physics.friction import (
+    RAD_S_TO_RPM,
+    friction_coefficient_at,
+    pressure_factors,
+    slip_memory_relax,
+    torque_per_mu,
+)
+from .physics.hydraulics import pressure_relax
 from .physics.jit import compiled, constants
 from .physics.params import Params
 from .physics.powertrain import (
@@ -180,8 +187,9 @@ class Plant:
         C = self.network.C
         # All the kernel's constants as one record (jit.constants); the matrices transposed (see advance_steps)
         self._K = constants({
-            "MxT": self._Mx.T, "MuT": self._Mu.T, "VG": np.vstack([d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]]),
-            "W": d.W, "PhiT_T": self.thermal.Phi.T, "T_const": self._T_const, "T_srcT": self._T_src.T,
+            "MxT": _padded(self._Mx), "MuT": _padded(self._Mu),
+            "VG": np.vstack([d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]]), "W": d.W,
+            "PhiT_T": _padded(self.thermal.Phi), "T_const": self._T_const, "T_srcT": _padded(self._T_src),
             "k_CL": torque_per_mu(params.clutch.CL, 1.0), "k_CH": torque_per_mu(params.clutch.CH, 1.0),  # N m/Pa (5)
             "C_CL": C[I_CL], "C_CH": C[I_CH], "dt": dt, "i_b": params.powertrain.i_b,  # plate capacities [J/K]
         }, params.friction, params.engine, params.hydraulics, params.vehicle)
@@ -299,6 +307,32 @@ _E, _1, _2, _3, _5 = (IDX[n] for n in ("e", "1", "2", "3", "5"))  # speeds as pl
 
 
 @compiled
+def add_products(acc, M_T, v, at):
+    """``acc[i] += M_T[j, i] * v[at + j]`` over the rows j of M_T in order: each acc[i] the sum a loop over j gives,
+    bit for bit, but four i at a time in registers (independent chains of additions; the compiler packs them into
+    vector instructions). acc's length, the columns of M_T, is a multiple of 4 (_padded)."""
+    n, m = M_T.shape
+    one, two, three = np.uint64(1), np.uint64(2), np.uint64(3)  # unsigned indices: no check for negative ones
+    for block in range(m // 4):
+        i = np.uint64(4 * block)
+        a0, a1, a2, a3 = acc[i], acc[i + one], acc[i + two], acc[i + three]
+        for j in range(n):
+            v_j = v[at + j]
+            row = np.uint64(j)
+            a0 += M_T[row, i] * v_j
+            a1 += M_T[row, i + one] * v_j
+            a2 += M_T[row, i + two] * v_j
+            a3 += M_T[row, i + three] * v_j
+        acc[i], acc[i + one], acc[i + two], acc[i + three] = a0, a1, a2, a3
+
+
+def _padded(M: np.ndarray) -> np.ndarray:
+    """M (rows x columns) transposed, with zero columns added up to a multiple of 4 (for :func:`add_products`)."""
+    rows = -(-M.shape[0] // 4) * 4
+    return np.vstack([M, np.zeros((rows - M.shape[0], M.shape[1]))]).T.copy()
+
+
+@compiled
 def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_steps):
     """``n_steps`` plant steps (module docstring) with the inputs held (pressure commands [Pa], brake 0..1, grade
     [rad], engine speed setpoint [rad/s]) on the plant's array b in place: its state, then the outputs of the last
@@ -311,13 +345,17 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
     k = K[0]
     Mx_T, Mu_T, VG, W, PhiT_T, T_const, T_srcT = k.MxT, k.MuT, k.VG, k.W, k.PhiT_T, k.T_const, k.T_srcT
     dt, i_b = k.dt, k.i_b
-    free = np.empty(_N_ROWS)
-    T_new = np.empty(N_T)
+    free = np.empty(Mx_T.shape[1])
+    T_new = np.empty(PhiT_T.shape[1])
     v_free = np.empty(3)
     cap = np.empty(3)
     f = np.empty(3)
     torques = np.empty(4)
     sources = np.empty(4)
+    decay_P, decay_slip = math.exp(-dt / k.tau), math.exp(-dt / k.tau_slip)  # of pressure_step, slip_memory_step
+    # the pressure's parts of (6) (friction.pressure_factors) for the pressures they were last computed at
+    P_CL_at = P_CH_at = math.nan
+    factor_CL = log_CL = factor_CH = log_CH = 0.0
     b[_B_PERIOD] = b[S_TEMP + I_CL]
     b[_B_PERIOD + 1] = b[S_TEMP + I_CH]
     b[_B_PERIOD + 2] = 0.0
@@ -329,52 +367,44 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
         fuel, d_integral = governor(b[S_X + _E], b[S_GOV], setpoint, k)
         M_e = net_torque(fuel, k)
         # clutch capacities (5)-(6), mu at the remembered slip (static mu once stuck long enough)
-        mu_CL = friction_coefficient(b[S_MEM] * RAD_S_TO_RPM, T_plate_CL, P_CL / 1e6, k)
-        mu_CH = friction_coefficient(b[S_MEM + 1] * RAD_S_TO_RPM, T_plate_CH, P_CH / 1e6, k)
+        if P_CL != P_CL_at:  # (a settled or open clutch's pressure stays the same, bit for bit)
+            factor_CL, log_CL = pressure_factors(P_CL / 1e6, k)
+            P_CL_at = P_CL
+        if P_CH != P_CH_at:
+            factor_CH, log_CH = pressure_factors(P_CH / 1e6, k)
+            P_CH_at = P_CH
+        mu_CL = friction_coefficient_at(b[S_MEM] * RAD_S_TO_RPM, T_plate_CL, factor_CL, log_CL, k)
+        mu_CH = friction_coefficient_at(b[S_MEM + 1] * RAD_S_TO_RPM, T_plate_CH, factor_CH, log_CH, k)
         cap[0], cap[1], cap[2] = mu_CL * k.k_CL * P_CL, mu_CH * k.k_CH * P_CH, M_resist
         # free motion, then the friction torques of the three contacts, implicitly (stick/slip)
-        for i in range(_N_ROWS):
-            free[i] = 0.0
-        for j in range(N_STATE):
-            x_j = b[S_X + j]
-            for i in range(_N_ROWS):
-                free[i] += Mx_T[j, i] * x_j
+        free[:] = 0.0
+        add_products(free, Mx_T, b, S_X)
         for i in range(3):
             v_free[i] = free[N_STATE + i] + VG[0, i] * M_e + VG[1, i] * M_fixed
         f[0], f[1], f[2] = b[S_F], b[S_F + 1], b[S_F + 2]
         solve_contacts_into(v_free, W, cap, f)
         torques[0], torques[1], torques[2], torques[3] = M_e, f[0], f[1], M_fixed + f[2]
-        for j in range(4):
-            torque = torques[j]
-            for i in range(_N_ROWS):
-                free[i] += Mu_T[j, i] * torque
+        add_products(free, Mu_T, torques, 0)
         slip_int_CL, slip_int_CH = free[N_STATE + 3], free[N_STATE + 4]  # rad, exact over the step
         Q_CL = max(f[0] * slip_int_CL, 0.0) / dt  # friction heat (4), W
         Q_CH = max(f[1] * slip_int_CH, 0.0) / dt
         # thermal network: exact step with the sources of heat_sources(Q_CL, Q_CH, P_CL, P_CH)
         sources[0], sources[1], sources[2], sources[3] = Q_CL, Q_CH, P_CL, P_CH
-        for i in range(N_T):
-            T_new[i] = 0.0
-        for j in range(N_T):
-            T_j = b[S_TEMP + j]
-            for i in range(N_T):
-                T_new[i] += PhiT_T[j, i] * T_j
+        T_new[:] = 0.0
+        add_products(T_new, PhiT_T, b, S_TEMP)
         for i in range(N_T):
             T_new[i] += T_const[i]
-        for j in range(4):
-            source = sources[j]
-            for i in range(N_T):
-                T_new[i] += T_srcT[j, i] * source
+        add_products(T_new, T_srcT, sources, 0)
         for i in range(N_STATE):
             b[S_X + i] = free[i]
         for i in range(N_T):
             b[S_TEMP + i] = T_new[i]
         b[S_F], b[S_F + 1], b[S_F + 2] = f[0], f[1], f[2]
-        b[S_MEM] = slip_memory_step(b[S_MEM], slip_int_CL / dt, dt, k)
-        b[S_MEM + 1] = slip_memory_step(b[S_MEM + 1], slip_int_CH / dt, dt, k)
+        b[S_MEM] = slip_memory_relax(b[S_MEM], slip_int_CL / dt, decay_slip)
+        b[S_MEM + 1] = slip_memory_relax(b[S_MEM + 1], slip_int_CH / dt, decay_slip)
         b[S_GOV] += d_integral * dt
-        b[S_P] = pressure_step(P_CL, P_CL_cmd, dt, k)
-        b[S_P + 1] = pressure_step(P_CH, P_CH_cmd, dt, k)
+        b[S_P] = pressure_relax(P_CL, P_CL_cmd, decay_P, k)
+        b[S_P + 1] = pressure_relax(P_CH, P_CH_cmd, decay_P, k)
         b[S_T] += dt
         stuck_CL = 1.0 if abs(f[0]) < cap[0] * (1.0 - 1e-9) else 0.0
         stuck_CH = 1.0 if abs(f[1]) < cap[1] * (1.0 - 1e-9) else 0.0
