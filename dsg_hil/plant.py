@@ -69,9 +69,20 @@ _O_LOCKED = 22
 # The period's extremes and sums (Plant.period): peak plate temperatures [degC], friction energy [J].
 PERIOD = ("T_CL_max", "T_CH_max", "E_CL", "E_CH")
 # The plant's array: the state, then the outputs, then the period's (compiled code reads and writes it in place)
+_N_ROWS = N_STATE + 5  # rows of _Mx, _Mu: the next state, the contact velocities (3), the slip integrals (2)
+_N_ROWS_4, _N_T_4 = -(-_N_ROWS // 4) * 4, -(-N_T // 4) * 4  # in fours (add_products)
+# The plant's array: the state, the outputs, the period's, then the kernel's working arrays (so that a call
+# allocates nothing): free motion and contact velocities, new temperatures, v_free, cap, f, torques, sources.
 _B_OUT = N_S
 _B_PERIOD = _B_OUT + N_OUT
-_N_ROWS = N_STATE + 5  # rows of _Mx, _Mu: the next state, the contact velocities (3), the slip integrals (2)
+_B_FREE = _B_PERIOD + len(PERIOD)
+_B_T_NEW = _B_FREE + _N_ROWS_4
+_B_V_FREE = _B_T_NEW + _N_T_4
+_B_CAP = _B_V_FREE + 3
+_B_F = _B_CAP + 3
+_B_TORQUES = _B_F + 3
+_B_SOURCES = _B_TORQUES + 4
+_N_B = _B_SOURCES + 4
 
 
 @dataclass(frozen=True)
@@ -187,19 +198,19 @@ class Plant:
         C = self.network.C
         # All the kernel's constants as one record (jit.constants); the matrices transposed (see advance_steps)
         self._K = constants({
-            "MxT": _padded(self._Mx), "MuT": _padded(self._Mu),
+            "MxT": _blocked(self._Mx), "MuT": _blocked(self._Mu),
             "VG": np.vstack([d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]]), "W": d.W,
-            "PhiT_T": _padded(self.thermal.Phi), "T_const": self._T_const, "T_srcT": _padded(self._T_src),
+            "PhiT_T": _blocked(self.thermal.Phi), "T_const": self._T_const, "T_srcT": _blocked(self._T_src),
             "k_CL": torque_per_mu(params.clutch.CL, 1.0), "k_CH": torque_per_mu(params.clutch.CH, 1.0),  # N m/Pa (5)
             "C_CL": C[I_CL], "C_CH": C[I_CH], "dt": dt, "i_b": params.powertrain.i_b,  # plate capacities [J/K]
         }, params.friction, params.engine, params.hydraulics, params.vehicle)
         # state (N_S), then the outputs of the last step (N_OUT), then the period's peaks and sums (PERIOD)
-        self._b = np.zeros(_B_PERIOD + len(PERIOD))
+        self._b = np.zeros(_N_B)
         self._s = self._b[:N_S]
         self._s[:] = self._initial_state(T_init, v_init)
         self.state = PlantState(self._s)
         self._out = self._b[_B_OUT:_B_OUT + N_OUT]
-        self.period = self._b[_B_PERIOD:]  # of the last advance, see PERIOD
+        self.period = self._b[_B_PERIOD:_B_PERIOD + len(PERIOD)]  # of the last advance, see PERIOD
         self._no_trace = np.zeros((0, N_OUT))
         self._steps = advance_steps.specialize(self._b, self._K, self._no_trace, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
         write_outputs(self._b, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, params.powertrain.i_b,
@@ -309,35 +320,34 @@ _E, _1, _2, _3, _5 = (IDX[n] for n in ("e", "1", "2", "3", "5"))  # speeds as pl
 @compiled
 def add_products(acc, M_T, v, at):
     """``acc[i] += M_T[j, i] * v[at + j]`` over the rows j of M_T in order: each acc[i] the sum a loop over j gives,
-    bit for bit, but four i at a time in registers (independent chains of additions; the compiler packs them into
-    vector instructions). acc's length, the columns of M_T, is a multiple of 4 (_padded)."""
-    n, m = M_T.shape
-    one, two, three = np.uint64(1), np.uint64(2), np.uint64(3)  # unsigned indices: no check for negative ones
-    for block in range(m // 4):
-        i = np.uint64(4 * block)
-        a0, a1, a2, a3 = acc[i], acc[i + one], acc[i + two], acc[i + three]
-        for j in range(n):
+    bit for bit, but four i at a time in registers (independent chains of additions, which the compiler packs into
+    vector instructions). acc is kept by fours, acc[block, lane] for i = 4 block + lane, and M_T as
+    M_T[block, j, lane] (:func:`_blocked`)."""
+    for block in range(M_T.shape[0]):
+        a0, a1, a2, a3 = acc[block, 0], acc[block, 1], acc[block, 2], acc[block, 3]
+        for j in range(M_T.shape[1]):
             v_j = v[at + j]
-            row = np.uint64(j)
-            a0 += M_T[row, i] * v_j
-            a1 += M_T[row, i + one] * v_j
-            a2 += M_T[row, i + two] * v_j
-            a3 += M_T[row, i + three] * v_j
-        acc[i], acc[i + one], acc[i + two], acc[i + three] = a0, a1, a2, a3
+            a0 += M_T[block, j, 0] * v_j
+            a1 += M_T[block, j, 1] * v_j
+            a2 += M_T[block, j, 2] * v_j
+            a3 += M_T[block, j, 3] * v_j
+        acc[block, 0], acc[block, 1], acc[block, 2], acc[block, 3] = a0, a1, a2, a3
 
 
-def _padded(M: np.ndarray) -> np.ndarray:
-    """M (rows x columns) transposed, with zero columns added up to a multiple of 4 (for :func:`add_products`)."""
+def _blocked(M: np.ndarray) -> np.ndarray:
+    """M (rows x columns) as M_T[block, column, lane] = M[4 block + lane, column] (zero rows added up to a
+    multiple of 4), for :func:`add_products`."""
     rows = -(-M.shape[0] // 4) * 4
-    return np.vstack([M, np.zeros((rows - M.shape[0], M.shape[1]))]).T.copy()
+    padded = np.vstack([M, np.zeros((rows - M.shape[0], M.shape[1]))])
+    return np.ascontiguousarray(padded.reshape(rows // 4, 4, M.shape[1]).transpose(0, 2, 1))
 
 
 @compiled
 def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_steps):
     """``n_steps`` plant steps (module docstring) with the inputs held (pressure commands [Pa], brake 0..1, grade
     [rad], engine speed setpoint [rad/s]) on the plant's array b in place: its state, then the outputs of the last
-    step (at _B_OUT) and the period's peaks and sums (at _B_PERIOD); K: the plant's constants (jit.constants), one
-    record. If ``trace`` has rows, each step's outputs are written to them.
+    step (at _B_OUT), the period's peaks and sums (at _B_PERIOD) and the working arrays; K: the plant's constants
+    (jit.constants), one record. If ``trace`` has rows, each step's outputs are written to them.
 
     The matrix-vector products run column by column: each row's sum is taken in the same order as a row-by-row
     loop (the same result bit for bit), but the rows' sums are independent and run side by side instead of as one
@@ -345,13 +355,12 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
     k = K[0]
     Mx_T, Mu_T, VG, W, PhiT_T, T_const, T_srcT = k.MxT, k.MuT, k.VG, k.W, k.PhiT_T, k.T_const, k.T_srcT
     dt, i_b = k.dt, k.i_b
-    free = np.empty(Mx_T.shape[1])
-    T_new = np.empty(PhiT_T.shape[1])
-    v_free = np.empty(3)
-    cap = np.empty(3)
-    f = np.empty(3)
-    torques = np.empty(4)
-    sources = np.empty(4)
+    free = b[_B_FREE:_B_FREE + _N_ROWS_4]
+    free_by_4 = free.reshape((_N_ROWS_4 // 4, 4))  # the same numbers as add_products keeps them
+    T_new = b[_B_T_NEW:_B_T_NEW + _N_T_4]
+    T_new_by_4 = T_new.reshape((_N_T_4 // 4, 4))
+    v_free, cap, f = b[_B_V_FREE:_B_V_FREE + 3], b[_B_CAP:_B_CAP + 3], b[_B_F:_B_F + 3]
+    torques, sources = b[_B_TORQUES:_B_TORQUES + 4], b[_B_SOURCES:_B_SOURCES + 4]
     decay_P, decay_slip = math.exp(-dt / k.tau), math.exp(-dt / k.tau_slip)  # of pressure_step, slip_memory_step
     # the pressure's parts of (6) (friction.pressure_factors) for the pressures they were last computed at
     P_CL_at = P_CH_at = math.nan
@@ -378,23 +387,23 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
         cap[0], cap[1], cap[2] = mu_CL * k.k_CL * P_CL, mu_CH * k.k_CH * P_CH, M_resist
         # free motion, then the friction torques of the three contacts, implicitly (stick/slip)
         free[:] = 0.0
-        add_products(free, Mx_T, b, S_X)
+        add_products(free_by_4, Mx_T, b, S_X)
         for i in range(3):
             v_free[i] = free[N_STATE + i] + VG[0, i] * M_e + VG[1, i] * M_fixed
         f[0], f[1], f[2] = b[S_F], b[S_F + 1], b[S_F + 2]
         solve_contacts_into(v_free, W, cap, f)
         torques[0], torques[1], torques[2], torques[3] = M_e, f[0], f[1], M_fixed + f[2]
-        add_products(free, Mu_T, torques, 0)
+        add_products(free_by_4, Mu_T, torques, 0)
         slip_int_CL, slip_int_CH = free[N_STATE + 3], free[N_STATE + 4]  # rad, exact over the step
         Q_CL = max(f[0] * slip_int_CL, 0.0) / dt  # friction heat (4), W
         Q_CH = max(f[1] * slip_int_CH, 0.0) / dt
         # thermal network: exact step with the sources of heat_sources(Q_CL, Q_CH, P_CL, P_CH)
         sources[0], sources[1], sources[2], sources[3] = Q_CL, Q_CH, P_CL, P_CH
         T_new[:] = 0.0
-        add_products(T_new, PhiT_T, b, S_TEMP)
+        add_products(T_new_by_4, PhiT_T, b, S_TEMP)
         for i in range(N_T):
             T_new[i] += T_const[i]
-        add_products(T_new, T_srcT, sources, 0)
+        add_products(T_new_by_4, T_srcT, sources, 0)
         for i in range(N_STATE):
             b[S_X + i] = free[i]
         for i in range(N_T):
