@@ -251,10 +251,10 @@ class Plant:
         elif trace.shape != (n_steps, N_OUT) or trace.dtype != np.float64 or not trace.flags.c_contiguous:
             raise ValueError(f"trace must be a C-contiguous float64 array of shape {(n_steps, N_OUT)}")
         grade, request = inputs.grade, inputs.engine_speed_request
-        self._steps(self._b, self._K, trace, inputs.P_CL_cmd, inputs.P_CH_cmd, inputs.brake,
+        last = self._steps(self._b, self._K, trace, inputs.P_CL_cmd, inputs.P_CH_cmd, inputs.brake,
                     self.params.vehicle.beta if grade is None else grade,
                     self.params.engine.omega_idle if request is None else request, n_steps)
-        self._last = self.sample(self._out)
+        self._last = _make_outputs(last)
         return self._last
 
     def step(self, inputs: PlantInputs) -> PlantOutputs:
@@ -276,6 +276,15 @@ class Plant:
 
 
 _make_outputs = PlantOutputs._make
+
+
+@compiled
+def outputs_of(b):
+    """The outputs in the plant's array b as the values of :class:`PlantOutputs` (the flags as bool): returned to
+    Python as one tuple, built by compiled code (cheaper than reading the array from Python)."""
+    o = b[_B_OUT:_B_OUT + N_OUT]
+    return (o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9], o[10], o[11], o[12], o[13], o[14], o[15],
+            o[16], o[17], o[18], o[19], o[20], o[21], o[22] != 0.0, o[23] != 0.0, o[24] != 0.0, o[25], o[26])
 
 
 @compiled
@@ -347,7 +356,8 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
     """``n_steps`` plant steps (module docstring) with the inputs held (pressure commands [Pa], brake 0..1, grade
     [rad], engine speed setpoint [rad/s]) on the plant's array b in place: its state, then the outputs of the last
     step (at _B_OUT), the period's peaks and sums (at _B_PERIOD) and the working arrays; K: the plant's constants
-    (jit.constants), one record. If ``trace`` has rows, each step's outputs are written to them.
+    (jit.constants), one record. If ``trace`` has rows, each step's outputs are written to them. Returns the outputs
+    at the end (:func:`outputs_of`).
 
     The matrix-vector products run column by column: each row's sum is taken in the same order as a row-by-row
     loop (the same result bit for bit), but the rows' sums are independent and run side by side instead of as one
@@ -428,3 +438,4 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
         if step < trace.shape[0]:
             for i in range(N_OUT):
                 trace[step, i] = b[_B_OUT + i]
+    return outputs_of(b)
