@@ -12,7 +12,8 @@ Each step (inputs held over it, zero-order hold):
    the exact step of the thermal network; the pressures take their exact first-order step.
 
 The steps run compiled (:func:`advance_steps`, numba through :mod:`dsg_hil.physics.jit`), many per call: the
-state and the step-invariant matrices are flat float64 arrays, and :meth:`Plant.advance` takes a whole control
+state (with the outputs and the kernel's working arrays) is one float64 array, the step-invariant matrices and
+parameters one record (:func:`dsg_hil.physics.jit.constants`), and :meth:`Plant.advance` takes a whole control
 period in one call and returns the outputs at its end (plus the period's peak plate temperatures and friction
 energy, :attr:`Plant.period`). :meth:`Plant.step` is one step of it.
 """
@@ -196,7 +197,7 @@ class Plant:
         self._T_src = np.column_stack(
             [self.thermal.step(zero, heat_sources(params, *b)) - self._T_const for b in basis])
         C = self.network.C
-        # All the kernel's constants as one record (jit.constants); the matrices transposed (see advance_steps)
+        # All the kernel's constants as one record (jit.constants); the matrices blocked by fours (add_products)
         self._K = constants({
             "MxT": _blocked(self._Mx), "MuT": _blocked(self._Mu),
             "VG": np.vstack([d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]]), "W": d.W,
@@ -204,7 +205,7 @@ class Plant:
             "k_CL": torque_per_mu(params.clutch.CL, 1.0), "k_CH": torque_per_mu(params.clutch.CH, 1.0),  # N m/Pa (5)
             "C_CL": C[I_CL], "C_CH": C[I_CH], "dt": dt, "i_b": params.powertrain.i_b,  # plate capacities [J/K]
         }, params.friction, params.engine, params.hydraulics, params.vehicle)
-        # state (N_S), then the outputs of the last step (N_OUT), then the period's peaks and sums (PERIOD)
+        # the plant's array: state (N_S), outputs of the last step, the period's peaks and sums, working arrays
         self._b = np.zeros(_N_B)
         self._s = self._b[:N_S]
         self._s[:] = self._initial_state(T_init, v_init)
