@@ -12,22 +12,30 @@ Each step (inputs held over it, zero-order hold):
    the exact step of the thermal network; the pressures take their exact first-order step.
 
 The steps run compiled (:func:`advance_steps`, numba through :mod:`dsg_hil.physics.jit`), many per call: the
-state and the step-invariant matrices are flat float64 arrays, and :meth:`Plant.advance` takes a whole control
+state (with the outputs and the kernel's working arrays) is one float64 array, the step-invariant matrices and
+parameters one record (:func:`dsg_hil.physics.jit.constants`), and :meth:`Plant.advance` takes a whole control
 period in one call and returns the outputs at its end (plus the period's peak plate temperatures and friction
 energy, :attr:`Plant.period`). :meth:`Plant.step` is one step of it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from .physics.engine import governor, net_torque
-from .physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_step, torque_per_mu
-from .physics.hydraulics import pressure_step
-from .physics.jit import compiled, record
+from .physics.friction import (
+    RAD_S_TO_RPM,
+    friction_coefficient_at,
+    pressure_factors,
+    slip_memory_relax,
+    torque_per_mu,
+)
+from .physics.hydraulics import pressure_relax
+from .physics.jit import compiled, constants
 from .physics.params import Params
 from .physics.powertrain import (
     IDX,
@@ -38,7 +46,7 @@ from .physics.powertrain import (
     Model,
     build_model,
     road_load,
-    solve_contacts,
+    solve_contacts_into,
     vehicle_speed,
 )
 from .physics.powertrain import discretize as discretize_powertrain
@@ -61,6 +69,21 @@ N_OUT = 27
 _O_LOCKED = 22
 # The period's extremes and sums (Plant.period): peak plate temperatures [degC], friction energy [J].
 PERIOD = ("T_CL_max", "T_CH_max", "E_CL", "E_CH")
+# The plant's array: the state, then the outputs, then the period's (compiled code reads and writes it in place)
+_N_ROWS = N_STATE + 5  # rows of _Mx, _Mu: the next state, the contact velocities (3), the slip integrals (2)
+_N_ROWS_4, _N_T_4 = -(-_N_ROWS // 4) * 4, -(-N_T // 4) * 4  # in fours (add_products)
+# The plant's array: the state, the outputs, the period's, then the kernel's working arrays (so that a call
+# allocates nothing): free motion and contact velocities, new temperatures, v_free, cap, f, torques, sources.
+_B_OUT = N_S
+_B_PERIOD = _B_OUT + N_OUT
+_B_FREE = _B_PERIOD + len(PERIOD)
+_B_T_NEW = _B_FREE + _N_ROWS_4
+_B_V_FREE = _B_T_NEW + _N_T_4
+_B_CAP = _B_V_FREE + 3
+_B_F = _B_CAP + 3
+_B_TORQUES = _B_F + 3
+_B_SOURCES = _B_TORQUES + 4
+_N_B = _B_SOURCES + 4
 
 
 @dataclass(frozen=True)
@@ -167,31 +190,32 @@ class Plant:
         d = self.disc
         self._Mx = np.ascontiguousarray(np.vstack([d.Phi, d.V @ d.Phi, d.V[:2] @ d.Phi_int]))
         self._Mu = np.ascontiguousarray(np.vstack([d.Gamma, d.V @ d.Gamma, d.V[:2] @ d.Gamma_int]))
-        self._VG = np.ascontiguousarray(np.vstack([d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]]))  # M_e, M_R
-        self._W = np.ascontiguousarray(d.W)
         # heat_sources is affine in (Q_CL, Q_CH, P_CL, P_CH): its thermal step, evaluated once per basis input
         zero = np.zeros(N_T)
         self._T_const = self.thermal.step(zero, heat_sources(params, 0.0, 0.0, 0.0, 0.0))
         basis = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0), (0.0, 0.0, 0.0, 1.0))
-        self._T_src = np.ascontiguousarray(np.column_stack(
-            [self.thermal.step(zero, heat_sources(params, *b)) - self._T_const for b in basis]))
-        self._PhiT = np.ascontiguousarray(self.thermal.Phi)
+        self._T_src = np.column_stack(
+            [self.thermal.step(zero, heat_sources(params, *b)) - self._T_const for b in basis])
         C = self.network.C
-        # N m per Pa of each clutch (5), plate capacities [J/K], dt, final drive ratio
-        self._consts = np.array([torque_per_mu(params.clutch.CL, 1.0), torque_per_mu(params.clutch.CH, 1.0),
-                                 C[I_CL], C[I_CH], dt, params.powertrain.i_b])
-        self._records = (record(params.friction), record(params.engine), record(params.hydraulics),
-                         record(params.vehicle))
-        self._s = self._initial_state(T_init, v_init)
+        # All the kernel's constants as one record (jit.constants); the matrices blocked by fours (add_products)
+        self._K = constants({
+            "MxT": _blocked(self._Mx), "MuT": _blocked(self._Mu),
+            "VG": np.vstack([d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]]), "W": d.W,
+            "PhiT_T": _blocked(self.thermal.Phi), "T_const": self._T_const, "T_srcT": _blocked(self._T_src),
+            "k_CL": torque_per_mu(params.clutch.CL, 1.0), "k_CH": torque_per_mu(params.clutch.CH, 1.0),  # N m/Pa (5)
+            "C_CL": C[I_CL], "C_CH": C[I_CH], "dt": dt, "i_b": params.powertrain.i_b,  # plate capacities [J/K]
+        }, params.friction, params.engine, params.hydraulics, params.vehicle)
+        # the plant's array: state (N_S), outputs of the last step, the period's peaks and sums, working arrays
+        self._b = np.zeros(_N_B)
+        self._s = self._b[:N_S]
+        self._s[:] = self._initial_state(T_init, v_init)
         self.state = PlantState(self._s)
-        self._u = np.zeros(6)  # P_CL_cmd, P_CH_cmd, brake, grade, engine speed setpoint, number of steps
-        self._out = np.zeros(N_OUT)
-        self.period = np.zeros(len(PERIOD))  # of the last advance, see PERIOD
+        self._out = self._b[_B_OUT:_B_OUT + N_OUT]
+        self.period = self._b[_B_PERIOD:_B_PERIOD + len(PERIOD)]  # of the last advance, see PERIOD
         self._no_trace = np.zeros((0, N_OUT))
-        self._args = self._kernel_args(self._no_trace)
-        self._steps = advance_steps.specialize(*self._args)
-        write_outputs(self._s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self._consts[5],
-                      self._records[3], self._out)
+        self._steps = advance_steps.specialize(self._b, self._K, self._no_trace, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
+        write_outputs(self._b, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, params.powertrain.i_b,
+                      params.vehicle.r_w)
         self._last = self.sample(self._out)
 
     def _initial_state(self, T_init: float | dict[str, float], v_init: float) -> np.ndarray:
@@ -223,22 +247,16 @@ class Plant:
         """Take ``n_steps`` steps with ``inputs`` held; the outputs at the end. :attr:`period` then holds the
         period's peak plate temperatures and friction energy (:data:`PERIOD`). ``trace`` (n_steps x N_OUT), if
         given, receives every step's outputs in the order of :class:`PlantOutputs`' fields."""
-        p = self.params
-        u = self._u
-        u[0], u[1], u[2] = inputs.P_CL_cmd, inputs.P_CH_cmd, inputs.brake
-        u[3] = p.vehicle.beta if inputs.grade is None else inputs.grade
-        u[4] = p.engine.omega_idle if inputs.engine_speed_request is None else inputs.engine_speed_request
-        u[5] = n_steps
-        if trace is not None and (trace.shape != (n_steps, N_OUT) or trace.dtype != np.float64
-                                  or not trace.flags.c_contiguous):
+        if trace is None:
+            trace = self._no_trace
+        elif trace.shape != (n_steps, N_OUT) or trace.dtype != np.float64 or not trace.flags.c_contiguous:
             raise ValueError(f"trace must be a C-contiguous float64 array of shape {(n_steps, N_OUT)}")
-        self._steps(*(self._args if trace is None else self._kernel_args(trace)))
-        self._last = self.sample(self._out)
+        grade, request = inputs.grade, inputs.engine_speed_request
+        last = self._steps(self._b, self._K, trace, inputs.P_CL_cmd, inputs.P_CH_cmd, inputs.brake,
+                    self.params.vehicle.beta if grade is None else grade,
+                    self.params.engine.omega_idle if request is None else request, n_steps)
+        self._last = _make_outputs(last)
         return self._last
-
-    def _kernel_args(self, trace: np.ndarray) -> tuple:
-        return (self._s, self._u, self._Mx, self._Mu, self._VG, self._W, self._PhiT, self._T_const,
-                self._T_src, self._consts, *self._records, self._out, self.period, trace)
 
     def step(self, inputs: PlantInputs) -> PlantOutputs:
         """One step of ``dt``."""
@@ -252,43 +270,57 @@ class Plant:
     def sample(row: np.ndarray) -> PlantOutputs:
         """The outputs of a row of :meth:`advance`'s ``trace``."""
         v = row.tolist()
-        v[_O_LOCKED:_O_LOCKED + 3] = [flag != 0.0 for flag in v[_O_LOCKED:_O_LOCKED + 3]]
-        return PlantOutputs._make(v)
+        v[_O_LOCKED] = v[_O_LOCKED] != 0.0
+        v[_O_LOCKED + 1] = v[_O_LOCKED + 1] != 0.0
+        v[_O_LOCKED + 2] = v[_O_LOCKED + 2] != 0.0
+        return _make_outputs(v)
+
+
+_make_outputs = PlantOutputs._make
 
 
 @compiled
-def write_outputs(s, M_e, mu_CL, mu_CH, M_CL, M_CH, Q_CL, Q_CH, stuck_CL, stuck_CH, held, Q_diss_CL, Q_diss_CH,
-                  i_b, ve, out):
-    """The outputs (:class:`PlantOutputs`' fields in order) from the state s and the step's torques and heat."""
-    x = s[S_X:]
-    T = s[S_TEMP:]
-    out[0] = s[S_T]
-    out[1] = x[_E]
-    out[2] = M_e
-    out[3] = x[_1]
-    out[4] = x[_2]
-    out[5] = x[_3]
-    out[6] = x[_5]
-    out[7] = vehicle_speed(x[_5], i_b, ve.r_w)
-    out[8] = s[S_P]
-    out[9] = s[S_P + 1]
-    out[10] = T[_I_CLO]
-    out[11] = T[_I_CHO]
-    out[12] = T[_I_FO]
-    out[13] = T[_I_RO]
-    out[14] = T[I_CL]
-    out[15] = T[I_CH]
-    out[16] = mu_CL
-    out[17] = mu_CH
-    out[18] = M_CL
-    out[19] = M_CH
-    out[20] = Q_CL
-    out[21] = Q_CH
-    out[22] = 1.0 if stuck_CL != 0.0 and s[S_P] > 0.0 else 0.0
-    out[23] = 1.0 if stuck_CH != 0.0 and s[S_P + 1] > 0.0 else 0.0
-    out[24] = held
-    out[25] = Q_diss_CL
-    out[26] = Q_diss_CH
+def outputs_of(b):
+    """The outputs in the plant's array b as the values of :class:`PlantOutputs` (the flags as bool): returned to
+    Python as one tuple, built by compiled code (cheaper than reading the array from Python)."""
+    o = b[_B_OUT:_B_OUT + N_OUT]
+    return (o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9], o[10], o[11], o[12], o[13], o[14], o[15],
+            o[16], o[17], o[18], o[19], o[20], o[21], o[22] != 0.0, o[23] != 0.0, o[24] != 0.0, o[25], o[26])
+
+
+@compiled
+def write_outputs(b, M_e, mu_CL, mu_CH, M_CL, M_CH, Q_CL, Q_CH, stuck_CL, stuck_CH, held, Q_diss_CL, Q_diss_CH,
+                  i_b, r_w):
+    """The outputs (:class:`PlantOutputs`' fields in order) from the state and the step's torques and heat: the
+    state at the start of the plant's array b, the outputs written at _B_OUT."""
+    o = _B_OUT
+    b[o] = b[S_T]
+    b[o + 1] = b[S_X + _E]
+    b[o + 2] = M_e
+    b[o + 3] = b[S_X + _1]
+    b[o + 4] = b[S_X + _2]
+    b[o + 5] = b[S_X + _3]
+    b[o + 6] = b[S_X + _5]
+    b[o + 7] = vehicle_speed(b[S_X + _5], i_b, r_w)
+    b[o + 8] = b[S_P]
+    b[o + 9] = b[S_P + 1]
+    b[o + 10] = b[S_TEMP + _I_CLO]
+    b[o + 11] = b[S_TEMP + _I_CHO]
+    b[o + 12] = b[S_TEMP + _I_FO]
+    b[o + 13] = b[S_TEMP + _I_RO]
+    b[o + 14] = b[S_TEMP + I_CL]
+    b[o + 15] = b[S_TEMP + I_CH]
+    b[o + 16] = mu_CL
+    b[o + 17] = mu_CH
+    b[o + 18] = M_CL
+    b[o + 19] = M_CH
+    b[o + 20] = Q_CL
+    b[o + 21] = Q_CH
+    b[o + 22] = 1.0 if stuck_CL != 0.0 and b[S_P] > 0.0 else 0.0
+    b[o + 23] = 1.0 if stuck_CH != 0.0 and b[S_P + 1] > 0.0 else 0.0
+    b[o + 24] = held
+    b[o + 25] = Q_diss_CL
+    b[o + 26] = Q_diss_CH
 
 
 _I_CLO, _I_CHO, _I_FO, _I_RO = (NODES.index(n) for n in ("CLo", "CHo", "Fo", "Ro"))
@@ -296,83 +328,115 @@ _E, _1, _2, _3, _5 = (IDX[n] for n in ("e", "1", "2", "3", "5"))  # speeds as pl
 
 
 @compiled
-def advance_steps(s, u, Mx, Mu, VG, W, PhiT, T_const, T_src, c, fr, en, hy, ve, out, period, trace):
-    """Plant steps (module docstring) on the state array s in place, with the inputs u = [P_CL_cmd, P_CH_cmd,
-    brake, grade, engine speed setpoint, number of steps] held; c = [N m per Pa of CL, CH (5), plate capacities of
-    CL, CH, dt, final drive ratio i_b]. Writes the outputs of the last step to ``out``, the period's peaks and sums to
-    ``period`` and, if ``trace`` has rows, each step's outputs to them."""
-    k_CL, k_CH, C_CL, C_CH, dt, i_b = c[0], c[1], c[2], c[3], c[4], c[5]
-    P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_steps = u[0], u[1], u[2], u[3], u[4], int(u[5])
-    n_rows, n_x = Mx.shape
-    n_T = PhiT.shape[0]
-    free = np.empty(n_rows)
-    T_new = np.empty(n_T)
-    v_free = np.empty(3)
-    cap = np.empty(3)
-    torques = np.empty(4)
-    sources = np.empty(4)
-    period[0] = s[S_TEMP + I_CL]
-    period[1] = s[S_TEMP + I_CH]
-    period[2] = 0.0
-    period[3] = 0.0
-    for k in range(n_steps):
-        x = s[S_X:S_X + n_x]
-        T = s[S_TEMP:S_TEMP + n_T]
-        T_plate_CL, T_plate_CH = T[I_CL], T[I_CH]
-        P_CL, P_CH = s[S_P], s[S_P + 1]
-        M_fixed, M_resist = road_load(vehicle_speed(x[_5], i_b, ve.r_w), grade, brake, ve)
-        fuel, d_integral = governor(x[_E], s[S_GOV], setpoint, en)
-        M_e = net_torque(fuel, en)
+def add_products(acc, M_T, v, at):
+    """``acc[i] += M_T[j, i] * v[at + j]`` over the rows j of M_T in order: each acc[i] the sum a loop over j gives,
+    bit for bit, but four i at a time in registers (independent chains of additions, which the compiler packs into
+    vector instructions). acc is kept by fours, acc[block, lane] for i = 4 block + lane, and M_T as
+    M_T[block, j, lane] (:func:`_blocked`)."""
+    for block in range(M_T.shape[0]):
+        a0, a1, a2, a3 = acc[block, 0], acc[block, 1], acc[block, 2], acc[block, 3]
+        for j in range(M_T.shape[1]):
+            v_j = v[at + j]
+            a0 += M_T[block, j, 0] * v_j
+            a1 += M_T[block, j, 1] * v_j
+            a2 += M_T[block, j, 2] * v_j
+            a3 += M_T[block, j, 3] * v_j
+        acc[block, 0], acc[block, 1], acc[block, 2], acc[block, 3] = a0, a1, a2, a3
+
+
+def _blocked(M: np.ndarray) -> np.ndarray:
+    """M (rows x columns) as M_T[block, column, lane] = M[4 block + lane, column] (zero rows added up to a
+    multiple of 4), for :func:`add_products`."""
+    rows = -(-M.shape[0] // 4) * 4
+    padded = np.vstack([M, np.zeros((rows - M.shape[0], M.shape[1]))])
+    return np.ascontiguousarray(padded.reshape(rows // 4, 4, M.shape[1]).transpose(0, 2, 1))
+
+
+@compiled
+def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_steps):
+    """``n_steps`` plant steps (module docstring) with the inputs held (pressure commands [Pa], brake 0..1, grade
+    [rad], engine speed setpoint [rad/s]) on the plant's array b in place: its state, then the outputs of the last
+    step (at _B_OUT), the period's peaks and sums (at _B_PERIOD) and the working arrays; K: the plant's constants
+    (jit.constants), one record. If ``trace`` has rows, each step's outputs are written to them. Returns the outputs
+    at the end (:func:`outputs_of`).
+
+    The matrix-vector products run column by column: each row's sum is taken in the same order as a row-by-row
+    loop (the same result bit for bit), but the rows' sums are independent and run side by side instead of as one
+    long chain of additions, each waiting for the last. The step allocates nothing and takes no array views."""
+    k = K[0]
+    Mx_T, Mu_T, VG, W, PhiT_T, T_const, T_srcT = k.MxT, k.MuT, k.VG, k.W, k.PhiT_T, k.T_const, k.T_srcT
+    dt, i_b = k.dt, k.i_b
+    free = b[_B_FREE:_B_FREE + _N_ROWS_4]
+    free_by_4 = free.reshape((_N_ROWS_4 // 4, 4))  # the same numbers as add_products keeps them
+    T_new = b[_B_T_NEW:_B_T_NEW + _N_T_4]
+    T_new_by_4 = T_new.reshape((_N_T_4 // 4, 4))
+    v_free, cap, f = b[_B_V_FREE:_B_V_FREE + 3], b[_B_CAP:_B_CAP + 3], b[_B_F:_B_F + 3]
+    torques, sources = b[_B_TORQUES:_B_TORQUES + 4], b[_B_SOURCES:_B_SOURCES + 4]
+    decay_P, decay_slip = math.exp(-dt / k.tau), math.exp(-dt / k.tau_slip)  # of pressure_step, slip_memory_step
+    # the pressure's parts of (6) (friction.pressure_factors) for the pressures they were last computed at
+    P_CL_at = P_CH_at = math.nan
+    factor_CL = log_CL = factor_CH = log_CH = 0.0
+    b[_B_PERIOD] = b[S_TEMP + I_CL]
+    b[_B_PERIOD + 1] = b[S_TEMP + I_CH]
+    b[_B_PERIOD + 2] = 0.0
+    b[_B_PERIOD + 3] = 0.0
+    for step in range(n_steps):
+        T_plate_CL, T_plate_CH = b[S_TEMP + I_CL], b[S_TEMP + I_CH]
+        P_CL, P_CH = b[S_P], b[S_P + 1]
+        M_fixed, M_resist = road_load(vehicle_speed(b[S_X + _5], i_b, k.r_w), grade, brake, k)
+        fuel, d_integral = governor(b[S_X + _E], b[S_GOV], setpoint, k)
+        M_e = net_torque(fuel, k)
         # clutch capacities (5)-(6), mu at the remembered slip (static mu once stuck long enough)
-        mu_CL = friction_coefficient(s[S_MEM] * RAD_S_TO_RPM, T_plate_CL, P_CL / 1e6, fr)
-        mu_CH = friction_coefficient(s[S_MEM + 1] * RAD_S_TO_RPM, T_plate_CH, P_CH / 1e6, fr)
-        cap[0], cap[1], cap[2] = mu_CL * k_CL * P_CL, mu_CH * k_CH * P_CH, M_resist
+        if P_CL != P_CL_at:  # (a settled or open clutch's pressure stays the same, bit for bit)
+            factor_CL, log_CL = pressure_factors(P_CL / 1e6, k)
+            P_CL_at = P_CL
+        if P_CH != P_CH_at:
+            factor_CH, log_CH = pressure_factors(P_CH / 1e6, k)
+            P_CH_at = P_CH
+        mu_CL = friction_coefficient_at(b[S_MEM] * RAD_S_TO_RPM, T_plate_CL, factor_CL, log_CL, k)
+        mu_CH = friction_coefficient_at(b[S_MEM + 1] * RAD_S_TO_RPM, T_plate_CH, factor_CH, log_CH, k)
+        cap[0], cap[1], cap[2] = mu_CL * k.k_CL * P_CL, mu_CH * k.k_CH * P_CH, M_resist
         # free motion, then the friction torques of the three contacts, implicitly (stick/slip)
-        for i in range(n_rows):
-            acc = 0.0
-            for j in range(n_x):
-                acc += Mx[i, j] * x[j]
-            free[i] = acc
+        free[:] = 0.0
+        add_products(free_by_4, Mx_T, b, S_X)
         for i in range(3):
-            v_free[i] = free[n_x + i] + VG[0, i] * M_e + VG[1, i] * M_fixed
-        f = solve_contacts(v_free, W, cap, s[S_F:S_F + 3])
+            v_free[i] = free[N_STATE + i] + VG[0, i] * M_e + VG[1, i] * M_fixed
+        f[0], f[1], f[2] = b[S_F], b[S_F + 1], b[S_F + 2]
+        solve_contacts_into(v_free, W, cap, f)
         torques[0], torques[1], torques[2], torques[3] = M_e, f[0], f[1], M_fixed + f[2]
-        for i in range(n_rows):
-            acc = free[i]
-            for j in range(4):
-                acc += Mu[i, j] * torques[j]
-            free[i] = acc
-        slip_int_CL, slip_int_CH = free[n_x + 3], free[n_x + 4]  # rad, exact over the step
+        add_products(free_by_4, Mu_T, torques, 0)
+        slip_int_CL, slip_int_CH = free[N_STATE + 3], free[N_STATE + 4]  # rad, exact over the step
         Q_CL = max(f[0] * slip_int_CL, 0.0) / dt  # friction heat (4), W
         Q_CH = max(f[1] * slip_int_CH, 0.0) / dt
         # thermal network: exact step with the sources of heat_sources(Q_CL, Q_CH, P_CL, P_CH)
         sources[0], sources[1], sources[2], sources[3] = Q_CL, Q_CH, P_CL, P_CH
-        for i in range(n_T):
-            acc = 0.0
-            for j in range(n_T):
-                acc += PhiT[i, j] * T[j]
-            acc += T_const[i]
-            for j in range(4):
-                acc += T_src[i, j] * sources[j]
-            T_new[i] = acc
-        x[:] = free[:n_x]
-        T[:] = T_new
-        s[S_F], s[S_F + 1], s[S_F + 2] = f[0], f[1], f[2]
-        s[S_MEM] = slip_memory_step(s[S_MEM], slip_int_CL / dt, dt, fr)
-        s[S_MEM + 1] = slip_memory_step(s[S_MEM + 1], slip_int_CH / dt, dt, fr)
-        s[S_GOV] += d_integral * dt
-        s[S_P] = pressure_step(P_CL, P_CL_cmd, dt, hy)
-        s[S_P + 1] = pressure_step(P_CH, P_CH_cmd, dt, hy)
-        s[S_T] += dt
+        T_new[:] = 0.0
+        add_products(T_new_by_4, PhiT_T, b, S_TEMP)
+        for i in range(N_T):
+            T_new[i] += T_const[i]
+        add_products(T_new_by_4, T_srcT, sources, 0)
+        for i in range(N_STATE):
+            b[S_X + i] = free[i]
+        for i in range(N_T):
+            b[S_TEMP + i] = T_new[i]
+        b[S_F], b[S_F + 1], b[S_F + 2] = f[0], f[1], f[2]
+        b[S_MEM] = slip_memory_relax(b[S_MEM], slip_int_CL / dt, decay_slip)
+        b[S_MEM + 1] = slip_memory_relax(b[S_MEM + 1], slip_int_CH / dt, decay_slip)
+        b[S_GOV] += d_integral * dt
+        b[S_P] = pressure_relax(P_CL, P_CL_cmd, decay_P, k)
+        b[S_P + 1] = pressure_relax(P_CH, P_CH_cmd, decay_P, k)
+        b[S_T] += dt
         stuck_CL = 1.0 if abs(f[0]) < cap[0] * (1.0 - 1e-9) else 0.0
         stuck_CH = 1.0 if abs(f[1]) < cap[1] * (1.0 - 1e-9) else 0.0
         held = 1.0 if abs(f[2]) < cap[2] * (1.0 - 1e-9) else 0.0
-        write_outputs(s, M_e, mu_CL, mu_CH, f[0], f[1], Q_CL, Q_CH, stuck_CL, stuck_CH, held,
-                      Q_CL - C_CL * (T_new[I_CL] - T_plate_CL) / dt, Q_CH - C_CH * (T_new[I_CH] - T_plate_CH) / dt,
-                      i_b, ve, out)
-        period[0] = max(period[0], T_new[I_CL])
-        period[1] = max(period[1], T_new[I_CH])
-        period[2] += Q_CL * dt
-        period[3] += Q_CH * dt
-        if k < trace.shape[0]:
-            trace[k, :] = out
+        write_outputs(b, M_e, mu_CL, mu_CH, f[0], f[1], Q_CL, Q_CH, stuck_CL, stuck_CH, held,
+                      Q_CL - k.C_CL * (T_new[I_CL] - T_plate_CL) / dt, Q_CH - k.C_CH * (T_new[I_CH] - T_plate_CH) / dt,
+                      i_b, k.r_w)
+        b[_B_PERIOD] = max(b[_B_PERIOD], T_new[I_CL])
+        b[_B_PERIOD + 1] = max(b[_B_PERIOD + 1], T_new[I_CH])
+        b[_B_PERIOD + 2] += Q_CL * dt
+        b[_B_PERIOD + 3] += Q_CH * dt
+        if step < trace.shape[0]:
+            for i in range(N_OUT):
+                trace[step, i] = b[_B_OUT + i]
+    return outputs_of(b)

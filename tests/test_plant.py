@@ -177,3 +177,20 @@ def test_numba_is_imported_only_when_a_plant_is_built():
     code = ("import sys, dsg_hil.cli, dsg_hil.plant, dsg_hil.rig, dsg_hil.runner; "
             "assert 'numba' not in sys.modules, 'numba imported'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_add_products_sums_each_row_in_order():
+    """The kernel's matrix-vector product: every sum bit for bit that of a plain loop over the columns in order
+    (so the plant's results do not depend on how the loop is arranged), on a padded matrix."""
+    from dsg_hil.plant import _blocked, add_products
+
+    rng = np.random.default_rng(9)
+    M, v = rng.normal(size=(17, 12)) * 10.0 ** rng.integers(-8, 8, size=(17, 12)), rng.normal(size=15)
+    acc = np.zeros(20)
+    acc[:17] = rng.normal(size=17)
+    expected = acc[:17].copy()
+    for i in range(17):
+        for j in range(12):
+            expected[i] += M[i, j] * v[3 + j]
+    add_products(acc.reshape(5, 4), _blocked(M), v, 3)
+    assert acc[:17].tobytes() == expected.tobytes() and not acc[17:].any()

@@ -53,12 +53,25 @@ def clutch_torque_capacity(mu: float, geometry: ClutchGeometry, pressure_pa: flo
 
 
 @compiled
+def pressure_factors(P_mpa: float, f: Friction) -> tuple[float, float]:
+    """The parts of (6) that depend on the pressure alone, ``((28.3 P) ** 0.4, 0.005 ln(28.3 P))`` with P floored
+    at ``P_floor``: a plant step whose pressure has not changed reuses them (two pow/log fewer)."""
+    P = max(P_mpa, f.P_floor / 1e6)
+    return (28.3 * P) ** 0.4, 0.005 * math.log(28.3 * P)
+
+
+@compiled
 def stribeck_term(slip_rpm: float, T_c: float, P_mpa: float, f: Friction) -> float:
     """First term of (6) in the Stribeck reading (see module docstring); zero where D <= 0 or T <= 1 degC."""
+    return stribeck_term_at(slip_rpm, T_c, pressure_factors(P_mpa, f)[0], f)
+
+
+@compiled
+def stribeck_term_at(slip_rpm: float, T_c: float, P_factor: float, f: Friction) -> float:
+    """:func:`stribeck_term` given ``P_factor = (28.3 P) ** 0.4`` (:func:`pressure_factors`)."""
     if T_c <= 1.0:
         return 0.0
-    P = max(P_mpa, f.P_floor / 1e6)
-    D = (math.log(T_c) - 3.2) * (28.3 * P) ** 0.4 - 0.87
+    D = (math.log(T_c) - 3.2) * P_factor - 0.87
     if D <= 0.0:
         return 0.0
     ratio = 0.028574 * abs(slip_rpm) / D
@@ -73,14 +86,20 @@ def friction_coefficient(slip_rpm: float, T_c: float, P_mpa: float, f: Friction)
 
     slip_rpm: slip speed [r/min] (sign ignored); T_c: plate temperature [degC]; P_mpa: pressure [MPa].
     """
+    P_factor, P_log = pressure_factors(P_mpa, f)
+    return friction_coefficient_at(slip_rpm, T_c, P_factor, P_log, f)
+
+
+@compiled
+def friction_coefficient_at(slip_rpm: float, T_c: float, P_factor: float, P_log: float, f: Friction) -> float:
+    """:func:`friction_coefficient` given the pressure's parts of (6) (:func:`pressure_factors`)."""
     n = abs(slip_rpm)
-    P = max(P_mpa, f.P_floor / 1e6)
     exp_T = math.exp(-0.005 * T_c)  # = 1 / exp(0.005 T): one exponential for both terms
     return (
-        stribeck_term(n, T_c, P, f)
+        stribeck_term_at(n, T_c, P_factor, f)
         + 0.01 * math.log(0.04398 * n + 1.0) * exp_T
         + 0.08 * (exp_T - 1.0) * (math.exp(-0.0022 * n) - 1.0)
-        - 0.005 * math.log(28.3 * P)
+        - P_log
         + 0.035
     )
 
@@ -93,5 +112,11 @@ def friction_coefficient_grid(slip_rpm: ArrayLike, T_c: ArrayLike, P_mpa: ArrayL
 @compiled
 def slip_memory_step(slip_memory: float, slip_speed: float, dt: float, f: Friction) -> float:
     """Exact step of tau_slip * s' = |slip_speed| - s with the slip held over dt (any speed unit)."""
+    return slip_memory_relax(slip_memory, slip_speed, math.exp(-dt / f.tau_slip))
+
+
+@compiled
+def slip_memory_relax(slip_memory: float, slip_speed: float, decay: float) -> float:
+    """:func:`slip_memory_step` given ``decay = exp(-dt / tau_slip)`` (a loop of steps of one dt computes it once)."""
     target = abs(slip_speed)
-    return target + (slip_memory - target) * math.exp(-dt / f.tau_slip)
+    return target + (slip_memory - target) * decay

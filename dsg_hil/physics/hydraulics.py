@@ -23,5 +23,11 @@ def clamp_command(P_cmd: float, h: Hydraulics) -> float:
 @compiled
 def pressure_step(P: float, P_cmd: float, dt: float, h: Hydraulics) -> float:
     """Pressure after dt [s] from P [Pa] with the command held: exact solution of tau P' = P_cmd - P."""
+    return pressure_relax(P, P_cmd, math.exp(-dt / h.tau), h)
+
+
+@compiled
+def pressure_relax(P: float, P_cmd: float, decay: float, h: Hydraulics) -> float:
+    """:func:`pressure_step` given ``decay = exp(-dt / tau)`` (a loop of steps of one dt computes it once)."""
     target = clamp_command(P_cmd, h)
-    return target + (P - target) * math.exp(-dt / h.tau)
+    return target + (P - target) * decay

@@ -55,6 +55,26 @@ def record(group: Any) -> tuple:
     return values
 
 
+def constants(arrays: dict[str, np.ndarray | float], *groups: Any) -> np.ndarray:
+    """Named float arrays and every field of the parameter groups as one numpy record: a structured array of one
+    element. Compiled code reads ``k = K[0]`` once and then ``k.Phi`` (a sub-array) or ``k.r_w`` and passes ``k``
+    wherever a group's record is expected (its fields are found by name), so a hot loop's step-invariant data
+    costs one argument to pass instead of an array or record each. Names must be unique across everything."""
+    names: list[str] = [*arrays, *(f.name for g in groups for f in fields(g))]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ValueError(f"constants: repeated names {', '.join(repeated)}")
+    dtype = np.dtype([(name, np.float64, np.shape(a)) for name, a in arrays.items()]
+                     + [(f.name, np.float64) for g in groups for f in fields(g)])
+    K = np.zeros(1, dtype=dtype)
+    for name, a in arrays.items():
+        K[0][name] = a
+    for g in groups:
+        for f in fields(g):
+            K[0][f.name] = float(getattr(g, f.name))
+    return K
+
+
 class Compiled:
     """A physics function, compiled on first call (see the module docstring)."""
 

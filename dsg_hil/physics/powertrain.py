@@ -157,10 +157,19 @@ def solve_contacts(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f0: np.nd
     Projected Gauss-Seidel from ``f0`` in a fixed order (deterministic); W has a dominant negative diagonal.
     Float arrays in and out (compiled: scalar loops cost nothing there).
     """
+    f = f0.astype(np.float64)  # a new array: f0 is left as it is
+    solve_contacts_into(v_free, W, cap, f, iterations, tol)
+    return f
+
+
+@compiled
+def solve_contacts_into(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f: np.ndarray, iterations: int = 50,
+                        tol: float = 1e-9) -> None:
+    """:func:`solve_contacts` in place: ``f`` holds the starting torques f0 on entry, the solution on return (the
+    plant's step allocates nothing)."""
     n = cap.shape[0]
-    f = np.empty(n)
     for i in range(n):
-        f[i] = min(max(f0[i], -cap[i]), cap[i])
+        f[i] = min(max(f[i], -cap[i]), cap[i])
     scale = tol * (1.0 + cap.max())
     for _ in range(iterations):
         change = 0.0
@@ -175,7 +184,6 @@ def solve_contacts(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f0: np.nd
             f[i] = new
         if change <= scale:
             break
-    return f
 
 
 @compiled

@@ -28,3 +28,17 @@ def test_pressure_lag_exact_and_clamped(params):
     assert clamp_command(-1.0, h) == 0.0
     assert clamp_command(float("nan"), h) == 0.0  # a garbled command opens the clutch
     assert pressure_step(1e6, 0.0, 1.0, h) == pytest.approx(1e6 * math.exp(-1.0 / h.tau))
+
+
+def test_relax_with_its_decay_is_the_step(params):
+    """The plant's loop computes each decay exp(-dt / tau) once: the same values bit for bit as the steps."""
+    from dsg_hil.physics.friction import slip_memory_relax, slip_memory_step
+    from dsg_hil.physics.hydraulics import pressure_relax
+
+    h, f, dt = params.hydraulics, params.friction, 1e-3
+    for P, P_cmd in ((0.0, 0.5e6), (4e5, 1e5), (1e6, float("nan")), (0.0, 9e9)):
+        assert pressure_relax(P, P_cmd, math.exp(-dt / h.tau), h) == pressure_step(P, P_cmd, dt, h)
+    for memory, slip in ((0.0, 30.0), (12.0, -3.0), (5.0, 0.0)):
+        relaxed = slip_memory_relax(memory, slip, math.exp(-dt / f.tau_slip))
+        assert relaxed == slip_memory_step(memory, slip, dt, f)
+        assert relaxed == pytest.approx(abs(slip) + (memory - abs(slip)) * math.exp(-dt / f.tau_slip), rel=1e-15)

@@ -77,3 +77,16 @@ def test_literal_prefactor_would_be_implausible(params):
     """Why A_stribeck is calibrated: the printed 23 gives mu >> 1 at creep slip speeds."""
     literal = replace(params.friction, A_stribeck=23.0)
     assert friction_coefficient(100.0, 150.0, 0.7, literal) > 1.0
+
+
+def test_pressure_factors_by_hand_and_reused_as_computed(params):
+    """The pressure's parts of (6), computed once for a pressure and passed to friction_coefficient_at, give mu
+    bit for bit; the floor applies to them as to (6)."""
+    from dsg_hil.physics.friction import friction_coefficient_at, pressure_factors
+
+    f = params.friction
+    factor, log_term = pressure_factors(0.5, f)
+    assert factor == pytest.approx(14.15**0.4, rel=1e-15) and log_term == pytest.approx(0.005 * math.log(14.15))
+    assert pressure_factors(0.0, f) == pressure_factors(f.P_floor / 1e6, f)
+    for n, T, P in ((0.0, 80.0, 0.3), (5.0, 150.0, 0.7), (300.0, 40.0, 0.0), (-20.0, 250.0, 1.5)):
+        assert friction_coefficient_at(n, T, *pressure_factors(P, f), f) == friction_coefficient(n, T, P, f)

@@ -7,7 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from dsg_hil.physics.powertrain import IDX, N_DOF, build_model, discretize, road_load, solve_contacts
+from dsg_hil.physics.powertrain import (
+    IDX,
+    N_DOF,
+    build_model,
+    discretize,
+    road_load,
+    solve_contacts,
+    solve_contacts_into,
+)
 
 
 def test_vehicle_inertia_moved_to_the_left_hand_side(params):
@@ -51,6 +59,17 @@ def test_contacts_stick_when_they_can_and_slip_at_capacity_otherwise():
     assert f[1] == -5.0 and v[1] < 0.0
     assert f[2] == 100.0 and v[2] > 0.0
     assert solve_contacts(v_free, W, np.zeros(3), np.ones(3)).tolist() == [0.0, 0.0, 0.0]  # no capacity, no torque
+
+
+def test_contacts_solved_in_place_as_into_a_new_array():
+    """solve_contacts_into (the plant's step) starts from f and leaves the same torques in it as solve_contacts."""
+    W = np.array([[-0.1, -0.005, 0.0], [-0.005, -0.04, 0.0], [0.0, 0.0, -1e-4]])
+    v_free, cap, f0 = np.array([2.0, -1.0, 0.3]), np.array([50.0, 5.0, 1e4]), np.array([60.0, -1.0, 0.0])
+    f = f0.copy()
+    solve_contacts_into(v_free, W, cap, f)
+    assert f.tolist() == solve_contacts(v_free, W, cap, f0).tolist() and f0.tolist() == [60.0, -1.0, 0.0]
+    assert f[1] == -5.0  # CH slips backward at capacity; CL sticks (CH's torque coupled in), the vehicle held
+    assert f[0] == pytest.approx((2.0 + 0.005 * 5.0) / 0.1, rel=1e-9) and f[2] == pytest.approx(3000.0, rel=1e-9)
 
 
 def test_exact_step_matches_fine_rk4(params):
