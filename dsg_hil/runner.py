@@ -246,7 +246,6 @@ class PlantRunner:
         once the TCU has answered, a pause of seconds (numba's cache loaded under emulation) would look to it
         like a plant gone."""
         self.summary.creep.prepare()
-        self._bind_bus()
         self._handshake(startup_timeout, pump)
         self._running = True
         t0 = time.monotonic()
@@ -382,7 +381,6 @@ class PlantRunner:
         up makes the run late, which is counted and reported as ``realtime_factor``."""
         start = clock()
         self._running = True
-        self._bind_bus()
         dt = self.plant.dt
         n_steps = int(round(self.scenario.duration_s / dt))
         for k in range(n_steps):

@@ -54,8 +54,8 @@ def torque_per_mpa(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa
 
 def friction_heat(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
     """Friction power into the plates [W], equation (4): torque (5) times slip speed."""
-    P = max(P_mpa, 0.0)  # torque_per_mpa written out (the same products in the same order)
-    return friction_coefficient(m, T_c, slip_rpm, P) * c.k_geom_m3 * 1e6 * P * abs(slip_rpm) * RPM_TO_RAD_S
+    P = max(P_mpa, 0.0)
+    return torque_per_mpa(m, c, T_c, slip_rpm, P) * P * abs(slip_rpm) * RPM_TO_RAD_S
 
 
 def plate_step(c: Clutch, T_c: float, heat_w: float, T_oil_c: float, dt: float) -> float:

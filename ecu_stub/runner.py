@@ -99,9 +99,8 @@ class TcuRunner:
                 if n:
                     faults |= FAULT_BITS.get(reason, 0)
         engine, speeds, vehicle, pressure, oil, driver = required = [states[name] for name in REQUIRED]
-        for state in required:  # as state.valid(now), written out: six a period
-            if state.last_time is None or not now - state.last_time <= state.deadline + 1e-9:
-                return TcuInputs(plant_valid=False, fault_bits=faults)
+        if not all(state.valid(now) for state in required):
+            return TcuInputs(plant_valid=False, fault_bits=faults)
         e, s, v, p, o, d = engine.values, speeds.values, vehicle.values, pressure.values, oil.values, driver.values
         return TcuInputs(True, e["EngineSpeed"], s["ClutchInputSpeed"], s["CLOutputSpeed"], s["CHOutputSpeed"],
                          v["VehicleSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"], o["T_Sump"],

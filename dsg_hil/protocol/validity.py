@@ -129,11 +129,6 @@ class RxMonitor:
         if data == state.last_data:
             state.duplicates += 1
             return DUPLICATE, frame
-        counter, last = frame.counter, state.last_counter
-        if last is not None and counter == (last + 1) % state.counter_modulus:  # RxState.update's usual case
-            state.last_counter, state.last_data, state.last_time, state.values = counter, data, now, frame.values
-            state.received += 1
-            return NEW, frame
         refused = state.update(now, frame, data)
         if refused is not None:
             self._reject(state, "counter", f"{frame.name}: {refused}")
