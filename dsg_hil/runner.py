@@ -31,7 +31,7 @@ from .protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from .protocol.errors import RunError
 from .protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from .protocol.frame import data_frame
-from .protocol.validity import IGNORED, NEW, REJECTED
+from .protocol.validity import IGNORED, NEW, REJECTED, TIMEOUT_CYCLES
 from .scenario import DriverInput, Scenario
 from .summary import RunSummary
 
@@ -75,6 +75,7 @@ class PlantRunner:
         self.sent_by: Tally[str] = Tally()  # frames sent (first transmissions, the ones logged)
         self.retries: Tally[str] = Tally()  # lock-step re-sends (not logged)
         self.unanswered_ticks = 0
+        self._given_up = 0  # lock-step: ticks given up in a row just before this one (their answers may come late)
         self.probes = 0  # lock-step presence probes sent before tick 0 (not logged)
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
@@ -247,6 +248,7 @@ class PlantRunner:
         like a plant gone."""
         self.summary.creep.prepare()
         self._handshake(startup_timeout, pump)
+        self.rx.require("TCU_CMD", "echo", self._answers_tick)
         self._running = True
         t0 = time.monotonic()
         try:
@@ -257,7 +259,9 @@ class PlantRunner:
                 self._emit(self._sync_id, self.sync.data(SYNC, {"Tick": self.tick}), t)
                 if pump is not None:
                     pump()
-                if not self._await_answer(t, reply_timeout, pump):
+                answered = self._await_answer(t, reply_timeout, pump)
+                self._given_up = 0 if answered else self._given_up + 1
+                if not answered:
                     self.unanswered_ticks += 1
                     log.warning("t=%.2f s: lock-step tick %d unanswered after %d re-sends: the period runs on the "
                                 "last command while it is valid (DBC: 3 cycle times), then unpowered",
@@ -289,8 +293,19 @@ class PlantRunner:
         raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
                           f"(ecu-stub) running on the same bus?")
 
+    def _answers_tick(self, frame: DecodedFrame) -> str | None:
+        """Lock-step: a TCU_CMD is taken only as the answer to the present tick (its SyncEcho the tick's low byte)
+        or, late, to one of the ticks given up just before it (at most as many as a command stays valid, 3 cycle
+        times); another (an old answer, a random frame that passed CRC and counter) is rejected ("echo")."""
+        echo = int(frame.values["SyncEcho"])
+        late = (self.tick - echo) % 256
+        if late == 0 or late <= min(self._given_up, int(TIMEOUT_CYCLES)):
+            return None
+        return f"SyncEcho {echo} answers no tick waiting (tick {self.tick})"
+
     def _await_answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
-        """Wait for the answer to this tick: the TCU_CMD whose SyncEcho is the tick's, after the TCU_STATUS when
+        """Wait for the answer to this tick: the TCU_CMD whose SyncEcho is the tick's (another is rejected, see
+        ``_answers_tick``), after the TCU_STATUS when
         one is expected (see ``_status_expected``); True when the command came.
 
         While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
@@ -303,7 +318,6 @@ class PlantRunner:
         as the TCU sends them, whatever retries brought them."""
         cmd_id = self._cmd_id
         recv = self._recv_data or self.bus.recv
-        echo = self.tick & 0xFF
         retries, interval = 0, self.retry_first_s
         since = time.monotonic()  # silence is counted from here, plus ``_silent_s`` of ticks given up
         next_retry = since + interval
@@ -325,7 +339,7 @@ class PlantRunner:
                     if status == REJECTED and frame_id == cmd_id and not have_cmd:
                         next_retry = time.monotonic()  # a command that failed its checks: ask again at once
                     elif status == NEW and frame is not None and frame.name == "TCU_CMD" \
-                            and int(frame.values["SyncEcho"]) == echo:
+                            and int(frame.values["SyncEcho"]) == self.tick & 0xFF:
                         have_cmd = True
                         if not self._status_expected(t):
                             return True

@@ -10,8 +10,9 @@ import threading
 from collections.abc import Mapping
 from importlib import metadata
 
-from dsg_hil.protocol.bus import add_bus_arguments, bus_config, bus_name, open_bus, per_process_warning
-from dsg_hil.protocol.errors import EXIT_OK, InputError, exit_code
+from dsg_hil.protocol.bus import (FrameLog, add_bus_arguments, bus_config, bus_name, log_channel, open_bus,
+                                  per_process_warning)
+from dsg_hil.protocol.errors import EXIT_OK, InputError, check_output_path, exit_code
 from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
 
 
@@ -39,6 +40,10 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="TCU calibration TOML (default: ecu_stub/data/calibration.toml)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: never)")
     add_fault_arguments(parser, "the frames the TCU sends")
+    parser.add_argument("--log", metavar="FILE",
+                        help="record the frames the TCU took and sent (first transmissions; lockstep: stamped "
+                             "with simulated time), in python-can's format for the extension: .log (candump -L), "
+                             ".asc, .blf, .csv ...")
     parser.add_argument("--idle-exit", type=float, metavar="S",
                         help="stop when the plant has been silent for S seconds after having been heard")
     parser.add_argument("-v", "--verbose", action="store_true", help="log protocol events")
@@ -67,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             value = getattr(args, option)
             if value is not None and not 0.0 < value < float("inf"):
                 raise InputError(f"--{option.replace('_', '-')}: must be a positive number of seconds, got {value}")
+        check_output_path("--log", args.log)
         controller = CreepController(load_calibration(args.calibration))
         config = bus_config(args)
         db = load_dbc(args.dbc)
@@ -81,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         stop = threading.Event()  # SIGTERM: stop serving, report its counts, exit 143
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
-        tcu = TcuRunner(codec, bus, controller)
+        record = FrameLog(args.log, log_channel(config)) if args.log else None
+        tcu = TcuRunner(codec, bus, controller, (record,) if record else ())
         tcu_side.append(tcu)
         try:  # 'listening' inside: a signal from then on still reaches the counts below
             print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
@@ -90,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
             tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
         finally:
             bus.shutdown()
+            if record is not None:
+                record.stop()
             c = tcu.frame_counts()
             print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
                   f"{c['incomplete_answers']} on incomplete plant frames); received "

@@ -12,6 +12,10 @@ counters), without stepping again. Repeats of frames it already has are duplicat
 errors. A tick whose plant frames are incomplete (the lock-step plant sends every message due at the tick's time,
 each on its DBC cycle from t = 0) is left unanswered, so the plant re-sends the period; only the third sight of
 the same tick is answered with what the TCU has (counted as ``incomplete_answers``).
+
+Listeners (``--log``) get every frame the TCU took (new, valid) and every frame it sent, first transmissions
+only (neither the presence handshake nor re-sent answers), as the plant logs its side: in lock-step stamped with
+the tick's time, so the same run gives the same record; else with the wall clock.
 """
 
 from __future__ import annotations
@@ -57,10 +61,13 @@ def _choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
 
 
 class TcuRunner:
-    def __init__(self, codec: Codec, bus: can.BusABC, controller: CreepController | None = None) -> None:
+    def __init__(self, codec: Codec, bus: can.BusABC, controller: CreepController | None = None,
+                 listeners: tuple[Callable[[can.Message], None], ...] = ()) -> None:
         for name in TCU_USES:
             codec.message(name)
         self.codec, self.bus = codec, bus
+        self.listeners = listeners
+        self._channel = getattr(bus, "channel", None)  # of the frames recorded for the listeners
         # the direct in-process bus (dsg_hil.protocol.local, unwrapped): frames as (ID, data), no can.Message
         self._send_data: Callable[[int, bytes], None] | None = getattr(bus, "send_data", None)
         self._recv_data: Callable[[float], tuple[int, bytes] | can.Message | None] | None = \
@@ -123,7 +130,16 @@ class TcuRunner:
             frames.append((tx.ids["TCU_CMD"], tx.data("TCU_CMD", {
                 "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa, "SyncEcho": echo})))
         self._send(frames)
+        if self.listeners:
+            for frame_id, data in frames:
+                self._record(frame_id, data, now, is_rx=False)
         return frames
+
+    def _record(self, frame_id: int, data: bytes, stamp: float, is_rx: bool) -> None:
+        """Hand a frame taken or sent to the listeners, stamped ``stamp`` (lock-step), else with the wall clock."""
+        msg = data_frame(frame_id, data, stamp if self.lockstep else time.time(), self._channel, is_rx)
+        for listener in self.listeners:
+            listener(msg)
 
     def _send(self, frames: list[tuple[int, bytes]]) -> None:
         send_data = self._send_data
@@ -156,8 +172,12 @@ class TcuRunner:
         if self.heard_plant_at is None:
             self.heard_plant_at = now
         if frame.name != "SIM_SYNC":
+            if status == NEW and self.listeners:
+                self._record(frame_id, data, stamp, is_rx=True)
             return True
         tick = int(frame.values["Tick"])
+        if status == NEW and self.listeners and tick != SYNC_PROBE:
+            self._record(frame_id, data, stamp, is_rx=True)
         if tick == SYNC_PROBE:
             if self._answered != SYNC_PROBE:
                 self._reset_for_lockstep()

@@ -110,6 +110,16 @@ def test_ecu_stub_bad_input_is_exit_2(capsys, argv, needle):
     one_error_line(capsys, needle)
 
 
+def test_ecu_stub_log_is_checked_before_serving(tmp_path, capsys):
+    (tmp_path / "afile").write_text("not a directory")
+    assert ecu_stub_main(["-i", "virtual", "--log", str(tmp_path)]) == 2
+    one_error_line(capsys, f"--log {tmp_path}: is a directory")
+    assert ecu_stub_main(["-i", "virtual", "--log", str(tmp_path / "afile" / "tcu.log")]) == 2
+    one_error_line(capsys, "--log", "not a writable directory")
+    assert ecu_stub_main(["-i", "virtual", "--log", str(tmp_path / "tcu.nosuch")]) == 2
+    one_error_line(capsys, "--log", "tcu.nosuch")
+
+
 def test_non_utf8_files_name_the_file(tmp_path, capsys):
     path = tmp_path / "latin1.toml"
     path.write_bytes("name = \"Stra\xdfe\"\n".encode("latin-1"))

@@ -16,6 +16,9 @@ from pathlib import Path
 import can
 import pytest
 
+from dsg_hil.protocol import load_dbc
+from ecu_stub.runner import TCU_USES
+
 DSG_HIL = [sys.executable, "-m", "dsg_hil"]
 ECU_STUB = [sys.executable, "-m", "ecu_stub"]
 REPLY_TIMEOUT = "10"  # [s] a live TCU on a loaded machine was once starved 1 s (a run ended as peer_lost at t=5.4 s)
@@ -111,7 +114,8 @@ def udp_lockstep(tmp_path: Path, during=None) -> tuple[dict, str]:
     """ecu-stub and dsg-hil plant (lockstep) as processes on a multicast group of their own; ``during(tcu,
     plant)`` runs while both are up. Returns the plant's summary and the TCU's stderr."""
     bus = ["--interface", "udp_multicast", "--channel", multicast_group()]
-    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2"], stderr=subprocess.PIPE, text=True)
+    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2", "--log", str(tmp_path / "tcu.log")],
+                           stderr=subprocess.PIPE, text=True)
     assert tcu.stderr is not None  # stderr=PIPE
     try:
         assert "listening on udp_multicast" in tcu.stderr.readline()
@@ -136,6 +140,19 @@ def test_lockstep_across_two_processes_over_udp_multicast(tmp_path, reference_lo
     summary, _ = udp_lockstep(tmp_path)
     assert summary["frames"]["rejected"] == 0 and summary["frames"]["unanswered_ticks"] == 0
     assert log_frames(tmp_path / "plant.log") == log_frames(reference_log)
+    assert_records_agree(tmp_path)
+
+
+def assert_records_agree(tmp_path: Path) -> None:
+    """The TCU's record (``ecu-stub --log``) is the other half of the plant's log: the TCU took every frame the
+    plant sent on the IDs it reads, and sent every frame the plant took, each with the same stamp (its tick's
+    time), nothing else (neither re-sends nor the presence handshake). Compared sorted: each side records in
+    its own arrival order."""
+    db = load_dbc()
+    ids = {f"{db.get_message_by_name(name).frame_id:03X}" for name in TCU_USES}
+    tcu = log_frames(tmp_path / "tcu.log")
+    plant = [(t, frame) for t, frame in log_frames(tmp_path / "plant.log") if frame.split("#")[0] in ids]
+    assert len(tcu) > 1000 and sorted(tcu) == sorted(plant)
 
 
 def test_a_stalled_tcu_costs_retries_not_the_log(tmp_path, reference_log):
@@ -154,6 +171,7 @@ def test_a_stalled_tcu_costs_retries_not_the_log(tmp_path, reference_log):
     assert frames["rejected"] == 0 and frames["unanswered_ticks"] == 0 and frames["lost"] == 0
     assert "answers re-sent" in tcu_err and "(0 lock-step answers re-sent)" not in tcu_err
     assert log_frames(tmp_path / "plant.log") == log_frames(reference_log)
+    assert_records_agree(tmp_path)
 
 
 def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):

@@ -160,6 +160,35 @@ def test_late_duplicate_answers_are_counted_not_rejected(clean):
     assert pair.frames == clean.frames
 
 
+def forge_after(bus: can.BusABC, codec: Codec, after: int, values: dict[str, float], step: int = 2) -> None:
+    """After the ``after``-th TCU_CMD ``bus`` sends, put a frame on the bus that passes every end-to-end check
+    (valid CRC, counter ``step`` on from the real one): a TCU_CMD with ``values``."""
+    send, seen, cmd_id = bus.send, itertools.count(1), codec.frame_id("TCU_CMD")
+
+    def forging(msg, timeout=None):
+        send(msg, timeout)
+        if msg.arbitration_id == cmd_id and next(seen) == after:
+            counter = (codec.decode(cmd_id, bytes(msg.data)).counter + step - 1) % 16
+            send(can.Message(arbitration_id=cmd_id, data=codec.encode("TCU_CMD", values, counter),
+                             is_extended_id=False), timeout)
+
+    bus.send = forging
+
+
+@pytest.mark.parametrize("late", [1, 3, 200])
+def test_a_command_answering_no_tick_is_rejected_as_echo(clean, late):
+    """A TCU_CMD that passes CRC and counter (one step on) but echoes a tick that is not waiting (sent after the
+    real answer to tick 20, so read while tick 21 waits: ``late`` + 1 ticks old) is not taken: rejected ("echo"),
+    its counter not taken (the next real command, one step on, is taken), the run that of a clean one."""
+    pair = LockstepPair()
+    tick = 20
+    forge_after(pair.tcu_bus, pair.codec, tick + 2, {"P_CL_Cmd": 1.5, "P_CH_Cmd": 1.5, "SyncEcho": (tick - late) % 256})
+    pair.run()
+    f = pair.runner.frames()
+    assert f["by_message"]["TCU_CMD"]["rejected"] == {"echo": 1} and f["unanswered_ticks"] == 0
+    assert f["lost"] == 0 and pair.frames == clean.frames
+
+
 def test_tcu_answering_two_presence_probes_starts_cleanly(clean):
     """Regression: a TCU slower than the probe interval answered two probes, restarting its counter on each, so
     its tick-0 answer repeated counter 0 and the run aborted. Now both probes get the same answer, byte for

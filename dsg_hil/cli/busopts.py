@@ -15,11 +15,11 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
 
-from ..errors import InputError
-from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
+from ..protocol.bus import LOG_CHANNEL, FrameLog, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
 from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
 from ..scenario import Scenario, load_scenario
-from .common import Terminated, check_output_path, params_from, positive_number, progress
+from ..protocol.errors import check_output_path
+from .common import Terminated, params_from, positive_number, progress
 
 if TYPE_CHECKING:
     import can
@@ -76,27 +76,6 @@ def make_plant(args: argparse.Namespace, scenario: Scenario) -> Plant:
     return plant_for(scenario, params_from(args))
 
 
-class LogListener:
-    """Writes frames through python-can's writer for the file's extension, on one channel name."""
-
-    def __init__(self, path: str, channel: str) -> None:
-        import can  # noqa: PLC0415
-
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        try:
-            self.writer = can.Logger(path)
-        except ValueError as exc:
-            raise InputError(f"--log {path}: {exc}") from None
-        self.channel = channel
-
-    def __call__(self, msg: can.Message) -> None:
-        msg.channel = self.channel
-        self.writer.on_message_received(msg)
-
-    def stop(self) -> None:
-        self.writer.stop()
-
-
 def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantRunner, dict, Scenario]:
     """Logging, scenario, the plant's bus and log from the options, announced; all closed by ``stack``."""
     setup_logging(args.verbose)
@@ -145,9 +124,9 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
     else:
         bus = open_bus(config, receive=[db.get_message_by_name(name) for name in PLANT_RX])
     stack.callback(bus.shutdown)
-    listeners: tuple[LogListener, ...] = ()
+    listeners: tuple[FrameLog, ...] = ()
     if args.log:
-        listener = LogListener(args.log, log_channel(config))
+        listener = FrameLog(args.log, log_channel(config))
         stack.callback(listener.stop)
         listeners = (listener,)
     runner = PlantRunner(make_plant(args, scenario), scenario, Codec(db, PLANT_USES), bus, listeners, progress)

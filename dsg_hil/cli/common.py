@@ -3,12 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
-
-from ..errors import InputError
 
 if TYPE_CHECKING:
     from ..physics.params import Params
@@ -48,23 +44,3 @@ def progress(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def check_output_path(option: str, path: str | None, directory: bool = False) -> None:
-    """Fail before the run, not after it, when ``path`` (a file; ``directory``: a directory to write into)
-    cannot be written: a directory (a file), or a parent that is not a writable directory (missing parents
-    are created at the end: the nearest existing one counts)."""
-    if path is None:
-        return
-    target = Path(path)
-    if directory and target.exists():
-        if not target.is_dir() or not os.access(target, os.W_OK | os.X_OK):
-            raise InputError(f"{option} {path}: not a writable directory")
-        return
-    if not directory and target.is_dir():
-        raise InputError(f"{option} {path}: is a directory")
-    parent = target.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{option} {path}: {parent} is not a writable directory")
-    if target.exists() and not os.access(target, os.W_OK):
-        raise InputError(f"{option} {path}: file not writable")

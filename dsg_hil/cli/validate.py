@@ -8,7 +8,8 @@ from pathlib import Path
 
 from ..reference import TOL_MU, TOL_RISE_C, TOL_TORQUE_REL
 from . import command_help
-from .common import add_params_option, check_output_path, params_from, positive_number, progress
+from ..protocol.errors import check_output_path
+from .common import add_params_option, params_from, positive_number, progress
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:

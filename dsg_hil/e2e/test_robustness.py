@@ -17,11 +17,9 @@ import can
 import pytest
 
 from dsg_hil.loop import plant_for
-from dsg_hil.plant_io import PLANT_USES, SYNC_PROBE
+from dsg_hil.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec
-from dsg_hil.protocol.codec import FrameError
 from dsg_hil.protocol.e2e import MAX_DELTA
-from ecu_stub.runner import TCU_RX, TCU_USES
 
 from .conftest import BUS, STARTUP, TCU_IDLE_EXIT, Candump, console, finish_while_progressing, parse_candump
 
@@ -94,11 +92,11 @@ def plant_times(frames):
 # ---- a flood of random frames during a lock-step creep ------------------------------------------------------------
 def flooded_creep(db, outdir, name, duration, cangen, target):
     """One lock-step creep as the ``lockstep`` run, cangen sending random IDs, DLCs and data as fast as it can
-    (``-g 0``, ENOBUFS ignored) from its first tick until ``target`` frames are sent or the creep ends; candump
-    records the frames on the DBC's IDs (the ones a node may take; all of them would starve it: it kept 54k of
-    920k). Returns what the test judges, ``injected`` counting whole batches sent while the creep ran."""
-    dump = Candump(outdir / f"{name}.candump.log", [m.frame_id for m in db.messages])
-    tcu = start_tcu("--idle-exit", TCU_IDLE_EXIT)
+    (``-g 0``, ENOBUFS ignored) from its first tick until ``target`` frames are sent or the creep ends; both
+    nodes record what they took and sent (the plant's ``--log``, ecu-stub's ``--log``). Returns what the test
+    judges, ``injected`` counting whole batches sent while the creep ran."""
+    tcu_log = outdir / f"{name}.tcu.log"
+    tcu = start_tcu("--idle-exit", TCU_IDLE_EXIT, "--log", str(tcu_log))
     plant, log, summary = start_plant(outdir, name, "lockstep", duration, "--reply-timeout", "60")
     batches = 0
     try:
@@ -114,12 +112,11 @@ def flooded_creep(db, outdir, name, duration, cangen, target):
         for proc in (plant, tcu):
             if proc.poll() is None:
                 proc.kill()
-        recorded = dump.stop()
     (outdir / f"{name}.plant.stderr").write_text(plant_err)
     (outdir / f"{name}.tcu.stderr").write_text(tcu_err)
     return {"name": name, "plant_rc": plant.returncode, "tcu_rc": tcu.returncode, "plant_err": plant_err,
             "tcu_err": tcu_err, "injected": batches * FLOOD_BATCH, "summary": json.loads(summary.read_text()),
-            "log": log, "bus": sorted(recorded, key=lambda f: f[0])}
+            "log": log, "tcu_log": tcu_log}
 
 
 @pytest.fixture(scope="module")
@@ -137,37 +134,23 @@ def sim_sync_tick(db, data: bytes) -> int:
     return int(db.get_message_by_name("SIM_SYNC").decode(data, decode_choices=False)["Tick"])
 
 
-def first_forgery(db, flood_bus, plant_sent):
-    """The first random frame the end-to-end protection cannot tell from a real one, with the lock-step tick it
-    came in (or None): on a message the plant sends and the TCU reads, passing the TCU's stateless checks (DLC,
-    CRC, ranges) and its counter check (a step of 1 to MAX_DELTA from the last real frame of its message), yet
-    not a frame the plant sent (its log: ``plant_sent``). Such a frame is the protection's residual error (CRC-8:
-    1/256 of the frames with the right DLC, and 7/16 of those also pass the counter check), about 0.1 per
-    100,000-frame flood; the test names it when it happens. (A random TCU_CMD would also need its tick's echo,
-    1/256 more: not looked for.)"""
-    real = {(ident, data) for _, ident, data in plant_sent}
-    plant_ids = {db.get_message_by_name(name).frame_id for name in TCU_RX}  # all sent by the plant
-    codec = Codec(db, TCU_USES)
-    sync = db.get_message_by_name("SIM_SYNC").frame_id
-    tick, last = -1, {}
-    for t, ident, data in flood_bus:
-        if ident not in plant_ids:
-            continue
-        if (ident, data) in real:
-            last[ident] = codec.decode(ident, data).counter
-            if ident == sync:
-                tick = sim_sync_tick(db, data)
-            continue
-        try:
-            frame = codec.decode(ident, data)
-        except FrameError:
-            continue
-        if ident == sync and int(frame.values["Tick"]) == SYNC_PROBE:  # presence probes: not in the plant's log
-            continue
-        if ident in last and not 1 <= (frame.counter - last[ident]) % 16 <= MAX_DELTA:
-            continue  # the counter check refuses it
-        return tick, t, ident, data
-    return None
+def first_forgery(db, plant_log, tcu_log):
+    """The first random frame a node took, from the nodes' own records (no capture, which may drop frames): the
+    plant's log holds every frame it sent and took, the TCU's (``ecu-stub --log``) likewise, both stamped with
+    the tick's time. A frame one took that the other never sent came from the flood and passed every check the
+    receiver makes (DLC, CRC, ranges, counter step; a TCU_CMD also its tick's echo): the protection's residual
+    error (CRC-8: 1/256 of the frames with the right DLC, and 7/16 of those pass the counter check too; about
+    0.1 per 100,000-frame flood, most of it on the 7 IDs the TCU reads). Returns (tick, taker, ID, data) of the
+    earliest, or None; the test names it when it happens."""
+    cycle = db.get_message_by_name("TCU_CMD").cycle_time / 1000.0
+    sent_by = {node: {m.frame_id for m in db.messages if m.senders == [node]} for node in ("PLANT", "TCU")}
+    plant_sent = {(ident, data) for _, ident, data in plant_log if ident in sent_by["PLANT"]}
+    tcu_sent = {(ident, data) for _, ident, data in tcu_log if ident in sent_by["TCU"]}
+    forged = [(round(t / cycle), "plant", ident, data) for t, ident, data in plant_log
+              if ident in sent_by["TCU"] and (ident, data) not in tcu_sent]
+    forged += [(round(t / cycle), "TCU", ident, data) for t, ident, data in tcu_log
+               if ident in sent_by["PLANT"] and (ident, data) not in plant_sent]
+    return min(forged, default=None)
 
 
 def control_view(db, frames):
@@ -187,8 +170,8 @@ def test_flood_neither_process_fails(flood):
         assert run["plant_rc"] == 0, run["plant_err"]
         assert run["tcu_rc"] == 0, run["tcu_err"]
         frames = run["summary"]["frames"]
-        print(f"{run['name']}: {run['injected']} random frames injected; {len(run['bus'])} frames on the DBC's IDs "
-              f"recorded; {frames['by_message']['SIM_SYNC']['sent']} ticks, {frames['unanswered_ticks']} "
+        print(f"{run['name']}: {run['injected']} random frames injected; "
+              f"{frames['by_message']['SIM_SYNC']['sent']} ticks, {frames['unanswered_ticks']} "
               f"unanswered after their re-sends (run on the fallback), {frames['retries']} frames re-sent, "
               f"fallback events {run['summary']['command_fallback']['events']}")
         assert run["summary"]["stop_reason"] == "end_of_record"  # every tick of the creep ran: no stall
@@ -215,8 +198,8 @@ def test_flood_no_corrupt_command_taken(db, flood, lockstep):
     """Every TCU_CMD the plant took (its log) carries a valid CRC, a counter step the E2E rules accept and its
     tick's echo, one per tick but the unanswered ones (counted); and the plant's log is the one of the undisturbed
     lock-step run, byte for byte but the TCU's FaultBits (:func:`control_view`): no random frame was taken. Only a
-    random frame that passes every check a receiver can make (see ``first_forgery``) may change the run, and then
-    not before the tick it came in (less one: delivery order across CPUs)."""
+    random frame that passed every check a receiver makes, taken by the plant or the TCU (``first_forgery``, from
+    both nodes' records), may change the run, and then not before the tick it was taken in."""
     for run in flood:
         check_flooded_run(db, run, lockstep)
 
@@ -244,16 +227,17 @@ def check_flooded_run(db, run, lockstep) -> None:
     print(f"{run['name']}: TCU_STATUS taken by the plant reporting rejected frames (FaultBits): {reported}")
     reference = control_view(db, parse_candump(run["log"].parent / "lockstep.plant.log"))
     taken = control_view(db, frames)
+    forgery = first_forgery(db, parse_candump(run["log"]), parse_candump(run["tcu_log"]))
+    if forgery is not None:
+        tick, taker, ident, data = forgery
+        print(f"{run['name']}: random frame {ident:03X}#{data.hex().upper()} taken by the {taker} at tick {tick} "
+              f"passed every receiver check: the run may differ from tick {tick} on")
     if taken == reference:
         return
-    forgery = first_forgery(db, run["bus"], frames)
-    assert forgery is not None, "the flood changed the run, and no random frame could pass a receiver's checks"
-    tick, t, ident, data = forgery
-    print(f"{run['name']}: random frame {ident:03X}#{data.hex().upper()} at {t:.6f} (tick {tick}) passes every "
-          f"receiver check: the run may differ from tick {tick} on")
-    end = next((i for i, (ident, data) in enumerate(reference)
-                if ident == sync.frame_id and sim_sync_tick(db, data) >= max(tick - 1, 0)), len(reference))
-    assert taken[:end] == reference[:end], "the run changed before the random frame that could pass came in"
+    assert forgery is not None, "the flood changed the run, and neither node took a random frame"
+    end = next((i + 1 for i, (ident, data) in enumerate(reference)
+                if ident == sync.frame_id and sim_sync_tick(db, data) >= forgery[0]), len(reference))
+    assert taken[:end] == reference[:end], "the run changed before the random frame that passed came in"
 
 
 # ---- the TCU killed and restarted under a real-time plant ---------------------------------------------------------

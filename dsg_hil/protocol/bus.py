@@ -168,3 +168,24 @@ def open_bus(config: dict[str, Any], receive: Iterable[Message] | None = None) -
         return can.Bus(**{**config, "receive_own_messages": False, "can_filters": filters})
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise RunError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None
+
+
+class FrameLog:
+    """A listener writing frames to ``path`` through python-can's writer for its extension (``.log`` candump -L,
+    ``.asc``, ``.blf``, ``.csv`` ...), every frame on the one channel name ``channel`` (see :func:`log_channel`).
+    A path python-can has no writer for is an :class:`InputError` naming ``option``."""
+
+    def __init__(self, path: str, channel: str, option: str = "--log") -> None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.writer = can.Logger(path)
+        except ValueError as exc:
+            raise InputError(f"{option} {path}: {exc}") from None
+        self.channel = channel
+
+    def __call__(self, msg: can.Message) -> None:
+        msg.channel = self.channel
+        self.writer.on_message_received(msg)
+
+    def stop(self) -> None:
+        self.writer.stop()

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 from collections import Counter as Tally
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import can
@@ -84,6 +85,17 @@ class RxMonitor:
                        for frame_id, name in self._ids.items()}
         self.rejected: Tally[str] = Tally()
         self.received = 0
+        self._checks: dict[int, tuple[str, Callable[[DecodedFrame], str | None]]] = {}
+
+    def require(self, name: str, cause: str, check: Callable[[DecodedFrame], str | None] | None) -> None:
+        """A further check on frames of ``name`` (None: none), made after the end-to-end ones and before the frame
+        is taken: ``check(frame)`` returns why it fails, or None; a failing frame is rejected for ``cause``,
+        its counter not taken (e.g. a lock-step command whose SyncEcho answers no tick)."""
+        frame_id = self.codec.frame_id(name)
+        if check is None:
+            self._checks.pop(frame_id, None)
+        else:
+            self._checks[frame_id] = (cause, check)
 
     def wants(self, msg: can.Message) -> bool:
         return not msg.is_extended_id and msg.arbitration_id in self._ids
@@ -129,6 +141,10 @@ class RxMonitor:
         if data == state.last_data:
             state.duplicates += 1
             return DUPLICATE, frame
+        if self._checks and (extra := self._checks.get(frame_id)) is not None \
+                and (failed := extra[1](frame)) is not None:
+            self._reject(state, extra[0], f"{frame.name}: {failed}")
+            return REJECTED, None
         refused = state.update(now, frame, data)
         if refused is not None:
             self._reject(state, "counter", f"{frame.name}: {refused}")
