@@ -152,6 +152,48 @@ def test_realtime_tcu_reports_fault_within_three_cycles_of_the_plants_death():
     assert status.data[0] & 0x0F == 5 and status.data[4] & 0x01  # State FAULT, FaultBits: plant missing
 
 
+class StallingTcuBus(DyingPlantBus):
+    """A live real-time plant while the TCU's process is starved (a busy machine): every ``every`` seconds the
+    TCU's clock jumps by ``stall`` in one ``recv``, the plant's frames of that time queued on its socket."""
+
+    def __init__(self, codec: Codec, every: float, stall: float) -> None:
+        super().__init__(codec, dies_at=float("inf"))
+        self.every, self.stall, self.next_stall = every, stall, every
+        self.stalls = 0
+
+    def recv(self, timeout=None):
+        if not self.pending and self.now >= self.next_stall:
+            self.now += self.stall
+            self.next_stall += self.every
+            self.stalls += 1
+            while min(self.plant.next_due.values()) <= self.now:
+                due = min(self.plant.next_due.values())
+                self.pending += [self.plant.frame(name, {"BrakePedal": 100.0}) for name in self.plant.due(due)]
+        return super().recv(timeout)
+
+
+def test_a_starved_realtime_tcu_controls_on_the_frames_waiting_not_on_a_fault():
+    """After a stall of 8 cycle times the TCU takes every frame already waiting before its next control cycle,
+    so it judges the plant by its newest frames: no FAULT while the plant is alive (it faulted when it stepped
+    after the first frame of the backlog, every message but one then older than its 3-cycle deadline)."""
+    db = load_dbc()
+    bus = StallingTcuBus(Codec(db, PLANT_USES), every=0.3, stall=0.08)
+    tcu = TcuRunner(Codec(db, TCU_USES), bus)
+    states: list[str] = []
+    update = tcu.controller.update
+
+    def recorded(inputs, now):
+        out = update(inputs, now)
+        states.append(out.state)
+        return out
+
+    tcu.controller.update = recorded
+    tcu.run(duration=3.0, clock=bus.clock)
+    bus.shutdown()
+    assert bus.stalls >= 8 and len(states) > 100 and not tcu.lockstep
+    assert "FAULT" not in states and tcu.rx.rejected_total == 0
+
+
 def test_a_tick_with_plant_frames_missing_waits_for_the_re_sent_period(setup):
     """Lock-step: PLANT_SPEEDS of tick 1 lost; the TCU does not answer tick 1 until the re-sent period brings it,
     and answers a tick seen three times anyway, with the last values, counted."""
