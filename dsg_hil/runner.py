@@ -304,9 +304,9 @@ class PlantRunner:
         return f"SyncEcho {echo} answers no tick waiting (tick {self.tick})"
 
     def _await_answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
-        """Wait for the answer to this tick: the TCU_CMD whose SyncEcho is the tick's (another is rejected, see
-        ``_answers_tick``), after the TCU_STATUS when
-        one is expected (see ``_status_expected``); True when the command came.
+        """Wait for the answer to this tick: the TCU_CMD whose SyncEcho is the tick's (see ``_answers_tick`` for
+        the others), after the TCU_STATUS when one is expected (see ``_status_expected``); True when the command
+        came.
 
         While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
         ``retry_first_s`` and then at doubling intervals up to ``retry_max_s``; at once when a TCU_CMD is

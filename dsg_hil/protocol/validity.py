@@ -87,15 +87,11 @@ class RxMonitor:
         self.received = 0
         self._checks: dict[int, tuple[str, Callable[[DecodedFrame], str | None]]] = {}
 
-    def require(self, name: str, cause: str, check: Callable[[DecodedFrame], str | None] | None) -> None:
-        """A further check on frames of ``name`` (None: none), made after the end-to-end ones and before the frame
-        is taken: ``check(frame)`` returns why it fails, or None; a failing frame is rejected for ``cause``,
-        its counter not taken (e.g. a lock-step command whose SyncEcho answers no tick)."""
-        frame_id = self.codec.frame_id(name)
-        if check is None:
-            self._checks.pop(frame_id, None)
-        else:
-            self._checks[frame_id] = (cause, check)
+    def require(self, name: str, cause: str, check: Callable[[DecodedFrame], str | None]) -> None:
+        """A further check on frames of ``name``, made after the end-to-end ones and before the frame is taken:
+        ``check(frame)`` returns why it fails, or None; a failing frame is rejected for ``cause``, its counter
+        not taken (e.g. a lock-step command whose SyncEcho answers no tick)."""
+        self._checks[self.codec.frame_id(name)] = (cause, check)
 
     def wants(self, msg: can.Message) -> bool:
         return not msg.is_extended_id and msg.arbitration_id in self._ids
