@@ -10,8 +10,9 @@ Lost frames cost a retry, not the run: a plant that hears no answer re-sends the
 the TCU answers a repeated tick (or probe) with the very frames it already sent for it, byte for byte (same
 counters), without stepping again. Repeats of frames it already has are duplicates: counted and ignored, not
 errors. A tick whose plant frames are incomplete (the lock-step plant sends every message due at the tick's time,
-each on its DBC cycle from t = 0) is left unanswered, so the plant re-sends the period; only the third sight of
-the same tick is answered with what the TCU has (counted as ``incomplete_answers``).
+each on its DBC cycle from t = 0) waits for them: it is answered when the last one comes (delivered after the tick,
+as several CPUs may deliver, or re-sent with the period); only the third sight of the same tick is answered with
+what the TCU has (counted as ``incomplete_answers``).
 
 Listeners (``--log``) get every frame the TCU took (new, valid) and every frame it sent, first transmissions
 only (neither the presence handshake nor re-sent answers), as the plant logs its side: in lock-step stamped with
@@ -92,6 +93,7 @@ class TcuRunner:
         self._answer_sends = 0  # ... and how often they were sent
         self._pending: int | None = None  # lock-step: a tick not answered for want of plant frames ...
         self._pending_sights = 0  # ... and how often it was seen
+        self._answered_early = False  # the tick answered came before its last plant frame (see handle_data)
         self._due_every = {name: round(codec.cycle_time(name) / self.cycle) for name in REQUIRED
                            if abs(codec.cycle_time(name) / self.cycle - round(codec.cycle_time(name) / self.cycle))
                            < 1e-9}  # lock-step: message due at every n-th tick
@@ -173,8 +175,12 @@ class TcuRunner:
         if self.heard_plant_at is None:
             self.heard_plant_at = now
         if frame.name != "SIM_SYNC":
-            if status == NEW and self.listeners:
-                self._record(frame_id, data, stamp, is_rx=True)
+            if status == NEW:
+                if self.listeners:
+                    self._record(frame_id, data, stamp, is_rx=True)
+                if self._pending is not None and not self._missing(self._pending):  # its tick came first
+                    self._answer_tick(self._pending)
+                    self._answered_early = True
             return True
         tick = int(frame.values["Tick"])
         if status == NEW and self.listeners and tick != SYNC_PROBE:
@@ -184,6 +190,9 @@ class TcuRunner:
                 self._reset_for_lockstep()
             self.rx.states["SIM_SYNC"].forget()  # the plant's ticks restart their counter after the handshake
         if tick == self._answered:  # a repeated tick (its answer was lost or late): the same frames again
+            if self._answered_early:  # the tick of a re-sent period whose frame just completed it: answered
+                self._answered_early = False
+                return True
             self.answers_resent += self._answer_sends > 0
             self._answer_sends += 1
             self._send(self._answer)
@@ -193,7 +202,13 @@ class TcuRunner:
         if status == DUPLICATE and tick != self._pending:
             return True
         if self._answered is not None and not self._complete(tick):
-            return True  # the plant re-sends the period: answered then
+            return True  # answered when the missing frames come (late, or with the plant's re-send)
+        self._answer_tick(tick)
+        return True
+
+    def _answer_tick(self, tick: int) -> None:
+        """Run the control step of ``tick`` and send its answer (kept for the tick's repeats)."""
+        self._pending, self._answered_early = None, False
         self._sim_now = tick * self.cycle
         if not self.lockstep:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
@@ -205,21 +220,25 @@ class TcuRunner:
                     state.last_time = self._sim_now
         self._answer = self.control(self._sim_now, echo=tick & 0xFF)
         self._answered, self._answer_sends = tick, 1
-        return True
+
+    def _missing(self, tick: int) -> list[str]:
+        """The plant messages due at ``tick`` (each on its DBC cycle from tick 0) not yet taken in its period."""
+        t = tick * self.cycle
+        return [name for name, every in self._due_every.items() if tick % every == 0
+                and ((last := self.rx.states[name].last_time) is None or abs(last - t) > 1e-9)]
 
     def _complete(self, tick: int) -> bool:
         """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen
-        ``SIGHTS_BEFORE_INCOMPLETE`` times (then it is answered anyway, and counted)."""
+        ``SIGHTS_BEFORE_INCOMPLETE`` times (then it is answered anyway, and counted). An incomplete tick stays
+        pending: the frame that completes it (one delivered after the tick, or the plant's re-send) answers it."""
         self._pending_sights = self._pending_sights + 1 if tick == self._pending else 1
         self._pending = tick
-        t = tick * self.cycle
-        missing = [name for name, every in self._due_every.items() if tick % every == 0
-                   and ((last := self.rx.states[name].last_time) is None or abs(last - t) > 1e-9)]
+        missing = self._missing(tick)
         if not missing:
             self._pending = None
             return True
         if self._pending_sights < SIGHTS_BEFORE_INCOMPLETE:
-            log.info("tick %d: %s missing, waiting for the plant to re-send", tick, ", ".join(missing))
+            log.info("tick %d: %s missing, waiting for it (late, or re-sent)", tick, ", ".join(missing))
             return False
         log.warning("tick %d seen %d times without %s: answered with the last values", tick, self._pending_sights,
                     ", ".join(missing))
@@ -238,7 +257,7 @@ class TcuRunner:
         self.tx = TxScheduler(self.codec, list(TCU_TX))
         self._answer = [(self.tx.ids["TCU_CMD"], self.tx.data("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF}))]
         self._answered, self._answer_sends = SYNC_PROBE, 0
-        self._pending, self._pending_sights = None, 0
+        self._pending, self._pending_sights, self._answered_early = None, 0, False
         self._sim_now = self.now = -self.cycle  # the next tick is tick 0
 
     def frame_counts(self) -> dict:

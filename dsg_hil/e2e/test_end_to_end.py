@@ -10,16 +10,21 @@ import sys
 
 import pytest
 
+from dsg_hil.plant_io import PLANT_USES, SYNC_PROBE
+from dsg_hil.protocol import Codec
+from ecu_stub.runner import TCU_RX
+
 from .conftest import (
     BUS,
     DBC,
     STARTUP,
-    Candump,
+    TCU_IDLE_EXIT,
     assert_counters_increment,
     by_id,
     console,
     finish_while_progressing,
     first_transmissions,
+    parse_candump,
     run_pair,
 )
 
@@ -104,28 +109,42 @@ def test_realtime_periods_and_counters(db, realtime, duration):
 
 
 def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
-    """Replay the plant's frames of the lockstep run (its own log: simulated-time stamps, so canplayer plays
-    them at their DBC cycle times; no sync ticks) into a fresh TCU: its commands come back."""
-    plant_ids = {f"{m.frame_id:03X}" for m in db.messages if m.senders == ["PLANT"] and not m.name.startswith("SIM_")}
+    """Replay the lockstep run with canplayer into a fresh ecu-stub: the plant's frames from its own log (the
+    messages the TCU reads, SIM_SYNC ticks included, simulated-time stamps), after a presence probe. The TCU
+    resets on the probe, answers every tick, and sends what it sent in the recorded run, byte for byte and
+    stamped with the same tick times (its ``--log`` against the plant's log). In lockstep a TCU has no
+    wall-clock deadline, so canplayer plays the log at the pace the lockstep run itself reached on this machine
+    (at most real time): a busy or emulated machine slows the replay instead of overflowing the TCU's socket."""
+    summary, _, _ = lockstep
+    pace = min(1.0, summary["sim_time_s"] / summary["wall_time_s"])  # simulated s per wall s of the recorded run
+    sync = db.get_message_by_name("SIM_SYNC")
+    tcu_reads = {db.get_message_by_name(name).frame_id for name in TCU_RX}
+    tcu_sends = {m.frame_id for m in db.messages if m.senders == ["TCU"]}
+    recorded = parse_candump(outdir / "lockstep.plant.log")
+    probe = Codec(db, PLANT_USES).encode("SIM_SYNC", {"Tick": SYNC_PROBE}, 0)  # the plant's first probe
     replay = outdir / "replay.log"
-    lines = (outdir / "lockstep.plant.log").read_text().splitlines()
-    replay.write_text("".join(f"{line}\n" for line in lines if line.split()[2].split("#")[0] in plant_ids))
-    dump = Candump(outdir / "replay.candump.log")
-    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", "2"], stderr=subprocess.PIPE, text=True)
+    lead = 0.5  # [s] the probe, then the run
+    replay.write_text(f"(0.000000) vcan0 {sync.frame_id:03X}#{probe.hex().upper()}\n" + "".join(
+        f"({lead + t / pace:.6f}) vcan0 {ident:03X}#{data.hex().upper()}\n"
+        for t, ident, data in recorded if ident in tcu_reads))
+    tcu_log = outdir / "replay.tcu.log"
+    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", TCU_IDLE_EXIT, "--log", str(tcu_log)],
+                           stderr=subprocess.PIPE, text=True)
     assert "listening on socketcan:vcan0" in tcu.stderr.readline()  # up before the replay starts
     try:
-        player = subprocess.run(["canplayer", "-I", str(replay)], capture_output=True, text=True, timeout=300)
+        player = subprocess.run(["canplayer", "-I", str(replay)], capture_output=True, text=True,
+                                timeout=STARTUP + 30 * summary["sim_time_s"] / pace)
         assert player.returncode == 0, player.stderr
-        tcu.communicate(timeout=60)
+        tcu_err = tcu.communicate(timeout=120)[1]
     finally:
         if tcu.poll() is None:
             tcu.kill()
-        recorded = dump.stop()
+    (outdir / "replay.tcu.stderr").write_text(tcu_err)
+    assert tcu.returncode == 0, tcu_err
+    answers = parse_candump(tcu_log)
+    assert answers == [f for f in recorded if f[1] in tcu_sends], f"pace {pace:.3f}; {tcu_err}"
     cmd = db.get_message_by_name("TCU_CMD")
-    commands = [cmd.decode(data) for _, ident, data in recorded if ident == cmd.frame_id]
-    assert len(commands) > 50
-    assert max(c["P_CL_Cmd"] for c in commands) > 0.1  # the replayed creep request engaged CL
-    assert_counters_increment(db, [f for f in recorded if f[1] == cmd.frame_id])
+    assert max(cmd.decode(data)["P_CL_Cmd"] for _, ident, data in answers if ident == cmd.frame_id) > 0.1  # CL
 
 
 def test_dsg_hil_run_starts_the_tcu_as_a_process(outdir, duration):

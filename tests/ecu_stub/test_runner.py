@@ -98,6 +98,35 @@ def test_a_repeated_tick_with_a_new_counter_is_answered_without_stepping(setup):
     assert len(steps) == 2 and bus.sent[-1][1].data[4] == 1  # SyncEcho of tick 1
 
 
+def test_a_tick_delivered_before_its_last_frame_is_answered_when_that_frame_comes(setup):
+    """Several CPUs may deliver a frame after the tick that follows it: the tick waits, and the frame that
+    completes it answers it, with no re-send needed. The tick of a re-sent period that such a frame completed is
+    not answered twice; a further repeat gets the same frames again."""
+    plant_codec, bus, tcu, steps = setup
+    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
+    tcu.handle(plant.frame("SIM_SYNC", {"Tick": SYNC_PROBE}), 0.0)
+    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
+    counting(tcu, steps)
+    late = None
+    for name in PLANT_DATA:
+        frame = plant.frame(name, {})
+        if name == "PLANT_SPEEDS":
+            late = frame
+        else:
+            tcu.handle(frame, 0.0)
+    tick0 = plant.frame("SIM_SYNC", {"Tick": 0})
+    tcu.handle(tick0, 0.0)
+    assert len(bus.sent) == 1 and not steps  # the probe answer only: PLANT_SPEEDS of tick 0 is missing
+    tcu.handle(late, 0.0)
+    answer = [bytes(m.data) for _, m in bus.sent[1:]]
+    assert len(steps) == 1 and len(answer) == 2 and answer[-1][4] == 0  # TCU_STATUS, TCU_CMD echoing tick 0
+    tcu.handle(tick0, 0.0)  # the tick of the re-sent period (the plant's timer ran out meanwhile)
+    assert len(bus.sent) == 3
+    tcu.handle(tick0, 0.0)  # asked again: the same frames
+    assert [bytes(m.data) for _, m in bus.sent[3:]] == answer and len(steps) == 1
+    assert tcu.frame_counts()["incomplete_answers"] == 0
+
+
 class DyingPlantBus(RecordingBus):
     """A real-time plant on a fake clock: its frames at their DBC cycle times until ``dies_at``, then nothing.
     ``recv`` jumps the clock to the next frame or by the timeout."""
