@@ -38,8 +38,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--kernel", metavar="FILE", help="kernel image for the VM (default: newest /boot/vmlinuz-*)")
     parser.add_argument("--outdir", metavar="DIR", help="writable directory for logs and results (default: a "
                         "temporary one, kept when the command fails)")
-    parser.add_argument("--timeout", type=float, default=3600.0, metavar="S",
-                        help="VM time limit (default 3600: the suite under --load takes 20-40 min emulated)")
+    parser.add_argument("--timeout", type=float, default=4500.0, metavar="S",
+                        help="VM time limit (default 4500: the suite under --load took 26-48 min emulated)")
     parser.add_argument("command", nargs=argparse.REMAINDER, help="command to run (after --)")
     parser.set_defaults(func=_do_vcan)
 
