@@ -282,12 +282,18 @@ def test_tcu_kill_detected_within_3_cycles_then_recovers(db, tcu_killed):
     fallbacks = [float(t) for t in FALLBACK.findall(err)]
     resumed = [float(t) for t in RESUMED.findall(err)]
     assert fallbacks and resumed, err
-    # the kill: the fallback with the longest outage until control resumed
-    pairs = [(f, next((r for r in resumed if r >= f), None)) for f in fallbacks]
-    start, end = max(pairs, key=lambda p: (p[1] if p[1] is not None else float("inf")) - p[0])
-    assert end is not None, "control never resumed after the TCU was started again"
+    # the kill: the longest silence in the commands the plant took (its log), from the killed TCU's last command
+    # to the restarted one's first (a starved TCU may also miss 30 ms now and then: fallbacks of their own)
     cmd_id = db.get_message_by_name("TCU_CMD").frame_id
-    last_cmd = max(t for t, ident, _ in frames if ident == cmd_id and t <= start)
+    last_cmd, first_again = max(pairwise(sorted(t for t, ident, _ in frames if ident == cmd_id)),
+                                key=lambda p: p[1] - p[0])
+    restarted = next(data for t, ident, data in frames if ident == cmd_id and t == first_again)
+    assert Codec(db, PLANT_USES).decode(cmd_id, restarted).counter == 0, \
+        "the longest silence did not end with a fresh TCU's first command (Counter 0)"
+    start = next((f for f in fallbacks if f >= last_cmd), None)
+    assert start is not None and start <= first_again, (last_cmd, first_again, fallbacks)
+    end = next((r for r in resumed if r >= start), None)
+    assert end is not None, "control never resumed after the TCU was started again"
     detection = start - last_cmd
     print(f"fallback {detection * 1000:.1f} ms = {detection / cycle:.2f} cycles after the last command; "
           f"resumed after {end - start:.2f} s; fallback events {summary['command_fallback']['events']}")
