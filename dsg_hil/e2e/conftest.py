@@ -100,6 +100,11 @@ class Candump:
         return parse_candump(self.path)
 
 
+def sent_by(db, node: str) -> set[int]:
+    """The frame IDs of the DBC messages ``node`` (PLANT or TCU) sends."""
+    return {m.frame_id for m in db.messages if m.senders == [node]}
+
+
 def parse_candump(path: Path) -> list[tuple[float, int, bytes]]:
     frames = []
     for line in path.read_text().splitlines():

@@ -26,6 +26,7 @@ from .conftest import (
     first_transmissions,
     parse_candump,
     run_pair,
+    sent_by,
 )
 
 pytestmark = pytest.mark.vcan
@@ -119,7 +120,7 @@ def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
     pace = min(1.0, summary["sim_time_s"] / summary["wall_time_s"])  # simulated s per wall s of the recorded run
     sync = db.get_message_by_name("SIM_SYNC")
     tcu_reads = {db.get_message_by_name(name).frame_id for name in TCU_RX}
-    tcu_sends = {m.frame_id for m in db.messages if m.senders == ["TCU"]}
+    tcu_sends = sent_by(db, "TCU")
     recorded = parse_candump(outdir / "lockstep.plant.log")
     probe = Codec(db, PLANT_USES).encode("SIM_SYNC", {"Tick": SYNC_PROBE}, 0)  # the plant's first probe
     replay = outdir / "replay.log"

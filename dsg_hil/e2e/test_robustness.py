@@ -21,7 +21,16 @@ from dsg_hil.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec
 from dsg_hil.protocol.e2e import MAX_DELTA
 
-from .conftest import BUS, STARTUP, TCU_IDLE_EXIT, Candump, console, finish_while_progressing, parse_candump
+from .conftest import (
+    BUS,
+    STARTUP,
+    TCU_IDLE_EXIT,
+    Candump,
+    console,
+    finish_while_progressing,
+    parse_candump,
+    sent_by,
+)
 
 pytestmark = pytest.mark.vcan
 FLOOD_FRAMES = 100_000
@@ -143,13 +152,13 @@ def first_forgery(db, plant_log, tcu_log):
     0.1 per 100,000-frame flood, most of it on the 7 IDs the TCU reads). Returns (tick, taker, ID, data) of the
     earliest, or None; the test names it when it happens."""
     cycle = db.get_message_by_name("TCU_CMD").cycle_time / 1000.0
-    sent_by = {node: {m.frame_id for m in db.messages if m.senders == [node]} for node in ("PLANT", "TCU")}
-    plant_sent = {(ident, data) for _, ident, data in plant_log if ident in sent_by["PLANT"]}
-    tcu_sent = {(ident, data) for _, ident, data in tcu_log if ident in sent_by["TCU"]}
+    plant_ids, tcu_ids = sent_by(db, "PLANT"), sent_by(db, "TCU")
+    plant_sent = {(ident, data) for _, ident, data in plant_log if ident in plant_ids}
+    tcu_sent = {(ident, data) for _, ident, data in tcu_log if ident in tcu_ids}
     forged = [(round(t / cycle), "plant", ident, data) for t, ident, data in plant_log
-              if ident in sent_by["TCU"] and (ident, data) not in tcu_sent]
+              if ident in tcu_ids and (ident, data) not in tcu_sent]
     forged += [(round(t / cycle), "TCU", ident, data) for t, ident, data in tcu_log
-               if ident in sent_by["PLANT"] and (ident, data) not in plant_sent]
+               if ident in plant_ids and (ident, data) not in plant_sent]
     return min(forged, default=None)
 
 
@@ -206,7 +215,8 @@ def test_flood_no_corrupt_command_taken(db, flood, lockstep):
 
 def check_flooded_run(db, run, lockstep) -> None:
     cmd, sync = db.get_message_by_name("TCU_CMD"), db.get_message_by_name("SIM_SYNC")
-    frames = plant_times(parse_candump(run["log"]))
+    logged = parse_candump(run["log"])
+    frames = plant_times(logged)
     commands = [data for _, ident, data in frames if ident == cmd.frame_id]
     counts = run["summary"]["frames"]
     assert len(commands) == counts["by_message"]["SIM_SYNC"]["sent"] - counts["unanswered_ticks"] > 100
@@ -227,7 +237,7 @@ def check_flooded_run(db, run, lockstep) -> None:
     print(f"{run['name']}: TCU_STATUS taken by the plant reporting rejected frames (FaultBits): {reported}")
     reference = control_view(db, parse_candump(run["log"].parent / "lockstep.plant.log"))
     taken = control_view(db, frames)
-    forgery = first_forgery(db, parse_candump(run["log"]), parse_candump(run["tcu_log"]))
+    forgery = first_forgery(db, logged, parse_candump(run["tcu_log"]))
     if forgery is not None:
         tick, taker, ident, data = forgery
         print(f"{run['name']}: random frame {ident:03X}#{data.hex().upper()} taken by the {taker} at tick {tick} "
@@ -339,7 +349,7 @@ def test_plant_kill_tcu_reports_fault(db, plant_killed):
     latest in its third status (cycle-counted: no uniform pace assumed), and commands no pressure from then on."""
     frames = plant_killed
     status, cmd = db.get_message_by_name("TCU_STATUS"), db.get_message_by_name("TCU_CMD")
-    plant_ids = {m.frame_id for m in db.messages if m.senders == ["PLANT"]}
+    plant_ids = sent_by(db, "PLANT")
     last_plant = max(t for t, ident, _ in frames if ident in plant_ids)
     states = [(t, status.decode(data)["State"]) for t, ident, data in frames
               if ident == status.frame_id and t > last_plant]
