@@ -1,16 +1,18 @@
 """Closed-loop speed, side by side in one run: the lock-step closed loop (plant + ecu-stub TCU) in one process as
 it runs now (generated codec, direct in-process bus) and as it ran before (cantools codec, python-can ``virtual``);
 where a control period goes (the plant's physics against everything around it); the plant alone; plant and TCU as
-two processes on udp_multicast; the start-up of every command; peak memory.
+two processes on udp_multicast; the start-up of every command; the peak memory of the commands' processes.
 
     python bench/closed_loop_speed.py [--seconds 60] [--udp-seconds 20] [--json] [--baseline-tree DIR] [--rounds 3]
 
-``--baseline-tree``: also time the one-process closed loop, the two-process run and the start-ups with the package
-of another checkout (e.g. the main one before these changes), through PYTHONPATH. The one-process loops of both
-trees run as fresh processes, alternating, ``--rounds`` times each, the best of each kept (a busy machine only
-ever slows a run down); ``closed_loop_vs_baseline_tree`` compares them in simulated seconds per CPU second of the
+The one-process loops run as fresh processes (as a user's ``dsg-hil run``), now and before alternating,
+``--rounds`` times each, the best of each kept (a busy machine only ever slows a run down; every round's figure is
+in ``rounds``); so are the two-process runs. ``--baseline-tree``: also time the one-process closed loop, the
+two-process run and the start-ups with the package of another checkout (e.g. the main one before these changes),
+through PYTHONPATH; ``closed_loop_vs_baseline_tree`` compares them in simulated seconds per CPU second of the
 process (less disturbed by other load than wall time), ``..._wall`` in wall time. Figures are simulated seconds
-per wall second unless named per CPU second.
+per wall second unless named per CPU second; memory is the peak resident set of the largest process of a command
+(``peak_rss_mb``; the bench's own process, which also holds cantools' reference path, apart).
 """
 
 from __future__ import annotations
@@ -67,27 +69,52 @@ def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
             "frames_sent": result.summary["frames"]["sent"]}
 
 
-def closed_loop_in(tree: str | None, seconds: float) -> dict:
-    """:func:`closed_loop` (the in-process bus, generated codec) in a fresh process on ``tree``'s package."""
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--closed-loop-only", "--seconds",
-                           str(seconds)], capture_output=True, text=True, check=True, env=env_for(tree),
-                          cwd=NEUTRAL_CWD, timeout=60 * seconds + 120)
+def closed_loop_in(tree: str | None, seconds: float, transport: str = "local", reference: bool = False) -> dict:
+    """:func:`closed_loop` in a fresh process on ``tree``'s package (None: this one's)."""
+    argv = [sys.executable, str(Path(__file__).resolve()), "--closed-loop-only", "--seconds", str(seconds),
+            "--transport", transport] + (["--reference-codec"] if reference else [])
+    proc = subprocess.run(argv, capture_output=True, text=True, check=True, env=env_for(tree), cwd=NEUTRAL_CWD,
+                          timeout=60 * seconds + 120)
     return json.loads(proc.stdout)
 
 
-def side_by_side(tree: str, seconds: float, rounds: int) -> dict:
-    """The one-process closed loop on this package and on ``tree``'s, alternating; the best run of each."""
-    best: dict[str, dict] = {}
+def best_of(runs: list[dict], key: str) -> dict:
+    """The fastest of ``runs`` by ``key`` (a busy machine only ever slows a run down), with every round's figure."""
+    best = dict(max(runs, key=lambda r: r[key]))
+    best["rounds"] = [r[key] for r in runs]
+    return best
+
+
+def side_by_side(configs: dict[str, tuple[str | None, str, bool]], seconds: float, rounds: int,
+                 key: str) -> dict[str, dict]:
+    """The one-process closed loop of each configuration (tree, transport, reference codec) in fresh processes,
+    alternating, ``rounds`` times each; the best run of each by ``key``."""
+    runs: dict[str, list[dict]] = {name: [] for name in configs}
     for _ in range(rounds):
-        for key, which in (("this", None), ("baseline", tree)):
-            run = closed_loop_in(which, seconds)
-            if key not in best or run["sim_s_per_cpu_s"] > best[key]["sim_s_per_cpu_s"]:
-                best[key] = run
+        for name, (tree, transport, reference) in configs.items():
+            runs[name].append(closed_loop_in(tree, seconds, transport, reference))
+    return {name: best_of(r, key) for name, r in runs.items()}
+
+
+def tree_vs_tree(tree: str, seconds: float, rounds: int) -> dict:
+    """The one-process closed loop on this package and on ``tree``'s, compared per CPU second of the process."""
+    best = side_by_side({"this": (None, "local", False), "baseline": (tree, "local", False)}, seconds, rounds,
+                        "sim_s_per_cpu_s")
     return {"this_tree": best["this"], "baseline_tree": best["baseline"],
             "closed_loop_vs_baseline_tree": round(best["this"]["sim_s_per_cpu_s"]
                                                   / best["baseline"]["sim_s_per_cpu_s"], 2),
             "closed_loop_vs_baseline_tree_wall": round(best["this"]["sim_s_per_wall_s"]
                                                        / best["baseline"]["sim_s_per_wall_s"], 2)}
+
+
+def peak_rss_mb(argv: list[str], tree: str | None = None) -> float:
+    """Peak resident memory [MB] of the largest process ``argv`` runs (itself or a child it waits for, such as
+    the ecu-stub that ``dsg-hil run -i udp_multicast`` starts), measured from a fresh wrapper process."""
+    wrapper = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True); "
+               "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+    proc = subprocess.run([sys.executable, "-c", wrapper, *argv], capture_output=True, text=True, check=True,
+                          env=env_for(tree), cwd=NEUTRAL_CWD)
+    return round(int(proc.stdout) / 1024, 1)
 
 
 def plant_alone(seconds: float) -> float:
@@ -113,18 +140,66 @@ def udp_two_processes(seconds: float, tree: str | None) -> dict:
     """``dsg-hil run -i udp_multicast``: the plant here, ecu-stub as its own process, in lock-step."""
     with tempfile.TemporaryDirectory() as tmp:
         summary = Path(tmp) / "s.json"
-        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
         proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-i", "udp_multicast", "--duration",
                                str(seconds), "--summary", str(summary)], capture_output=True, text=True,
                               env=env_for(tree), cwd=NEUTRAL_CWD, timeout=30 * seconds + 120)
         if proc.returncode != 0:
             return {"error": proc.stderr.strip().splitlines()[-1:]}
         data = json.loads(summary.read_text())
-        rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     wall = data["wall_time_s"]
-    return {"sim_s_per_wall_s": round(seconds / wall, 2), "wall_s": wall,
-            "peak_rss_mb_children": round(max(rss, before) / 1024, 1), "rejected": data["frames"]["rejected"],
+    return {"sim_s_per_wall_s": round(seconds / wall, 2), "wall_s": wall, "rejected": data["frames"]["rejected"],
             "retries": data["frames"]["retries"]}
+
+
+ECHO = """
+import sys, can
+bus = can.Bus(interface="udp_multicast", channel=sys.argv[1], port=int(sys.argv[2]))
+print("ready", flush=True)
+while (msg := bus.recv(5.0)) is not None:
+    if msg.arbitration_id == 0x100:
+        bus.send(can.Message(arbitration_id=0x101, data=msg.data, is_extended_id=False))
+    elif msg.arbitration_id == 0x102:
+        break
+bus.shutdown()
+"""
+
+
+def udp_primitives(n: int = 2000) -> dict[str, float]:
+    """The floor under a lock-step tick on python-can's udp_multicast, from its own calls: a frame's send, the
+    receive of a frame already waiting (the sender's own, looped back by multicast), and the round trip to an
+    echoing process (send, its wake-up, receive, answer, our wake-up) [us, medians of ``n``]."""
+    import can
+
+    from dsg_hil.protocol.bus import fresh_udp_group
+
+    group = fresh_udp_group()
+    echo = subprocess.Popen([sys.executable, "-c", ECHO, group["channel"], str(group["port"])],
+                            stdout=subprocess.PIPE, text=True, cwd=NEUTRAL_CWD)
+    assert echo.stdout is not None and echo.stdout.readline().strip() == "ready"
+    bus = can.Bus(interface="udp_multicast", channel=group["channel"], port=group["port"])
+    send, own, trip = [], [], []
+    try:
+        ping = can.Message(arbitration_id=0x100, data=bytes(8), is_extended_id=False)
+        for _ in range(n):
+            t0 = time.perf_counter()
+            bus.send(ping)
+            t1 = time.perf_counter()
+            while (msg := bus.recv(1.0)) is not None and msg.arbitration_id != 0x100:
+                pass  # the first frame back is our own, looped back
+            t2 = time.perf_counter()
+            while (msg := bus.recv(1.0)) is not None and msg.arbitration_id != 0x101:
+                pass
+            t3 = time.perf_counter()
+            send.append(t1 - t0)
+            own.append(t2 - t1)
+            trip.append(t3 - t0)
+        bus.send(can.Message(arbitration_id=0x102, is_extended_id=False))
+    finally:
+        bus.shutdown()
+        echo.wait(timeout=10)
+    us = {name: round(1e6 * statistics.median(v), 1) for name, v in (("send_us", send),
+                                                                   ("receive_own_us", own), ("round_trip_us", trip))}
+    return us
 
 
 def startup(tree: str | None) -> dict[str, float]:
@@ -149,23 +224,26 @@ def main() -> None:
     ap.add_argument("--udp-seconds", type=float, default=20.0, help="simulated duration on udp_multicast "
                                                                      "(default 20; 0: skip)")
     ap.add_argument("--baseline-tree", metavar="DIR", help="another checkout to time the subprocess figures with")
-    ap.add_argument("--rounds", type=int, default=3, help="with --baseline-tree: runs of each tree (default 3)")
+    ap.add_argument("--rounds", type=int, default=3, help="runs of each configuration, the best kept (default 3)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--closed-loop-only", action="store_true", help=argparse.SUPPRESS)  # see closed_loop_in
+    ap.add_argument("--transport", default="local", help=argparse.SUPPRESS)
+    ap.add_argument("--reference-codec", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.closed_loop_only:
-        closed_loop(0.5, "local", False)
-        print(json.dumps(closed_loop(args.seconds, "local", False)))
+        closed_loop(0.5, args.transport, args.reference_codec)  # warm up: imports, caches, first calls
+        print(json.dumps(closed_loop(args.seconds, args.transport, args.reference_codec)))
         return
 
-    for transport, reference in (("local", False), ("virtual", True)):  # warm up: imports, caches, first calls
-        closed_loop(0.5, transport, reference)
-    now = closed_loop(args.seconds, "local", reference=False)
-    before = closed_loop(args.seconds, "virtual", reference=True)
+    best = side_by_side({"now": (None, "local", False), "before": (None, "virtual", True)}, args.seconds,
+                        args.rounds, "sim_s_per_wall_s")
+    now, before = best["now"], best["before"]
+    closed_loop(0.5, "local", False)  # this process: imports and compiled code loaded, for the plant alone
     plant = plant_alone(args.seconds)
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    run = [sys.executable, "-m", "dsg_hil", "run", "--duration", str(args.seconds), "--summary", os.devnull]
     out: dict = {
-        "seconds": args.seconds,
+        "seconds": args.seconds, "rounds": args.rounds,
         "closed_loop_sim_s_per_wall_s": now["sim_s_per_wall_s"],
         "closed_loop_baseline_sim_s_per_wall_s": before["sim_s_per_wall_s"],
         "closed_loop_speedup": round(now["sim_s_per_wall_s"] / before["sim_s_per_wall_s"], 2),
@@ -173,15 +251,22 @@ def main() -> None:
         "closed_loop": now, "closed_loop_baseline": before,
         "share_around_physics": round(now["rest_us_per_period"] / now["period_us"], 3),
         "plant_sim_s_per_wall_s": round(plant, 2),
-        "peak_rss_mb": round(rss_mb, 1),
+        "peak_rss_mb_this_bench": round(rss_mb, 1),
+        "peak_rss_mb": {"dsg-hil run": peak_rss_mb(run)},
     }
     if args.udp_seconds > 0:
-        out["udp_multicast"] = udp_two_processes(args.udp_seconds, None)
-        out["udp_multicast_sim_s_per_wall_s"] = out["udp_multicast"].get("sim_s_per_wall_s")
+        udp = [udp_two_processes(args.udp_seconds, None) for _ in range(args.rounds)]
+        out["udp_multicast"] = best_of(udp, "sim_s_per_wall_s") if all("error" not in u for u in udp) else udp
+        out["udp_multicast_sim_s_per_wall_s"] = out["udp_multicast"].get("sim_s_per_wall_s") \
+            if isinstance(out["udp_multicast"], dict) else None
+        out["udp_multicast_primitives"] = udp_primitives()
+        out["peak_rss_mb"]["dsg-hil run -i udp_multicast (plant, ecu-stub)"] = peak_rss_mb(
+            [*run[:4], "-i", "udp_multicast", *run[4:]])
+    out["peak_rss_mb_max"] = max(out["peak_rss_mb"].values())
     out["startup_s"] = startup(None)
     out["startup_max_s"] = max(out["startup_s"].values())
     if args.baseline_tree:
-        out["side_by_side"] = side_by_side(args.baseline_tree, args.seconds, args.rounds)
+        out["side_by_side"] = tree_vs_tree(args.baseline_tree, args.seconds, args.rounds)
         out["closed_loop_vs_baseline_tree"] = out["side_by_side"]["closed_loop_vs_baseline_tree"]
         out["baseline_tree"] = {"path": args.baseline_tree, "startup_s": startup(args.baseline_tree)}
         if args.udp_seconds > 0:
@@ -206,9 +291,11 @@ def main() -> None:
                   "sim s/CPU s")
         print(f"this tree against {args.baseline_tree}: {sbs['closed_loop_vs_baseline_tree']:.2f}x per CPU s, "
               f"{sbs['closed_loop_vs_baseline_tree_wall']:.2f}x in wall time")
-    print(f"plant alone: {plant:.1f} sim s / wall s; peak RSS of this process {rss_mb:.0f} MB")
+    print(f"plant alone, one step per call: {plant:.1f} sim s / wall s")
+    print("peak RSS (MB): " + ", ".join(f"{k} {v:.0f}" for k, v in out["peak_rss_mb"].items()))
     if "udp_multicast" in out:
         print(f"two processes on udp_multicast ({args.udp_seconds:g} s): {out['udp_multicast']}")
+        print(f"  python-can udp_multicast, median per call: {out['udp_multicast_primitives']}")
         if "baseline_tree" in out and "udp_multicast" in out["baseline_tree"]:
             print(f"  ... with {args.baseline_tree}: {out['baseline_tree']['udp_multicast']}")
     print("start-up (median of 3, s):")

@@ -16,6 +16,8 @@ Cases (simulated seconds per wall second, errors against a tight reference):
 * ``creep_fine``: 30 s of stick/slip of all three contacts (the above, then CL locking, slipping again until the
   vehicle is held, CH taking over, the brake holding); reference: the same plant at a ten times finer step (0.1 ms),
   a convergence check, not an independent one.
+* ``step_study`` (not in the maxima): the ``creep_fine`` inputs at steps of 1, 0.5, 0.25 and 0.1 ms against the
+  plant at 0.05 ms: what limits the speed accuracy under stick/slip (a lock or release resolved to the step).
 
 Speed errors (every case): ``max_speed_error_fs``, the largest error of any of the seven speeds relative to that
 speed's full scale in the case (its largest |reference|), and ``max_speed_error_rpm``, the same in r/min. Full
@@ -184,6 +186,26 @@ def creep_fine(params: Params) -> dict:
                       "the plant at 0.1 ms (convergence, not solve_ivp)")
 
 
+STEP_STUDY_MS = (1.0, 0.5, 0.25, 0.1)  # plant steps of the step study; its reference: STEP_STUDY_REF_MS
+STEP_STUDY_REF_MS = 0.05
+
+
+def step_study(params: Params, seconds: float = 30.0) -> list[dict]:
+    """What limits the speed accuracy under stick/slip: the ``creep_fine`` inputs at each step of
+    :data:`STEP_STUDY_MS` against the plant at :data:`STEP_STUDY_REF_MS` (speed, errors). A contact's lock or
+    release falls on a step boundary, so the phase of the lightly damped driveline oscillation it starts is off
+    by up to a step, and the error shrinks with the step (to first order)."""
+    def at(dt_ms: float) -> tuple[np.ndarray, np.ndarray, float]:
+        speeds, temps, wall, _ = run_plant(Plant(params, dt=dt_ms * 1e-3, T_init=80.0), creep_inputs, seconds,
+                                           PERIOD)
+        return speeds, temps, wall
+
+    ref_speeds, ref_temps, _ = at(STEP_STUDY_REF_MS)
+    return [creep_case(f"step {dt_ms:g} ms", speeds, temps, wall, seconds, ref_speeds, ref_temps,
+                       f"the plant at {STEP_STUDY_REF_MS:g} ms")
+            for dt_ms in STEP_STUDY_MS for speeds, temps, wall in [at(dt_ms)]]
+
+
 def cosim(params: Params, seconds: float) -> dict:
     """The plant and solve_ivp restarted every control period, on the vehicle case (module docstring)."""
     run = vehicle_run(params, seconds, 0.1)
@@ -235,19 +257,26 @@ def main() -> None:
         "solve_ivp_ratio": None if ivp is None else co["plant_sim_s_per_wall_s"] / ivp["sim_s_per_wall_s"],
         "plant_step_per_call_sim_s_per_wall_s": per_step(params),
         "compile_or_cache_load_s": warm_up,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "peak_rss_mb_this_bench": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "cases": cases,
         "cosim": co,
+        "step_study": step_study(params),
     }
     if args.json:
         print(json.dumps(summary))
         return
-    print(f"warm-up (numba compile or cache load): {warm_up:.2f} s; peak RSS {summary['peak_rss_mb']:.0f} MB")
+    print(f"warm-up (numba compile or cache load): {warm_up:.2f} s; peak RSS "
+          f"{summary['peak_rss_mb_this_bench']:.0f} MB (this process, holding scipy for the references)")
     print(f"vehicle case: {summary['plant_sim_s_per_cpu_s']:.0f} sim s per CPU s of this process")
     print(f"{'case':<11}{'sim s / wall s':>15}{'max dT plate K':>16}{'speed err / FS':>15}{'r/min':>8}  reference")
     for c in cases:
         print(f"{c['name']:<11}{c['sim_s_per_wall_s']:>15.0f}{c['max_plate_error_c']:>16.2e}"
               f"{c['max_speed_error_fs']:>15.2e}{c['max_speed_error_rpm']:>8.2f}  {c['reference']}")
+    print(f"stick/slip speed error against the step (creep_fine inputs, reference the plant at "
+          f"{STEP_STUDY_REF_MS:g} ms; the plant runs at 1 ms):")
+    for c in summary["step_study"]:
+        print(f"  {c['name']:<12}{c['sim_s_per_wall_s']:>10.0f} sim s / wall s{c['max_plate_error_c']:>10.2e} K"
+              f"{c['max_speed_error_fs']:>10.2e} of full scale{c['max_speed_error_rpm']:>7.2f} r/min")
     print(f"vehicle case, one step() call per 1-ms step: {summary['plant_step_per_call_sim_s_per_wall_s']:.0f} "
           "sim s / wall s")
     print(f"co-simulation, 10-ms periods, {co['sim_s']:g} s of the vehicle case:")

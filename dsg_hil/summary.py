@@ -162,6 +162,7 @@ class _Rows:
     slots: np.ndarray
     ring: np.ndarray
     ring_t: np.ndarray
+    step: Callable[..., int]  # the compiled creep_rows
     open: bool = False  # the last of CreepMetrics.runs is this run
 
 
@@ -293,19 +294,19 @@ class CreepMetrics:
         (:func:`dsg_hil.creep_rows.creep_rows`, the same operations, so the same sums to the last bit). ``sample``
         makes a :class:`Sample` of a row, for the rows a run keeps. A record is taken either by :meth:`add` or
         by this, not both."""
-        from .creep_rows import ACC, RUN, SLOTS, columns, kernel
-
         n = len(rows)
         if n == 0:
             return
         rows = np.ascontiguousarray(rows, dtype=np.float64)
         st = self._rows
         if st is None or st.fields != tuple(fields) or st.dt != dt:
+            from .creep_rows import RUN, SLOTS, columns, kernel  # here, not per call: an import costs ~1 us
+
             self._materialise()
             cap = int(SETTLE_S / dt) + 8  # the window: the samples of the last SETTLE_S and the new one
             st = self._rows = _Rows(tuple(fields), columns(tuple(fields)), sample, dt, np.zeros(len(RUN)),
                                     np.zeros((len(SLOTS), rows.shape[1])), np.zeros((cap, rows.shape[1])),
-                                    np.zeros(cap))
+                                    np.zeros(cap), kernel())
             st.run[0] = -1.0  # no run open
         nan = math.nan
         acc = np.array([self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap,
@@ -316,8 +317,7 @@ class CreepMetrics:
                         float(self._moved), self._sq_speed_error, self._driven_time,
                         nan if self.speed_min_creeping is None else self.speed_min_creeping, self._t_last,
                         float(self._rest is not None), -1.0])
-        assert len(acc) == len(ACC)
-        step, k, creep = kernel(), 0, 1.0 if creep_request else 0.0
+        step, k, creep = st.step, 0, 1.0 if creep_request else 0.0
         while (k := step(rows, k, st.cols, dt, creep, desired_speed, acc, st.run, st.slots, st.ring,
                          st.ring_t)) < n:
             self._materialise()  # the driving clutch changes at row k: its run starts there
