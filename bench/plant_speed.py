@@ -17,7 +17,8 @@ Cases (simulated seconds per wall second, errors against a tight reference):
   vehicle is held, CH taking over, the brake holding); reference: the same plant at a ten times finer step (0.1 ms),
   a convergence check, not an independent one.
 * ``step_study`` (not in the maxima): the ``creep_fine`` inputs at steps of 1, 0.5, 0.25 and 0.1 ms against the
-  plant at 0.05 ms: what limits the speed accuracy under stick/slip (a lock or release resolved to the step).
+  plant at 0.05 ms: what limits the speed accuracy under stick/slip (the contact law at the step, see
+  :func:`step_study` and bench/contact_law.py).
 
 Speed errors (every case): ``max_speed_error_fs``, the largest error of any of the seven speeds relative to that
 speed's full scale in the case (its largest |reference|), and ``max_speed_error_rpm``, the same in r/min. Full
@@ -192,9 +193,11 @@ STEP_STUDY_REF_MS = 0.05
 
 def step_study(params: Params, seconds: float = 30.0) -> list[dict]:
     """What limits the speed accuracy under stick/slip: the ``creep_fine`` inputs at each step of
-    :data:`STEP_STUDY_MS` against the plant at :data:`STEP_STUDY_REF_MS` (speed, errors). A contact's lock or
-    release falls on a step boundary, so the phase of the lightly damped driveline oscillation it starts is off
-    by up to a step, and the error shrinks with the step (to first order)."""
+    :data:`STEP_STUDY_MS` against the plant at :data:`STEP_STUDY_REF_MS` (speed, errors). The contact law (stick
+    or slip on the end-of-step velocity, mu at the step's start) shifts the lightly damped driveline modes at a
+    1-ms step (the 6.2-Hz shuffle with CL locked runs at 6.7 Hz; the 87.7-Hz mode of the held vehicle loses most
+    of its damping: ``bench/contact_law.py``), so the oscillations a lock or release starts drift out of phase
+    with the reference; the error shrinks with the step."""
     def at(dt_ms: float) -> tuple[np.ndarray, np.ndarray, float]:
         speeds, temps, wall, _ = run_plant(Plant(params, dt=dt_ms * 1e-3, T_init=80.0), creep_inputs, seconds,
                                            PERIOD)
