@@ -1,6 +1,6 @@
 """Plant speed and accuracy, measured side by side in one run.
 
-    python bench/plant_speed.py [--seconds 100] [--cosim-seconds 5] [--creep-seconds 3] [--json]
+    python bench/plant_speed.py [--seconds 100] [--cosim-seconds 5] [--creep-seconds 3] [--fine-seconds 30] [--json]
 
 Cases (simulated seconds per wall second, errors against a tight reference):
 
@@ -13,9 +13,9 @@ Cases (simulated seconds per wall second, errors against a tight reference):
 * ``creep``: stick/slip (CL slipping against the held vehicle, brake released at 2 s, driving away, CL locking
   at 2.23 s), the first ``--creep-seconds``; reference: solve_ivp Radau rtol 1e-8 with stick/slip as events
   (dsg_hil.continuous.solve_hybrid; slow: every mode change restarts it). Sampled every control period.
-* ``creep_fine``: 30 s of stick/slip of all three contacts (the above, then CL locking, slipping again until the
-  vehicle is held, CH taking over, the brake holding); reference: the same plant at a ten times finer step (0.1 ms),
-  a convergence check, not an independent one.
+* ``creep_fine``: ``--fine-seconds`` (30) of stick/slip of all three contacts (the above, then CL locking,
+  slipping again until the vehicle is held, CH taking over, the brake holding); reference: the same plant at a ten
+  times finer step (0.1 ms), a convergence check, not an independent one.
 * ``step_study`` (not in the maxima): the ``creep_fine`` inputs at steps of 1, 0.5, 0.25 and 0.1 ms against the
   plant at 0.05 ms: what limits the speed accuracy under stick/slip (the contact law at the step, see
   :func:`step_study` and bench/contact_law.py).
@@ -179,8 +179,7 @@ def creep(params: Params, seconds: float) -> dict:
                       f"solve_ivp Radau rtol 1e-8, stick/slip as events ({changes} mode changes)")
 
 
-def creep_fine(params: Params) -> dict:
-    seconds = 30.0
+def creep_fine(params: Params, seconds: float = 30.0) -> dict:
     speeds, temps, wall, _ = run_plant(Plant(params, T_init=80.0), creep_inputs, seconds, PERIOD)
     ref_speeds, ref_temps, _, _ = run_plant(Plant(params, dt=1e-4, T_init=80.0), creep_inputs, seconds, PERIOD)
     return creep_case("creep_fine", speeds, temps, wall, seconds, ref_speeds, ref_temps,
@@ -238,6 +237,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=100.0, help="simulated duration of the vehicle case")
     ap.add_argument("--cosim-seconds", type=float, default=5.0, help="simulated duration of the co-simulation")
+    ap.add_argument("--fine-seconds", type=float, default=30.0,
+                    help="simulated duration of the creep_fine case and the step study (default 30)")
     ap.add_argument("--creep-seconds", type=float, default=3.0,
                     help="simulated duration of the creep case against solve_ivp with events (default 3)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
@@ -248,7 +249,7 @@ def main() -> None:
     run_rig(params, RigCase(0.3, 300.0), 0.01)
     warm_up = time.perf_counter() - t0
     cases = [vehicle(params, args.seconds), *(rig(params, r) for r in RIG_CASES), creep(params, args.creep_seconds),
-             creep_fine(params)]
+             creep_fine(params, args.fine_seconds)]
     co = cosim(params, args.cosim_seconds)
     ivp = co["solve_ivp"]
     summary = {
@@ -263,7 +264,7 @@ def main() -> None:
         "peak_rss_mb_this_bench": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "cases": cases,
         "cosim": co,
-        "step_study": step_study(params),
+        "step_study": step_study(params, args.fine_seconds),
     }
     if args.json:
         print(json.dumps(summary))

@@ -1,0 +1,60 @@
+"""The benchmarks run and print what issue 9 asks of them (``bench/``, short durations; no timing is asserted:
+speed belongs in the benchmarks' figures, not in tests)."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "bench"
+
+pytestmark = pytest.mark.slow
+
+
+def bench_json(script: str, *args: str) -> dict:
+    proc = subprocess.run([sys.executable, str(BENCH / script), "--json", *args], capture_output=True, text=True,
+                          timeout=600, cwd=BENCH)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout)
+
+
+def positive(x: object) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x) and x > 0
+
+
+def test_closed_loop_speed_figures():
+    out = bench_json("closed_loop_speed.py", "--seconds", "0.5", "--udp-seconds", "0.5", "--rounds", "1")
+    now, before = out["closed_loop"], out["closed_loop_baseline"]
+    assert positive(out["closed_loop_sim_s_per_wall_s"]) and positive(out["closed_loop_baseline_sim_s_per_wall_s"])
+    assert now["frames_sent"] == before["frames_sent"] > 0  # the same loop on both paths
+    assert len(now["rounds"]) == len(before["rounds"]) == 1
+    assert now["physics_us_per_period"] + now["rest_us_per_period"] == pytest.approx(now["period_us"], abs=0.2)
+    udp = out["udp_multicast"]
+    assert "error" not in udp and udp["rejected"] == 0 and positive(out["udp_multicast_sim_s_per_wall_s"])
+    assert all(positive(v) for v in out["udp_multicast_primitives"].values())
+    assert set(out["peak_rss_mb"]) == {"dsg-hil run", "dsg-hil run -i udp_multicast (plant, ecu-stub)"}
+    assert all(positive(v) for v in out["peak_rss_mb"].values())
+    assert out["peak_rss_mb_max"] == max(out["peak_rss_mb"].values())
+    assert {"dsg-hil --help", "ecu-stub --help", "dsg-hil run --help", "dsg-hil calibrate --help"} <= set(
+        out["startup_s"])
+    assert out["startup_max_s"] == max(out["startup_s"].values())
+
+
+def test_plant_speed_figures():
+    out = bench_json("plant_speed.py", "--seconds", "2", "--cosim-seconds", "0.2", "--creep-seconds", "0.5",
+                     "--fine-seconds", "1")
+    for key in ("plant_sim_s_per_wall_s", "solve_ivp_ratio", "plant_step_per_call_sim_s_per_wall_s"):
+        assert positive(out[key]), key
+    names = [c["name"] for c in out["cases"]]
+    assert names == ["vehicle", "rig1", "rig2", "rig3", "rig4", "creep", "creep_fine"]
+    assert out["max_plate_error_c"] == max(c["max_plate_error_c"] for c in out["cases"])
+    assert out["max_speed_error_fs"] == max(c["max_speed_error_fs"] for c in out["cases"])
+    study = out["step_study"]
+    assert [c["name"] for c in study] == ["step 1 ms", "step 0.5 ms", "step 0.25 ms", "step 0.1 ms"]
+    assert all(math.isfinite(c["max_plate_error_c"]) and math.isfinite(c["max_speed_error_rpm"]) for c in study)
+    assert out["cosim"]["solve_ivp"] is not None  # a tolerance reached the plant's accuracy
