@@ -280,6 +280,7 @@ def main() -> None:
                      ("one process, cantools codec, python-can virtual", before)):
         print(f"{label:<46}{r['sim_s_per_wall_s']:>13.1f}{r['period_us']:>11.0f}{r['physics_us_per_period']:>9.0f}"
               f"{r['rest_us_per_period']:>8.0f}")
+    print(f"best of {args.rounds} fresh processes each; rounds: now {now['rounds']}, before {before['rounds']}")
     print(f"speed-up {out['closed_loop_speedup']:.2f}x (in CPU time {out['closed_loop_speedup_cpu']:.2f}x); "
           f"around the physics now {100 * out['share_around_physics']:.0f} % of a period")
     if "side_by_side" in out:
