@@ -203,9 +203,12 @@ def step_study(params: Params, seconds: float = 30.0) -> list[dict]:
         return speeds, temps, wall
 
     ref_speeds, ref_temps, _ = at(STEP_STUDY_REF_MS)
-    return [creep_case(f"step {dt_ms:g} ms", speeds, temps, wall, seconds, ref_speeds, ref_temps,
-                       f"the plant at {STEP_STUDY_REF_MS:g} ms")
-            for dt_ms in STEP_STUDY_MS for speeds, temps, wall in [at(dt_ms)]]
+    cases = []
+    for dt_ms in STEP_STUDY_MS:
+        speeds, temps, wall = at(dt_ms)
+        cases.append(creep_case(f"step {dt_ms:g} ms", speeds, temps, wall, seconds, ref_speeds, ref_temps,
+                                f"the plant at {STEP_STUDY_REF_MS:g} ms"))
+    return cases
 
 
 def cosim(params: Params, seconds: float) -> dict:
