@@ -107,13 +107,18 @@ def tree_vs_tree(tree: str, seconds: float, rounds: int) -> dict:
                                                        / best["baseline"]["sim_s_per_wall_s"], 2)}
 
 
-def peak_rss_mb(argv: list[str], tree: str | None = None) -> float:
+def dsg_hil_run(seconds: float, summary: str, *options: str) -> list[str]:
+    """The command line of ``dsg-hil run`` for ``seconds`` of the default creep, its summary to ``summary``."""
+    return [sys.executable, "-m", "dsg_hil", "run", *options, "--duration", str(seconds), "--summary", summary]
+
+
+def peak_rss_mb(argv: list[str]) -> float:
     """Peak resident memory [MB] of the largest process ``argv`` runs (itself or a child it waits for, such as
     the ecu-stub that ``dsg-hil run -i udp_multicast`` starts), measured from a fresh wrapper process."""
     wrapper = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True); "
                "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
     proc = subprocess.run([sys.executable, "-c", wrapper, *argv], capture_output=True, text=True, check=True,
-                          env=env_for(tree), cwd=NEUTRAL_CWD)
+                          env=env_for(None), cwd=NEUTRAL_CWD)
     return round(int(proc.stdout) / 1024, 1)
 
 
@@ -143,9 +148,8 @@ def udp_two_processes(seconds: float, tree: str | None) -> dict:
     """``dsg-hil run -i udp_multicast``: the plant here, ecu-stub as its own process, in lock-step."""
     with tempfile.TemporaryDirectory() as tmp:
         summary = Path(tmp) / "s.json"
-        proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-i", "udp_multicast", "--duration",
-                               str(seconds), "--summary", str(summary)], capture_output=True, text=True,
-                              env=env_for(tree), cwd=NEUTRAL_CWD, timeout=30 * seconds + 120)
+        proc = subprocess.run(dsg_hil_run(seconds, str(summary), "-i", "udp_multicast"), capture_output=True,
+                              text=True, env=env_for(tree), cwd=NEUTRAL_CWD, timeout=30 * seconds + 120)
         if proc.returncode != 0:
             return {"error": proc.stderr.strip().splitlines()[-1:]}
         data = json.loads(summary.read_text())
@@ -242,7 +246,6 @@ def main() -> None:
     now, before = best["now"], best["before"]
     plant = plant_alone(args.seconds)
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    run = [sys.executable, "-m", "dsg_hil", "run", "--duration", str(args.seconds), "--summary", os.devnull]
     out: dict = {
         "seconds": args.seconds, "rounds": args.rounds,
         "closed_loop_sim_s_per_wall_s": now["sim_s_per_wall_s"],
@@ -253,7 +256,7 @@ def main() -> None:
         "share_around_physics": round(now["rest_us_per_period"] / now["period_us"], 3),
         "plant_sim_s_per_wall_s": round(plant, 2),
         "peak_rss_mb_this_bench": round(rss_mb, 1),
-        "peak_rss_mb": {"dsg-hil run": peak_rss_mb(run)},
+        "peak_rss_mb": {"dsg-hil run": peak_rss_mb(dsg_hil_run(args.seconds, os.devnull))},
     }
     if args.udp_seconds > 0:
         udp = [udp_two_processes(args.udp_seconds, None) for _ in range(args.rounds)]
@@ -263,7 +266,7 @@ def main() -> None:
         out["udp_multicast_sim_s_per_wall_s"] = out["udp_multicast"].get("sim_s_per_wall_s")
         out["udp_multicast_primitives"] = udp_primitives()
         out["peak_rss_mb"]["dsg-hil run -i udp_multicast (plant, ecu-stub)"] = peak_rss_mb(
-            [*run[:4], "-i", "udp_multicast", *run[4:]])
+            dsg_hil_run(args.seconds, os.devnull, "-i", "udp_multicast"))
     out["peak_rss_mb_max"] = max(out["peak_rss_mb"].values())
     out["startup_s"] = startup(None)
     out["startup_max_s"] = max(out["startup_s"].values())
