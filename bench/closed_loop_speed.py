@@ -29,10 +29,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from dsg_hil.loop import run_closed_loop
+from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.physics.params import load_params
-from dsg_hil.plant import Plant, PlantInputs
-from dsg_hil.scenario import load_scenario
+from dsg_hil.physics.plant import Plant, PlantInputs
+from dsg_hil.sim.scenario import load_scenario
 
 COMMANDS = ("run", "plant", "bridge", "dbc", "vcan", "validate", "calibrate", "params", "report")
 STARTUP_REPEATS = 3

@@ -3,7 +3,7 @@ issue 9; the plant itself is not changed here).
 
     python bench/contact_law.py [--seconds 3] [--long-seconds 30] [--json]
 
-The plant (dsg_hil.plant.advance_steps) holds every torque over a step and solves the three friction contacts
+The plant (dsg_hil.physics.plant.advance_steps) holds every torque over a step and solves the three friction contacts
 implicitly on the contact velocities at the END of the step; mu (6) is evaluated at the slip memory of the step's
 START. :class:`Stepper` is the same step in plain numpy (the plant's matrices and physics functions; with
 ``law="end", mu_at="start"`` it reproduces the plant to ~1e-12) with two changes to choose from:
@@ -41,14 +41,14 @@ from collections.abc import Callable
 import numpy as np
 from plant_speed import CREEP_BREAKPOINTS, PERIOD, creep_inputs, errors, run_plant
 
-from dsg_hil.continuous import rhs, solve_hybrid
+from dsg_hil.physics.continuous import rhs, solve_hybrid
 from dsg_hil.physics.engine import governor, net_torque
 from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_step, torque_per_mu
 from dsg_hil.physics.hydraulics import clamp_command, pressure_step
 from dsg_hil.physics.params import Params, load_params
 from dsg_hil.physics.powertrain import CONTACT_INPUTS, IDX, N_DOF, N_STATE, road_load, solve_contacts, vehicle_speed
 from dsg_hil.physics.thermal import NODES, heat_sources
-from dsg_hil.plant import Plant, PlantInputs
+from dsg_hil.physics.plant import Plant, PlantInputs
 
 I_CL, I_CH = NODES.index("CL"), NODES.index("CH")
 N_T = len(NODES)
@@ -140,8 +140,8 @@ class Stepper:
 def linearised_modes(params: Params, y0: np.ndarray, inputs: PlantInputs, stuck: tuple[bool, bool, bool],
                      dts: tuple[float, ...]) -> dict:
     """Modes (Hz, damping ratio %) above 2 Hz of z = [x, CL slip memory] linearised at y0 (a state of
-    dsg_hil.continuous; T, P and the governor frozen): continuous with the contacts in ``stuck`` (as solve_hybrid),
-    and the step map of each variant at each dt (which must keep the same contacts stuck)."""
+    dsg_hil.physics.continuous; T, P and the governor frozen): continuous with the contacts in ``stuck``
+    (as solve_hybrid), and the step map of each variant at each dt (which must keep the same contacts stuck)."""
     i_mem = N_STATE + N_T + 3
     idx = [*range(N_STATE), i_mem]
 

@@ -4,15 +4,15 @@
 
 Cases (simulated seconds per wall second, errors against a tight reference):
 
-* ``vehicle``: the 100-s case of tests/test_continuous_reference.py (level road, engine governed at 2000 r/min,
+* ``vehicle``: the 100-s case of tests/physics/test_continuous_reference.py (level road, engine governed at 2000 r/min,
   vehicle rolling, CH pressure rising to 0.4 MPa, CH slipping throughout), the plant stepped one ``advance`` of 10
-  steps per 10-ms control period; reference: solve_ivp Radau rtol 1e-10 on dsg_hil.continuous. Also timed with
+  steps per 10-ms control period; reference: solve_ivp Radau rtol 1e-10 on dsg_hil.physics.continuous. Also timed with
   one ``step`` call per 1-ms step (``plant_step_per_call_sim_s_per_wall_s``).
-* ``rig1``..``rig4``: the Section III.C rig cases (dsg_hil.rig), reference solve_ivp Radau rtol 1e-10 on the
+* ``rig1``..``rig4``: the Section III.C rig cases (dsg_hil.physics.rig), reference solve_ivp Radau rtol 1e-10 on the
   thermal network.
 * ``creep``: stick/slip (CL slipping against the held vehicle, brake released at 2 s, driving away, CL locking
   at 2.23 s), the first ``--creep-seconds``; reference: solve_ivp Radau rtol 1e-8 with stick/slip as events
-  (dsg_hil.continuous.solve_hybrid; slow: every mode change restarts it). Sampled every control period.
+  (dsg_hil.physics.continuous.solve_hybrid; slow: every mode change restarts it). Sampled every control period.
 * ``creep_fine``: ``--fine-seconds`` (30) of stick/slip of all three contacts (the above, then CL locking,
   slipping again until the vehicle is held, CH taking over, the brake holding); reference: the same plant at a ten
   times finer step (0.1 ms), a convergence check, not an independent one.
@@ -27,8 +27,8 @@ at +-1 r/min about zero while the vehicle is held), where an error relative to t
 with a floor of 1 rad/s, is an absolute error in rad/s shown as a percentage (the 34 % of the creep case at 1.5 s
 was 3.3 r/min on that shaft). Relative to full scale is how an accuracy of "0.5 %" reads for a signal through zero.
 On the vehicle case, whose speeds stay far from zero, it is up to 2.5 times looser than relative to the present
-speed (the output speeds rise from 10 to 26 rad/s): tests/test_continuous_reference.py holds that case to 0.5 % of
-the present speed.
+speed (the output speeds rise from 10 to 26 rad/s): tests/physics/test_continuous_reference.py holds that case to
+0.5 % of the present speed.
 
 Co-simulation setting (``solve_ivp_ratio``): on the first ``--cosim-seconds`` of the vehicle case, solve_ivp
 restarted every 10 ms with the inputs held (as a co-simulation with a 10-ms controller must run it) at the loosest
@@ -46,14 +46,14 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from dsg_hil.continuous import pack, rhs, solve_hybrid
+from dsg_hil.physics.continuous import pack, rhs, solve_hybrid
 from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
 from dsg_hil.physics.params import Params, load_params
 from dsg_hil.physics.powertrain import N_DOF, N_STATE
 from dsg_hil.physics.thermal import NODES, gearbox_network, heat_sources
-from dsg_hil.plant import Plant, PlantInputs
-from dsg_hil.reference import RIG_CASES
-from dsg_hil.rig import RigCase, rig_configuration, run_rig
+from dsg_hil.physics.plant import Plant, PlantInputs
+from dsg_hil.paper.reference import RIG_CASES
+from dsg_hil.physics.rig import RigCase, rig_configuration, run_rig
 
 PERIOD = 0.01  # s, the control period
 I_TCL, I_TCH = N_STATE + NODES.index("CL"), N_STATE + NODES.index("CH")

@@ -20,9 +20,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from dsg_hil.loop import run_closed_loop
+from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.physics.params import load_params
-from dsg_hil.scenario import parse_scenario
+from dsg_hil.sim.scenario import parse_scenario
 
 T_SAFE_C = 250.0
 RANGE = {  # name: (low, high)

@@ -12,8 +12,8 @@ import json
 import math
 import sys
 
-from dsg_hil.scenario import load_scenario
-from tests.test_closed_loop import Trace, closed_loop, creep_scenario
+from dsg_hil.sim.scenario import load_scenario
+from tests.sim.test_closed_loop import Trace, closed_loop, creep_scenario
 
 RELEASE_S = 1.0  # the driver releases the brake (creep_scenario and the shipped scenario)
 

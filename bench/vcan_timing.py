@@ -21,7 +21,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from dsg_hil.protocol import load_dbc
-from dsg_hil.vcan import ENV_OUTDIR, ENV_WHERE, vcan_present
+from dsg_hil.e2e.vcan import ENV_OUTDIR, ENV_WHERE, vcan_present
 
 BIN = Path(sys.executable).parent
 BUS = ["--interface", "socketcan", "--channel", "vcan0"]

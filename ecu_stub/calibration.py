@@ -21,7 +21,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from dsg_hil.protocol.errors import InputError, read_input_file
+from dsg_hil.common.errors import InputError
+from dsg_hil.common.files import read_input_file
 
 DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
 SOURCES = ("identified", "derived", "chosen")

@@ -12,7 +12,8 @@ from importlib import metadata
 
 from dsg_hil.protocol.bus import (FrameLog, add_bus_arguments, bus_config, bus_name, log_channel, open_bus,
                                   per_process_warning)
-from dsg_hil.protocol.errors import EXIT_OK, InputError, check_output_path, exit_code
+from dsg_hil.common.errors import EXIT_OK, InputError, exit_code
+from dsg_hil.common.files import check_output_path
 from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
 
 
@@ -112,5 +113,5 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         print(f"error: {exc}", file=sys.stderr)
-        return exit_code(exc)  # as dsg-hil: 1 run failed, 2 bad input (dsg_hil.protocol.errors)
+        return exit_code(exc)  # as dsg-hil: 1 run failed, 2 bad input (dsg_hil.common.errors)
     return 128 + signal.SIGTERM if stop.is_set() else EXIT_OK  # as dsg-hil: 143 when ended by SIGTERM

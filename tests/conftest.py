@@ -6,7 +6,7 @@ import re
 import pytest
 
 from dsg_hil.physics.params import load_params
-from dsg_hil.vcan import ENV_REQUIRE
+from dsg_hil.e2e.vcan import ENV_REQUIRE
 
 
 def pytest_configure(config):
@@ -23,7 +23,7 @@ def register_plugin(config) -> None:
     a checkout on PYTHONPATH register it here, unless disabled (``-p no:dsg_hil``)."""
     manager = config.pluginmanager
     if not manager.has_plugin("dsg_hil") and not manager.is_blocked("dsg_hil"):
-        from dsg_hil import pytest_plugin
+        from dsg_hil.testing import plugin as pytest_plugin
 
         manager.register(pytest_plugin, "dsg_hil")
 

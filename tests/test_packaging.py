@@ -13,7 +13,7 @@ import pytest
 
 import dsg_hil
 from dsg_hil.protocol.codec import DEFAULT_DBC
-from dsg_hil.vcan import ENV_REQUIRE
+from dsg_hil.e2e.vcan import ENV_REQUIRE
 
 ROOT = Path(__file__).resolve().parents[1]  # the checkout (or unpacked sdist) these tests came from
 TOP_DBC = ROOT / "dbc" / "dsg_hil.dbc"
@@ -49,7 +49,7 @@ def test_marker_expressions_do_not_bring_back_the_vcan_tests():
     """tests/conftest.py deselects the vcan tests for any -m that does not name vcan (not a configured -m)."""
     e2e = str(resources.files("dsg_hil.e2e"))
     args = [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
-            str(Path(__file__).with_name("test_scenario.py")), e2e]
+            str(Path(__file__).parent / "sim" / "test_scenario.py"), e2e]
     env = {k: v for k, v in os.environ.items() if k != ENV_REQUIRE}
     for expr in ("not slow", "slow or not slow", "vcan"):
         out = subprocess.run([*args, "-m", expr], capture_output=True, text=True, env=env).stdout

@@ -4,7 +4,7 @@ Only the module of the command given is imported (and its modules import what th
 so ``dsg-hil --help`` and ``dsg-hil COMMAND --help`` start without numpy, scipy, matplotlib or cantools.
 
 Errors reach the user as one line ``error: ...`` (``--debug`` shows the traceback) and an exit status, the same
-for ``ecu-stub`` (:mod:`dsg_hil.errors`): 0 ok, 1 the run failed (peer lost ...), 2 bad input or usage (the line
+for ``ecu-stub`` (:mod:`dsg_hil.common.errors`): 0 ok, 1 the run failed (peer lost ...), 2 bad input or usage (the line
 names the file, key or option), 3 a result outside its band (``dsg-hil validate``), 130 Ctrl-C (SIGINT), 143
 SIGTERM (128 + the signal number, as a shell reports a killed process).
 """
@@ -18,7 +18,7 @@ import sys
 import threading
 
 from .. import __version__
-from ..errors import EXIT_RUN_FAILED, EXIT_SIGINT, EXIT_SIGTERM, exit_code
+from ..common.errors import EXIT_RUN_FAILED, EXIT_SIGINT, EXIT_SIGTERM, exit_code
 from .common import Terminated, raise_terminated
 
 COMMANDS = {  # command: (module, one-line help), in the order of 'dsg-hil --help'

@@ -17,20 +17,20 @@ from typing import TYPE_CHECKING
 
 from ..protocol.bus import LOG_CHANNEL, FrameLog, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
 from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
-from ..scenario import Scenario, load_scenario
-from ..protocol.errors import check_output_path
+from ..sim.scenario import Scenario, load_scenario
+from ..common.files import check_output_path
 from .common import Terminated, params_from, positive_number, progress
 
 if TYPE_CHECKING:
     import can
 
-    from ..plant import Plant
-    from ..runner import PlantRunner
+    from ..physics.plant import Plant
+    from ..sim.runner import PlantRunner
 
 
 def stop_reasons() -> tuple[tuple[type[BaseException], str], ...]:
     """How a run that ends early ends: the exception and the summary's stop reason."""
-    from ..runner import PeerLost, PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+    from ..sim.runner import PeerLost, PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
 
     return ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"),
             (PeerTimeout, "no_peer"))  # after PeerLost, its subclass: no TCU answered the presence probe
@@ -71,7 +71,7 @@ def scenario_from(args: argparse.Namespace) -> Scenario:
 
 
 def make_plant(args: argparse.Namespace, scenario: Scenario) -> Plant:
-    from ..loop import plant_for  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+    from ..sim.loop import plant_for  # noqa: PLC0415 - the plant (numpy ...) when a run starts
 
     return plant_for(scenario, params_from(args))
 
@@ -109,10 +109,10 @@ def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario)
     ``args.tcu_in_process`` (``dsg-hil run``, ``report``) on ``virtual`` in lockstep: the plant and the TCU of
     this process talk over a direct in-process bus instead (:mod:`dsg_hil.protocol.local`: the same frames,
     without python-can's copies), the TCU's end left in ``args.tcu_bus``."""
-    from ..plant_io import PLANT_RX, PLANT_USES  # noqa: PLC0415 - the plant (numpy, cantools ...) when a run starts
+    from ..sim.plant_io import PLANT_RX, PLANT_USES  # noqa: PLC0415 - the plant (numpy, cantools ...) when a run starts
     from ..protocol import Codec, load_dbc  # noqa: PLC0415
     from ..protocol.local import local_pair  # noqa: PLC0415
-    from ..runner import PlantRunner  # noqa: PLC0415
+    from ..sim.runner import PlantRunner  # noqa: PLC0415
 
     config = bus_config(args, fresh_udp=True)
     db = load_dbc(args.dbc)

@@ -10,7 +10,7 @@ from . import command_help
 from .common import add_params_option, params_from, progress
 
 if TYPE_CHECKING:
-    from ..calibration import Check
+    from ..paper.calibration import Check
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -34,7 +34,7 @@ def _print_checks(title: str, checks: Iterable[Check]) -> None:
 
 
 def _do_calibrate(args: argparse.Namespace) -> int:
-    from ..calibration import (  # noqa: PLC0415 - scipy.optimize at run time only
+    from ..paper.calibration import (  # noqa: PLC0415 - scipy.optimize at run time only
         VEHICLE_THERMAL_KEYS,
         calibrate_h_plate_oil,
         calibrate_stribeck,
@@ -47,7 +47,7 @@ def _do_calibrate(args: argparse.Namespace) -> int:
         with_h_plate_oil,
         with_vehicle_thermal,
     )
-    from ..scenario import load_scenario  # noqa: PLC0415
+    from ..sim.scenario import load_scenario  # noqa: PLC0415
 
     params = params_from(args)
     scenario = load_scenario(args.scenario)

@@ -29,7 +29,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def _do_plant(args: argparse.Namespace) -> int:
-    from ..runner import PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+    from ..sim.runner import PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
 
     with ExitStack() as stack:
         runner, config, scenario = start(args, stack, "plant")

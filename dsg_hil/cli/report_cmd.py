@@ -7,7 +7,7 @@ import tempfile
 from contextlib import ExitStack
 from pathlib import Path
 
-from ..errors import InputError
+from ..common.errors import InputError
 from . import command_help
 from .common import add_params_option, params_from, progress
 
@@ -35,8 +35,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_validation(params, **kwargs):
-    """:func:`dsg_hil.validation.run_validation`, imported when the report runs (numpy, scipy)."""
-    from ..validation import run_validation as run  # noqa: PLC0415
+    """:func:`dsg_hil.paper.validation.run_validation`, imported when the report runs (numpy, scipy)."""
+    from ..paper.validation import run_validation as run  # noqa: PLC0415
 
     return run(params, **kwargs)
 
@@ -72,10 +72,10 @@ def _run_creep(args: argparse.Namespace, out: Path) -> Path:
 
 
 def _do_report(args: argparse.Namespace) -> int:
-    from ..plots import require_matplotlib
+    from ..paper.plots import require_matplotlib
     from ..protocol import load_dbc
-    from ..report import write_report
-    from ..report.log import read_log
+    from ..paper.report import write_report
+    from ..paper.report.log import read_log
     out = Path(args.out)
     _writable(out)
     require_matplotlib()

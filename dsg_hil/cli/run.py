@@ -10,7 +10,7 @@ import time
 from contextlib import ExitStack
 from typing import TYPE_CHECKING, Any
 
-from ..errors import RunError
+from ..common.errors import RunError
 from ..protocol.bus import bus_args, open_bus
 from . import command_help
 from .busopts import add_bus_options, drive, finish, frames_line, start
@@ -19,7 +19,7 @@ from .common import add_params_option, progress
 if TYPE_CHECKING:
     from cantools.database.can import Database
 
-    from ..runner import PlantRunner
+    from ..sim.runner import PlantRunner
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -39,7 +39,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 def _tcu_in_process(bus_config: dict, dbc: Database, runner: PlantRunner, args: argparse.Namespace) -> Any:
     """The TCU side in this process (virtual bus only: the in-process bus's other end where there is one), its
     frames through the TCU-side faults."""
-    from ..loop import attach_tcu  # noqa: PLC0415 - the TCU (cantools ...) when a run starts
+    from ..sim.loop import attach_tcu  # noqa: PLC0415 - the TCU (cantools ...) when a run starts
 
     bus = getattr(args, "tcu_bus", None) or open_bus(bus_config)
     tcu, _ = attach_tcu(runner, bus, dbc, args.faults_by_side["tcu"], getattr(args, "fault_seed", 0))
@@ -47,7 +47,7 @@ def _tcu_in_process(bus_config: dict, dbc: Database, runner: PlantRunner, args: 
 
 
 def _do_run(args: argparse.Namespace) -> int:
-    from ..loop import answer_at_once  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+    from ..sim.loop import answer_at_once  # noqa: PLC0415 - the plant (numpy ...) when a run starts
 
     with ExitStack() as stack:
         runner, config, scenario = start(args, stack, "run")

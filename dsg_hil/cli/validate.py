@@ -6,9 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
-from ..reference import TOL_MU, TOL_RISE_C, TOL_TORQUE_REL
+from ..paper.reference import TOL_MU, TOL_RISE_C, TOL_TORQUE_REL
 from . import command_help
-from ..protocol.errors import check_output_path
+from ..common.files import check_output_path
 from .common import add_params_option, params_from, positive_number, progress
 
 
@@ -39,9 +39,9 @@ def _do_validate(args: argparse.Namespace) -> int:
     check_output_path("--plots", args.plots, directory=True)
     params = params_from(args)
     if args.plots:  # fail before the long run, not after it
-        from ..plots import require_matplotlib
+        from ..paper.plots import require_matplotlib
         require_matplotlib()
-    from ..validation import run_validation, validation_json  # noqa: PLC0415 - numpy and scipy at run time only
+    from ..paper.validation import run_validation, validation_json  # noqa: PLC0415 - numpy and scipy at run time only
 
     results = run_validation(params, dt=args.dt, progress=progress)
     all_ok = True
@@ -56,7 +56,7 @@ def _do_validate(args: argparse.Namespace) -> int:
         Path(args.json).write_text(json.dumps(validation_json(results), indent=2) + "\n", encoding="utf-8")
         progress(f"wrote {args.json}")
     if args.plots:
-        from ..plots import friction_map_figure, validation_figures
+        from ..paper.plots import friction_map_figure, validation_figures
         paths = validation_figures(results, Path(args.plots))
         paths.append(friction_map_figure(params.friction, Path(args.plots) / "friction_map.png"))
         for path in paths:

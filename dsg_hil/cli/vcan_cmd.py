@@ -9,7 +9,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .. import vcan
+from ..e2e import vcan
 from . import command_help
 from .common import progress
 

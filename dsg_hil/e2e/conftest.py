@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from dsg_hil.protocol import load_dbc
-from dsg_hil.protocol.codec import DEFAULT_DBC
-from dsg_hil.vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
+from ..protocol import load_dbc
+from ..protocol.codec import DEFAULT_DBC
+from .vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
 
 BUS = ["--interface", "socketcan", "--channel", "vcan0"]
 DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'

@@ -10,8 +10,8 @@ import sys
 
 import pytest
 
-from dsg_hil.plant_io import PLANT_USES, SYNC_PROBE
-from dsg_hil.protocol import Codec
+from ..sim.plant_io import PLANT_USES, SYNC_PROBE
+from ..protocol import Codec
 from ecu_stub.runner import TCU_RX
 
 from .conftest import (

@@ -16,10 +16,10 @@ from itertools import pairwise
 import can
 import pytest
 
-from dsg_hil.loop import plant_for
-from dsg_hil.plant_io import PLANT_USES
-from dsg_hil.protocol import Codec
-from dsg_hil.protocol.e2e import MAX_DELTA
+from ..sim.loop import plant_for
+from ..sim.plant_io import PLANT_USES
+from ..protocol import Codec
+from ..protocol.e2e import MAX_DELTA
 
 from .conftest import (
     BUS,

@@ -2,7 +2,7 @@
 
 :func:`compiled` marks a function of plain floats, float arrays and parameter records (:func:`record`) as
 compiled. The function is the one implementation: it is compiled (``numba.njit(cache=True)``) the first time
-anything calls it, from Python or from another compiled function (a :class:`dsg_hil.plant.Plant` when it is
+anything calls it, from Python or from another compiled function (a :class:`dsg_hil.physics.plant.Plant` when it is
 built), so ``import dsg_hil`` and commands that build no plant do not pay numba's import (~0.5 s). Called from
 Python, a parameter group (a frozen dataclass of :mod:`dsg_hil.physics.params`) is passed as its record, so the
 unit tests call the compiled code with the parameter objects they already have.

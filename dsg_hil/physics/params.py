@@ -19,7 +19,8 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any, TypeVar, dataclass_transform
 
-from ..errors import InputError, read_input_file
+from ..common.errors import InputError
+from ..common.files import read_input_file
 
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
 SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}

@@ -6,7 +6,7 @@ the oil circuit reservoir F -> pump P -> valve V (relief RV -> F) -> clutches CL
 heat downstream only (m_dot c_p (T_upstream - T_i)), which conserves energy around the closed loop. Each clutch
 has its own pack (capacity, friction surfaces) and its own cooling flow (``thermal.clutch.CL/CH.Q_cool``); the
 valve's remaining flow bypasses the clutches to R. The Section III.C rig is the same network with the test clutch
-in slot CL (:func:`dsg_hil.rig.rig_configuration`).
+in slot CL (:func:`dsg_hil.physics.rig.rig_configuration`).
 
 In matrix form: ``C dT/dt = -L T + g_E T_E + q``. With ``q`` held over a step this is linear with constant
 coefficients, so :func:`discretize` gives its exact solution (matrix exponential).

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .lazy import lazy_names
+from ..common.lazy import lazy_names
 
 if TYPE_CHECKING:
     from .codec import Codec, DecodedFrame, FrameError, ProtocolError, load_dbc

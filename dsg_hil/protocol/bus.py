@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import can
 import can.cli
 
-from .errors import InputError, RunError
+from ..common.errors import InputError, RunError
 
 if TYPE_CHECKING:
     from cantools.database.can import Message

@@ -23,7 +23,7 @@ import cantools
 from cantools.database.can import Database, Message, Signal
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
-from .errors import InputError
+from ..common.errors import InputError
 from .generated import generate, unsupported
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc

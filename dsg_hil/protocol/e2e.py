@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from cantools.database.can import Message
 
 from .crc import crc8_j1850
-from .errors import InputError
+from ..common.errors import InputError
 
 COUNTER, CRC = "Counter", "CRC"
 MAX_DELTA = 7  # largest counter step accepted (half the 4-bit range): 6 frames lost in a row

@@ -1,5 +1,5 @@
 """A direct in-process bus: two ends, each frame sent on one received on the other, for the plant and a TCU in
-one process in lockstep (:func:`dsg_hil.loop.run_closed_loop`, ``dsg-hil run`` on ``virtual``).
+one process in lockstep (:func:`dsg_hil.sim.loop.run_closed_loop`, ``dsg-hil run`` on ``virtual``).
 
 It does for two nodes what python-can's ``virtual`` interface does (the receiver gets its own copy of the frame,
 stamped with the wall-clock time it was received, ``is_rx`` set, on the bus's channel), without what costs

@@ -1,6 +1,6 @@
 """The controllers a test can put on the plant's bus: a command line started as a process, or a Python object.
 
-(The bundled ecu-stub needs nothing here: :func:`dsg_hil.loop.attach_tcu` builds it.)
+(The bundled ecu-stub needs nothing here: :func:`dsg_hil.sim.loop.attach_tcu` builds it.)
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ from dsg_hil.physics.friction import mean_friction_radius
 from dsg_hil.physics.params import load_params
 from ecu_stub.calibration import load_calibration
 from ecu_stub.identify import main
-from tests.test_closed_loop import closed_loop, creep_scenario
+from tests.sim.test_closed_loop import closed_loop, creep_scenario
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,5 @@
-"""ecu_stub knows the plant only through the DBC: it imports nothing from dsg_hil but the protocol layer."""
+"""ecu_stub knows the plant only through the DBC: it imports nothing from dsg_hil but the protocol layer and the
+shared kernel (dsg_hil.common: errors, files, units)."""
 
 from __future__ import annotations
 
@@ -22,13 +23,20 @@ def imported_modules(path: Path) -> set[str]:
     return names
 
 
-def test_sources_import_only_the_protocol_layer():
+SHARED = ("dsg_hil.protocol", "dsg_hil.common")
+
+
+def shared(name: str) -> bool:
+    return name in ("dsg_hil", *SHARED) or name.startswith(tuple(f"{p}." for p in SHARED))
+
+
+def test_sources_import_only_the_protocol_layer_and_common():
     files = sorted(ECU_STUB.glob("*.py"))
     assert len(files) >= 6
     for path in files:
         for name in imported_modules(path):
             if name == "dsg_hil" or name.startswith("dsg_hil."):
-                assert name == "dsg_hil.protocol" or name.startswith("dsg_hil.protocol."), f"{path.name}: {name}"
+                assert name != "dsg_hil" and shared(name), f"{path.name}: {name}"
 
 
 def test_loading_ecu_stub_loads_no_plant_module():
@@ -37,4 +45,4 @@ def test_loading_ecu_stub_loads_no_plant_module():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     loaded = eval(out)  # noqa: S307 - our own printed list
     assert "dsg_hil.protocol" in loaded
-    assert all(m in ("dsg_hil", "dsg_hil.protocol") or m.startswith("dsg_hil.protocol.") for m in loaded), loaded
+    assert all(shared(m) for m in loaded), loaded

@@ -9,7 +9,7 @@ from collections.abc import Collection
 import can
 import pytest
 
-from dsg_hil.plant_io import PLANT_USES
+from dsg_hil.sim.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec, TxScheduler, load_dbc
 from ecu_stub.runner import SYNC_PROBE, TCU_USES, TcuRunner
 

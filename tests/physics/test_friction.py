@@ -10,7 +10,7 @@ import pytest
 
 from dsg_hil.physics.friction import (clutch_torque_capacity, friction_coefficient, friction_coefficient_grid,
                                       mean_friction_radius, stribeck_term, torque_per_mu)
-from dsg_hil.reference import RIG_CASES
+from dsg_hil.paper.reference import RIG_CASES
 
 
 def four_printed_terms(n, T, P):

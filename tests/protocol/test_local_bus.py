@@ -11,10 +11,10 @@ import time
 import can
 import pytest
 
-from dsg_hil.loop import run_closed_loop
+from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.protocol.frame import data_frame
 from dsg_hil.protocol.local import local_pair
-from dsg_hil.scenario import load_scenario
+from dsg_hil.sim.scenario import load_scenario
 
 
 def fields(msg: can.Message) -> dict:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import can
 
-from dsg_hil.plant_io import PLANT_RX
+from dsg_hil.sim.plant_io import PLANT_RX
 from dsg_hil.protocol import load_dbc
 from dsg_hil.protocol.bus import open_bus, receive_filters
 

@@ -1,5 +1,5 @@
 """Faults from the command line and onto a node's bus: the one way ``dsg-hil run``, ``dsg-hil plant``,
-``ecu-stub`` and :func:`dsg_hil.loop.run_closed_loop` put an injector between a node and its bus."""
+``ecu-stub`` and :func:`dsg_hil.sim.loop.run_closed_loop` put an injector between a node and its bus."""
 
 from __future__ import annotations
 

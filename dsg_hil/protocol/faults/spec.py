@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from cantools.database.can import Database
 
-from ..errors import InputError
+from ...common.errors import InputError
 
 KINDS = {
     "drop": "the frame is not sent",

@@ -1,0 +1,189 @@
+"""Re-runnable calibrations of the parameters tagged ``calibrated`` in the parameter file.
+
+* ``friction.A_stribeck``: the first term of (6), fitted with the unknown CH slip speed to Section V.B's
+  mu_CH 0.063 -> 0.075 (T_CH 100 -> 250 degC) at the pressures that carry the creep load of Table I's vehicle at
+  that slip (P = M_CH / (mu k_geom), about 0.78 -> 0.66 MPa; the paper prints 0.75 -> 0.65). Two equations, two
+  unknowns; the slip fixes the default scenario's creep speed.
+* ``thermal.clutch.test.h_plate_oil``: one parameter fitted by least squares to the four Section III.C rises after
+  100 s (21 / 47 / 33 / 74 degC) on the rig configuration. Four targets, one unknown: the residuals test the model's
+  structure, not its level. (Fitted to case 4 alone it leaves case 3 at -4.6 degC: the printed (6) makes mu fall
+  with pressure, while the published rises imply it grows, so no single gain fits both pressures; see README.)
+* ``clutch.CL.C_plate``, ``clutch.CH.C_plate``, ``thermal.clutch.CL.Q_cool``, ``thermal.clutch.CH.Q_cool``: the
+  vehicle's plate capacities and cooling flows, fitted by least squares to Section V.B's timeline (creep 174 s,
+  slip CL 43.5 s / CH 130.5 s, CL at 205.5 degC when CH first reaches 250 degC, the on-coming CL at 246 degC at the
+  stop) with the reduced model of :mod:`dsg_hil.paper.creep_model` on the default scenario. Five targets, four unknowns.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import least_squares, minimize_scalar
+
+from .creep_model import CreepResult, creep_speed_for_slip, operating_point, simulate_creep
+from ..physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from ..physics.params import Params
+from .reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C,
+                        CREEP_T_ONCOMING_AT_STOP_C, CREEP_T_START_C, CREEP_TIME_S, RIG_CASES, RIG_DURATION_S,
+                        RIG_T_START_C,
+                        SAFETY_TEMPERATURE_C, TOL_CREEP_MU, TOL_CREEP_P_MPA, TOL_CREEP_T_C, TOL_CREEP_TIME_REL,
+                        TOL_SLIP_TIME_REL)
+from ..physics.rig import RigCase, run_rig
+from ..sim.scenario import Scenario, load_scenario
+
+
+@dataclass(frozen=True)
+class StribeckFit:
+    A_stribeck: float
+    slip_rpm: float  # CH slip speed of Section V.B's creep
+    mu_start: float
+    mu_end: float
+    P_start_mpa: float  # the pressures that carry the creep load at mu_start, mu_end
+    P_end_mpa: float
+
+
+def calibrate_stribeck(params: Params) -> StribeckFit:
+    """Fit A and the CH slip speed n so that mu(n, 100 degC, P_1) = 0.063 and mu(n, 250 degC, P_2) = 0.075, with
+    P_i = M_CH / (mu_i k_geom) the pressure carrying the creep load at engine idle and the speed where CH slips n."""
+    omega_e = params.engine.omega_idle
+    k = torque_per_mu(params.clutch.CH, 1.0)
+    points = ((CREEP_T_START_C, CREEP_MU_CH[0]), (SAFETY_TEMPERATURE_C, CREEP_MU_CH[1]))
+
+    def pressures(n_rpm: float) -> list[float]:
+        v = creep_speed_for_slip(params, omega_e, "CH", n_rpm / RAD_S_TO_RPM)
+        M = operating_point(params, omega_e, v).torque["CH"]
+        return [M / (mu * k) / 1e6 for _, mu in points]
+
+    def residual(x):
+        f = replace(params.friction, A_stribeck=x[0])
+        return [friction_coefficient(x[1], T, P, f) - mu for (T, mu), P in zip(points, pressures(x[1]))]
+
+    sol = least_squares(residual, x0=[0.03, 120.0], bounds=([0.0, 1.0], [1.0, 140.0]), xtol=1e-12, ftol=1e-12)
+    A, n = float(sol.x[0]), float(sol.x[1])
+    f = replace(params.friction, A_stribeck=A)
+    P = pressures(n)
+    mus = [friction_coefficient(n, T, P_i, f) for (T, _), P_i in zip(points, P)]
+    return StribeckFit(A, n, mus[0], mus[1], P[0], P[1])
+
+
+def with_h_plate_oil(params: Params, h: float) -> Params:
+    """The parameters with the rig's test clutch h_plate_oil set to h."""
+    cool = params.thermal.clutch
+    return replace(params, thermal=replace(params.thermal,
+                                           clutch=replace(cool, test=replace(cool.test, h_plate_oil=h))))
+
+
+def rise_residuals(params: Params, dt: float = 1e-3) -> list[float]:
+    """Simulated minus published temperature rise after 100 s for the four Section III.C cases [K]."""
+    return [run_rig(params, RigCase(r.pressure_mpa, r.speed_rpm), RIG_DURATION_S, dt, RIG_T_START_C,
+                    every=10**9).temperature_rise - r.temperature_rise_c for r in RIG_CASES]
+
+
+def calibrate_h_plate_oil(params: Params, dt: float = 1e-3) -> float:
+    """h [W/(m^2 K)] minimising the sum of squared rise residuals of the four Section III.C cases."""
+    res = minimize_scalar(lambda h: sum(e * e for e in rise_residuals(with_h_plate_oil(params, h), dt)),
+                          bounds=(500.0, 20000.0), method="bounded", options={"xatol": 1.0})
+    return float(res.x)
+
+
+# --- the vehicle's clutch thermal parameters against Section V.B ---------------------------------------------------
+
+VEHICLE_THERMAL_KEYS = ("clutch.CL.C_plate", "clutch.CH.C_plate", "thermal.clutch.CL.Q_cool",
+                        "thermal.clutch.CH.Q_cool")
+
+
+def vehicle_thermal(params: Params) -> tuple[float, float, float, float]:
+    """The four calibrated vehicle values, in the order of VEHICLE_THERMAL_KEYS."""
+    c, t = params.clutch, params.thermal.clutch
+    return c.CL.C_plate, c.CH.C_plate, t.CL.Q_cool, t.CH.Q_cool
+
+
+def with_vehicle_thermal(params: Params, C_CL: float, C_CH: float, Q_CL: float, Q_CH: float) -> Params:
+    c, t = params.clutch, params.thermal.clutch
+    clutch = replace(c, CL=replace(c.CL, C_plate=C_CL), CH=replace(c.CH, C_plate=C_CH))
+    cool = replace(t, CL=replace(t.CL, Q_cool=Q_CL), CH=replace(t.CH, Q_cool=Q_CH))
+    return replace(params, clutch=clutch, thermal=replace(params.thermal, clutch=cool))
+
+
+def reduced_creep(params: Params, scenario: Scenario | None = None, T_handover: float = SAFETY_TEMPERATURE_C,
+                  T_takeover: float = SAFETY_TEMPERATURE_C - 10.0, dt: float = 0.05) -> CreepResult:
+    """The reduced model of the scenario's creep (default: the shipped scenario): engine at its setpoint, the
+    vehicle at the desired creep speed on the scenario's grade, plates and oil from the scenario's temperatures."""
+    s = scenario or load_scenario()
+    omega_e = params.engine.omega_idle if s.engine_speed_rpm is None else s.engine_speed_rpm / RAD_S_TO_RPM
+    v = max(d.desired_speed_mps for d in s.driver if d.creep_request)
+    op = operating_point(params, omega_e, v, s.grade_rad)
+    return simulate_creep(params, op, {"CL": s.T_CL_c, "CH": s.T_CH_c}, s.T_oil_c, T_handover, T_takeover, dt=dt)
+
+
+@dataclass(frozen=True)
+class Check:
+    name: str
+    simulated: float
+    published: float
+    tolerance: float  # absolute
+
+    @property
+    def ok(self) -> bool:
+        return abs(self.simulated - self.published) <= self.tolerance
+
+
+def timeline_checks(r: CreepResult) -> list[Check]:
+    """Section V.B's timeline: the simulated numbers beside the published ones, with issue 7's bands."""
+    return [
+        Check("creep_time_s", r.creep_time if r.stopped else float("inf"), CREEP_TIME_S,
+              TOL_CREEP_TIME_REL * CREEP_TIME_S),
+        Check("slip_time_CL_s", r.slip_time["CL"], CREEP_SLIP_TIME_S["CL"],
+              TOL_SLIP_TIME_REL * CREEP_SLIP_TIME_S["CL"]),
+        Check("slip_time_CH_s", r.slip_time["CH"], CREEP_SLIP_TIME_S["CH"],
+              TOL_SLIP_TIME_REL * CREEP_SLIP_TIME_S["CH"]),
+        Check("T_CL_at_first_CH_limit_c", r.T_CL_at_first_CH_limit, CREEP_T_CL_AT_FIRST_CH_LIMIT_C, TOL_CREEP_T_C),
+        Check("T_oncoming_CL_at_stop_c", r.T_oncoming_at_stop, CREEP_T_ONCOMING_AT_STOP_C, TOL_CREEP_T_C),
+    ]
+
+
+TAKEOVER_MARGIN_C = 4.0  # the fit keeps CH this far below the take-over limit when CL's second slip ends
+
+
+def friction_checks(r: CreepResult) -> list[Check]:
+    """Section V.B's first CH slip: mu_CH and P_CH at its start and end beside the published values."""
+    return [
+        Check("mu_CH_start", r.mu_CH_first[0], CREEP_MU_CH[0], TOL_CREEP_MU),
+        Check("mu_CH_end", r.mu_CH_first[1], CREEP_MU_CH[1], TOL_CREEP_MU),
+        Check("P_CH_start_mpa", r.P_CH_first[0] / 1e6, CREEP_P_CH_MPA[0], TOL_CREEP_P_MPA),
+        Check("P_CH_end_mpa", r.P_CH_first[1] / 1e6, CREEP_P_CH_MPA[1], TOL_CREEP_P_MPA),
+    ]
+
+
+def _timeline_residuals(r: CreepResult, T_takeover: float) -> np.ndarray:
+    """Band-scaled residuals of timeline_checks, a penalty if the sequence is not the paper's CL, CH, CL, CH, stop,
+    and one that keeps CH at least TAKEOVER_MARGIN_C below T_takeover when it takes over the second time (the
+    paper's CH2 of ~10 s puts it near the limit; without a margin the closed loop stops one phase early)."""
+    res = [(c.simulated - c.published) / c.tolerance if np.isfinite(c.simulated) else 3.0 for c in timeline_checks(r)]
+    sequence = [p.clutch for p in r.phases] + (["stop"] if r.stopped else [])
+    res.append(0.0 if sequence == ["CL", "CH", "CL", "CH", "stop"] else 3.0)
+    T_CH_takeover = r.phases[2].T_other_end if len(r.phases) > 2 else T_takeover
+    res.append(max(0.0, T_CH_takeover - (T_takeover - TAKEOVER_MARGIN_C)))
+    return np.array(res)
+
+
+def calibrate_vehicle_thermal(params: Params, scenario: Scenario | None = None,
+                              progress: Callable[[str], None] | None = None,
+                              dt: float = 0.1) -> tuple[float, float, float, float]:
+    """Least-squares fit of VEHICLE_THERMAL_KEYS to Section V.B's timeline (residuals scaled by their bands),
+    from the parameter file's values, in log coordinates."""
+    scenario = scenario or load_scenario()
+    calls = [0]
+
+    def residual(x):
+        calls[0] += 1
+        if progress and calls[0] % 10 == 0:
+            progress(f"  {calls[0]} reduced-model runs ...")
+        r = reduced_creep(with_vehicle_thermal(params, *np.exp(x)), scenario, dt=dt)
+        return _timeline_residuals(r, SAFETY_TEMPERATURE_C - 10.0)
+
+    sol = least_squares(residual, np.log(vehicle_thermal(params)), diff_step=1e-2, xtol=1e-8)
+    a, b, c, d = (float(v) for v in np.exp(sol.x))
+    return a, b, c, d

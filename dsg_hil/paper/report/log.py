@@ -1,0 +1,168 @@
+"""A recorded bus log (candump -L, .asc, .blf, ... through python-can's LogReader) decoded with the DBC into the
+time series of a creep run, sampled on the control period's grid, and its creep numbers
+(:class:`dsg_hil.results.summary.CreepMetrics`: the same definitions as ``dsg-hil run --summary``).
+
+Nothing here needs TCU_STATUS: a third-party ECU may not send it (then the predicted temperatures are NaN and
+the TCU's handovers are absent). The simulation-only truth frames (SIM_*) are used when present.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import can
+import numpy as np
+from cantools.database.can import Database
+
+from ...physics.friction import RAD_S_TO_RPM
+from ...protocol import Codec, FrameError
+from ...common.errors import InputError
+from ...results.summary import CreepMetrics
+
+NAN = float("nan")
+
+
+class LogSample(NamedTuple):
+    """The decoded bus at one instant, SI units, with the attribute names of :class:`dsg_hil.physics.plant.PlantOutputs`
+    (NaN: not on the bus yet, or not at all)."""
+
+    t: float
+    v: float
+    omega_in: float
+    omega_CL: float
+    omega_CH: float
+    P_CL: float
+    P_CH: float
+    P_CL_cmd: float
+    P_CH_cmd: float
+    T_CL: float
+    T_CH: float
+    mu_CL: float
+    mu_CH: float
+    M_CL: float
+    M_CH: float
+    Q_CL: float
+    Q_CH: float
+    Q_diss_CL: float
+    Q_diss_CH: float
+    T_CL_pred: float
+    T_CH_pred: float
+    creep_request: float
+    desired_speed: float
+
+
+RPM, MPA = 1.0 / RAD_S_TO_RPM, 1e6
+# (message, signal) -> (LogSample field, factor to SI)
+SIGNALS: dict[tuple[str, str], tuple[str, float]] = {
+    ("PLANT_VEHICLE", "VehicleSpeed"): ("v", 1.0),
+    ("PLANT_SPEEDS", "ClutchInputSpeed"): ("omega_in", RPM),
+    ("PLANT_SPEEDS", "CLOutputSpeed"): ("omega_CL", RPM),
+    ("PLANT_SPEEDS", "CHOutputSpeed"): ("omega_CH", RPM),
+    ("PLANT_PRESSURE", "P_CL"): ("P_CL", MPA),
+    ("PLANT_PRESSURE", "P_CH"): ("P_CH", MPA),
+    ("TCU_CMD", "P_CL_Cmd"): ("P_CL_cmd", MPA),
+    ("TCU_CMD", "P_CH_Cmd"): ("P_CH_cmd", MPA),
+    ("SIM_TRUTH_CL", "T_Plate"): ("T_CL", 1.0),
+    ("SIM_TRUTH_CH", "T_Plate"): ("T_CH", 1.0),
+    ("SIM_TRUTH_CL", "Mu"): ("mu_CL", 1.0),
+    ("SIM_TRUTH_CH", "Mu"): ("mu_CH", 1.0),
+    ("SIM_TRUTH_CL", "Torque"): ("M_CL", 1.0),
+    ("SIM_TRUTH_CH", "Torque"): ("M_CH", 1.0),
+    ("SIM_TRUTH_CL", "HeatFlux"): ("Q_CL", 1.0),
+    ("SIM_TRUTH_CH", "HeatFlux"): ("Q_CH", 1.0),
+    ("SIM_HEAT", "HeatDissCL"): ("Q_diss_CL", 1.0),
+    ("SIM_HEAT", "HeatDissCH"): ("Q_diss_CH", 1.0),
+    ("TCU_STATUS", "T_CL_Pred"): ("T_CL_pred", 1.0),
+    ("TCU_STATUS", "T_CH_Pred"): ("T_CH_pred", 1.0),
+    ("DRIVER", "CreepRequest"): ("creep_request", 1.0),
+    ("DRIVER", "DesiredCreepSpeed"): ("desired_speed", 1.0),
+}
+STATUS = "TCU_STATUS"
+GRID_MESSAGE = "TCU_CMD"  # the sampling period: the control period of the DBC
+INDEX = {name: i for i, name in enumerate(LogSample._fields)}
+
+
+class LogError(InputError):
+    """A log that cannot be read or holds no frame of the DBC (the message names the file)."""
+
+
+@dataclass(frozen=True)
+class CreepRecord:
+    """A decoded creep run: columns over the sample grid, its creep numbers and what was decoded."""
+
+    source: str
+    columns: dict[str, np.ndarray]  # LogSample fields, SI
+    metrics: dict
+    frames: dict[str, int]  # decoded, rejected (CRC, range, ...), unknown (IDs not in the DBC)
+    has_status: bool
+
+    def column(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+
+def _codec(db: Database) -> Codec:
+    return Codec(db, {m.name: [s.name for s in m.signals if s.name not in ("Counter", "CRC")] for m in db.messages
+                      if {"Counter", "CRC"} <= {s.name for s in m.signals} and m.cycle_time})
+
+
+def _messages(path: Path) -> Iterator[can.Message]:
+    """The log's frames; whatever python-can's reader raises on a garbled file becomes one :class:`LogError`."""
+    try:
+        with can.LogReader(str(path)) as reader:
+            yield from reader
+    except Exception as exc:  # noqa: BLE001 - each reader raises its own types on garbage
+        raise LogError(f"{path}: cannot read the log ({type(exc).__name__}: {exc})") from None
+
+
+def read_log(path: str | Path, db: Database) -> CreepRecord:
+    """Decode the log at ``path`` with ``db`` and compute its creep numbers (one pass, in time order)."""
+    path = Path(path)
+    if not path.is_file():
+        raise LogError(f"{path}: log file not found")
+    codec = _codec(db)
+    period = codec.cycle_time(GRID_MESSAGE)
+    row = [NAN] * len(LogSample._fields)
+    metrics = CreepMetrics()
+    samples: list[LogSample] = []
+    counts = {"decoded": 0, "rejected": 0, "unknown": 0}
+    t0 = None
+    k = 0  # grid instant t0 + k * period
+
+    def emit(t: float) -> None:
+        row[0] = t
+        s = LogSample(*row)
+        samples.append(s)
+        metrics.add(s, period, s.creep_request >= 0.5, 0.0 if math.isnan(s.desired_speed) else s.desired_speed)
+
+    for msg in _messages(path):
+        if msg.is_error_frame or msg.is_remote_frame:
+            continue
+        if t0 is None:
+            t0 = msg.timestamp
+        while msg.timestamp - t0 > k * period + 1e-6:  # the frames of grid instant k are all in
+            emit(k * period)
+            k += 1
+        try:
+            frame = codec.decode(msg.arbitration_id, bytes(msg.data))
+        except FrameError as exc:
+            counts["unknown" if exc.reason == "unknown" else "rejected"] += 1
+            continue
+        counts["decoded"] += 1
+        for signal, value in frame.values.items():
+            if (frame.name, signal) in SIGNALS:
+                field, factor = SIGNALS[frame.name, signal]
+                row[INDEX[field]] = value * factor
+        if frame.name == STATUS:
+            v = frame.values
+            metrics.status(msg.timestamp - t0, v["State"], v["ActiveClutch"], v["T_CL_Pred"], v["T_CH_Pred"],
+                           LogSample(*row))
+    if counts["decoded"] == 0:
+        raise LogError(f"{path}: no frame of the DBC in the log ({counts['rejected']} rejected, "
+                       f"{counts['unknown']} with unknown IDs)")
+    emit(k * period)
+    columns = {name: np.array([s[i] for s in samples]) for i, name in enumerate(LogSample._fields)}
+    return CreepRecord(str(path), columns, metrics.as_json(), counts, metrics.tcu_state is not None)

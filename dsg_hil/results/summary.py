@@ -1,0 +1,485 @@
+"""What a run did: the JSON of ``dsg-hil run --summary`` and the creep numbers of ``dsg-hil report``.
+
+One definition for both. :class:`CreepMetrics` takes samples one by one, each with the attributes of
+:class:`dsg_hil.physics.plant.PlantOutputs` it needs (SI units; NaN where a quantity is unknown): the plant's outputs
+every step for the summary, the frames decoded from a bus log for the report (:mod:`dsg_hil.paper.report.log`).
+
+Definitions (constants below):
+
+* A clutch **slips** when it transmits torque (``|M| > TORQUE_MIN``; without the truth torque on the bus:
+  pressure above ``P_ENGAGED``) at a slip speed above ``SLIP_MIN``.
+* **Slip time** counts each instant once. During a crossover, when both clutches slip, the instant goes to the
+  clutch transmitting the larger torque (the driving one); the crossover itself is ``slip_overlap_s``. So
+  ``slip_time_s.CL + slip_time_s.CH`` is the time during which some clutch slips, as in the paper
+  (174 s = 43.5 s + 130.5 s).
+* **Phases** are the runs of the driving clutch; runs (and gaps) shorter than ``MIN_PHASE_S`` are dropped and
+  neighbours of the same clutch merged. A phase's mu and P "at the start" are taken ``SETTLE_S`` after the first
+  instant at which its clutch slips alone (the crossover over), "at the end" ``SETTLE_S`` before the last such
+  instant (before the next crossover's ramps begin); its temperatures "at the end" at that last instant.
+* **Creep time**: the driver requests creep and the vehicle moves forward (``v > V_MOVING``): from the driver's
+  request and the vehicle, whatever the TCU reports. **Standstill time**: creep requested, ``|v| <= V_MOVING``.
+* **Stop**: the vehicle came to rest (``v <= V_MOVING``) while creep was requested, after creep was under way, and did
+  not move again before the request ended or the record ended, resting at least ``STOP_MIN_S``.
+* **Roll-back**: the most negative speed, and the distance rolled backwards. The lowest speed and the speed error
+  while creeping count from the moment creep is under way (``ESTABLISHED`` of the desired speed reached) while
+  a clutch slips.
+* **Prediction error**: TCU_STATUS predicted plate temperature minus the truth at that time (worst by magnitude).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+
+from .thresholds import (  # noqa: F401 - re-exported: the metrics' definitions
+    CLUTCHES,
+    ESTABLISHED,
+    MIN_PHASE_S,
+    P_ENGAGED,
+    SAFETY_TEMPERATURE_C,
+    SETTLE_S,
+    SLIP_MIN,
+    STATES,
+    STOP_MIN_S,
+    TORQUE_MIN,
+    V_MOVING,
+)
+
+
+class Sample(Protocol):
+    """What :class:`CreepMetrics` reads of a sample: these attributes of :class:`dsg_hil.physics.plant.PlantOutputs`
+    (:class:`dsg_hil.paper.report.log.LogSample` has them too)."""
+
+    @property
+    def t(self) -> float: ...
+
+    @property
+    def v(self) -> float: ...
+
+    @property
+    def omega_in(self) -> float: ...
+
+    @property
+    def omega_CL(self) -> float: ...
+
+    @property
+    def omega_CH(self) -> float: ...
+
+    @property
+    def P_CL(self) -> float: ...
+
+    @property
+    def P_CH(self) -> float: ...
+
+    @property
+    def T_CL(self) -> float: ...
+
+    @property
+    def T_CH(self) -> float: ...
+
+    @property
+    def mu_CL(self) -> float: ...
+
+    @property
+    def mu_CH(self) -> float: ...
+
+    @property
+    def M_CL(self) -> float: ...
+
+    @property
+    def M_CH(self) -> float: ...
+
+    @property
+    def Q_CL(self) -> float: ...
+
+    @property
+    def Q_CH(self) -> float: ...
+
+
+def _known(x: float) -> bool:
+    return x == x  # not NaN
+
+
+def _slips(omega_in: float, omega: float, M: float, P: float) -> bool:
+    """Transmits torque (or, with no torque known, is pressurised) while slipping."""
+    return (abs(M) > TORQUE_MIN if M == M else P > P_ENGAGED) and abs(omega_in - omega) > SLIP_MIN
+
+
+def driving_clutch(s: Sample) -> tuple[str | None, bool]:
+    """The slipping clutch that drives (the larger torque when both slip), and whether both slip."""
+    cl = _slips(s.omega_in, s.omega_CL, s.M_CL, s.P_CL)
+    ch = _slips(s.omega_in, s.omega_CH, s.M_CH, s.P_CH)
+    if cl and ch:
+        a, b = (abs(s.M_CL), abs(s.M_CH)) if _known(s.M_CL) and _known(s.M_CH) else (s.P_CL, s.P_CH)
+        return ("CL" if a >= b else "CH"), True
+    return ("CL" if cl else "CH" if ch else None), False
+
+
+@dataclass
+class _Run:
+    """A run of one driving clutch (None: none slips). Samples at which it slips alone: the first, the one
+    SETTLE_S later, the one SETTLE_S before the last, the last."""
+
+    clutch: str | None
+    start: float
+    end: float
+    first: Sample | None = None
+    settled: Sample | None = None
+    lagged: Sample | None = None
+    last: Sample | None = None
+    tail: Sample | None = None  # last sample of the run
+    window: deque[Sample] = field(default_factory=deque)
+
+    def values(self) -> tuple[Sample, Sample, Sample]:
+        """(start, end, last) samples: the start and end values of mu and P, and the temperatures at the end."""
+        last = self.last or self.tail
+        start = self.settled or self.first or self.tail
+        assert start is not None and last is not None, "a run is created with its first sample"
+        return start, self.lagged or last, last
+
+
+def _in_order(total: float, terms: np.ndarray) -> float:
+    """``total`` plus ``terms`` added one by one, left to right (as a loop would: np.cumsum is sequential)."""
+    if not len(terms):
+        return total
+    return float(np.cumsum(np.concatenate(([total], terms)))[-1])
+
+
+@dataclass
+class _Rows:
+    """The state of :meth:`CreepMetrics.add_rows` (see :mod:`dsg_hil.results.creep_rows`): the columns it reads, how a
+    row becomes a sample, the open run (RUN, SLOTS) and its window of rows (a ring)."""
+
+    fields: tuple[str, ...]
+    cols: np.ndarray
+    sample: Callable[[np.ndarray], Sample]
+    dt: float
+    run: np.ndarray
+    slots: np.ndarray
+    ring: np.ndarray
+    ring_t: np.ndarray
+    step: Callable[..., int]  # the compiled creep_rows
+    open: bool = False  # the last of CreepMetrics.runs is this run
+
+
+def _r(x: float | None, nd: int) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(x, nd) + 0.0  # no -0.0
+
+
+def _phase_json(run: _Run) -> dict:
+    c = run.clutch
+    a, b, last = run.values()
+    return {"clutch": c, "start_s": round(run.start, 3), "end_s": round(run.end, 3),
+            "duration_s": round(run.end - run.start, 3),
+            "T_CL_end_c": _r(last.T_CL, 2), "T_CH_end_c": _r(last.T_CH, 2),
+            "mu": {"start": _r(getattr(a, f"mu_{c}"), 4), "end": _r(getattr(b, f"mu_{c}"), 4)},
+            "P_mpa": {"start": _r(getattr(a, f"P_{c}") / 1e6, 3), "end": _r(getattr(b, f"P_{c}") / 1e6, 3)}}
+
+
+def phases(runs: list[_Run]) -> list[_Run]:
+    """Runs of the driving clutch without the short ones, neighbours of the same clutch merged."""
+    kept: list[_Run] = []
+    for run in runs:
+        if run.end - run.start < MIN_PHASE_S:
+            continue
+        if kept and kept[-1].clutch == run.clutch:
+            prev = kept[-1]
+            kept[-1] = _Run(run.clutch, prev.start, run.end, prev.first or run.first, prev.settled or run.settled,
+                            run.lagged or prev.lagged, run.last or prev.last, run.tail)
+        else:
+            kept.append(run)
+    return [r for r in kept if r.clutch is not None]
+
+
+@dataclass
+class CreepMetrics:
+    """Accumulates a creep run sample by sample (see the module docstring for the definitions)."""
+
+    slip_time: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
+    slip_overlap: float = 0.0
+    creep_time: float = 0.0
+    standstill_time: float = 0.0
+    above_limit: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
+    energy: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})  # J
+    max_T: dict[str, float | None] = field(default_factory=lambda: {"CL": None, "CH": None})
+    speed_min_creeping: float | None = None
+    rollback_speed: float = 0.0
+    rollback_distance: float = 0.0
+    stop: tuple[float, Sample] | None = None
+    # from TCU_STATUS, when a TCU sends it
+    handovers: list[dict] = field(default_factory=list)
+    tcu_state: str | None = None
+    active_clutch: str | None = None
+    tcu_stop_s: float | None = None
+    max_pred: dict[str, float | None] = field(default_factory=lambda: {"CL": None, "CH": None})
+    pred_error: dict[str, tuple[float, float] | None] = field(default_factory=lambda: {"CL": None, "CH": None})
+    runs: list[_Run] = field(default_factory=list)
+    _sq_speed_error: float = 0.0
+    _driven_time: float = 0.0
+    _moved: bool = False
+    _rest: tuple[float, Sample] | None = None
+    _t_last: float = 0.0
+    _rows: _Rows | None = None  # add_rows: its compiled code's state
+
+    def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
+        """One sample ``s`` standing for the interval [s.t, s.t + dt) (real time; lock-step feeds whole periods
+        through :meth:`add_rows`)."""
+        clutch, both = driving_clutch(s)
+        t = s.t
+        if clutch is not None:
+            self.slip_time[clutch] += dt
+            self.slip_overlap += dt if both else 0.0
+        runs = self.runs
+        if not runs or runs[-1].clutch != clutch:
+            runs.append(_Run(clutch, t, t))
+        run = runs[-1]
+        run.end, run.tail = t + dt, s
+        if clutch is not None and not both:
+            if run.first is None:
+                run.first = s
+            if run.settled is None and t >= run.first.t + SETTLE_S - 1e-9:
+                run.settled = s
+            window = run.window
+            window.append(s)
+            while window[0].t <= t - SETTLE_S + 1e-9:
+                run.lagged = window.popleft()
+            run.last = s
+        for name, T, Q in (("CL", s.T_CL, s.Q_CL), ("CH", s.T_CH, s.Q_CH)):
+            if T == T:
+                peak = self.max_T[name]
+                if peak is None or T > peak:
+                    self.max_T[name] = T
+                if T > SAFETY_TEMPERATURE_C:
+                    self.above_limit[name] += dt
+            if Q == Q:
+                self.energy[name] += Q * dt
+        v = s.v
+        if v < 0.0:
+            self.rollback_speed = min(self.rollback_speed, v)
+            self.rollback_distance -= v * dt
+        if not creep_request:
+            self._end_rest()
+            return
+        if v > V_MOVING:
+            self.creep_time += dt
+            self._rest = None
+            self._moved = self._moved or v >= ESTABLISHED * desired_speed
+        else:
+            if abs(v) <= V_MOVING:
+                self.standstill_time += dt
+            if self._moved and self._rest is None:
+                self._rest = (t, s)
+        if self._moved and clutch is not None:
+            self._sq_speed_error += (v - desired_speed) ** 2 * dt
+            self._driven_time += dt
+            self.speed_min_creeping = v if self.speed_min_creeping is None else min(self.speed_min_creeping, v)
+        self._t_last = t + dt
+
+    @staticmethod
+    def prepare() -> None:
+        """Load :meth:`add_rows`' compiled code now (numba's cache; seconds under emulation) rather than at its
+        first call, in the middle of a run."""
+        from .creep_rows import kernel
+
+        kernel()
+
+    def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
+                 creep_request: bool, desired_speed: float) -> None:
+        """Consecutive samples as the rows of an array (columns named by ``fields``), ``creep_request`` and
+        ``desired_speed`` held over them: :meth:`add` on each row in turn, compiled
+        (:func:`dsg_hil.results.creep_rows.creep_rows`, the same operations, so the same sums to the last bit).
+        ``sample``
+        makes a :class:`Sample` of a row, for the rows a run keeps. A record is taken either by :meth:`add` or
+        by this, not both."""
+        n = len(rows)
+        if n == 0:
+            return
+        rows = np.ascontiguousarray(rows, dtype=np.float64)
+        st = self._rows
+        if st is None or st.fields != tuple(fields) or st.dt != dt:
+            from .creep_rows import RUN, SLOTS, columns, kernel  # here, not per call: an import costs ~1 us
+
+            self._materialise()
+            cap = int(SETTLE_S / dt) + 8  # the window: the samples of the last SETTLE_S and the new one
+            st = self._rows = _Rows(tuple(fields), columns(tuple(fields)), sample, dt, np.zeros(len(RUN)),
+                                    np.zeros((len(SLOTS), rows.shape[1])), np.zeros((cap, rows.shape[1])),
+                                    np.zeros(cap), kernel())
+            st.run[0] = -1.0  # no run open
+        nan = math.nan
+        acc = np.array([self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap,
+                        nan if self.max_T["CL"] is None else self.max_T["CL"],
+                        nan if self.max_T["CH"] is None else self.max_T["CH"],
+                        self.above_limit["CL"], self.above_limit["CH"], self.energy["CL"], self.energy["CH"],
+                        self.rollback_speed, self.rollback_distance, self.creep_time, self.standstill_time,
+                        float(self._moved), self._sq_speed_error, self._driven_time,
+                        nan if self.speed_min_creeping is None else self.speed_min_creeping, self._t_last,
+                        float(self._rest is not None), -1.0])
+        step, k, creep = st.step, 0, 1.0 if creep_request else 0.0
+        while (k := step(rows, k, st.cols, dt, creep, desired_speed, acc, st.run, st.slots, st.ring,
+                         st.ring_t)) < n:
+            self._materialise()  # the driving clutch changes at row k: its run starts there
+            st.run[1:] = 0.0
+            t = float(rows[k, st.cols[0]])
+            self.runs.append(_Run(CLUTCHES.get(int(st.run[0])), t, t))
+            st.open = True
+        (self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap, max_T_CL, max_T_CH, self.above_limit["CL"],
+         self.above_limit["CH"], self.energy["CL"], self.energy["CH"], self.rollback_speed, self.rollback_distance,
+         creep_time, standstill_time, moved, sq_speed_error, driven_time, speed_min, t_last, resting,
+         rest_row) = acc.tolist()
+        self.max_T["CL"] = None if max_T_CL != max_T_CL else max_T_CL
+        self.max_T["CH"] = None if max_T_CH != max_T_CH else max_T_CH
+        if not creep_request:
+            self._end_rest()
+            return
+        self.creep_time, self.standstill_time, self._moved = creep_time, standstill_time, moved != 0.0
+        self._sq_speed_error, self._driven_time, self._t_last = sq_speed_error, driven_time, t_last
+        self.speed_min_creeping = None if speed_min != speed_min else speed_min
+        if resting == 0.0:
+            self._rest = None
+        elif rest_row >= 0.0:
+            row = rows[int(rest_row)]
+            self._rest = (float(row[st.cols[0]]), sample(row))
+
+    def _materialise(self) -> None:
+        """The open run of :meth:`add_rows` (kept as rows by the compiled code) as samples on its _Run."""
+        st = self._rows
+        if st is None or not st.open:
+            return
+        run, state, make = self.runs[-1], st.run.tolist(), st.sample
+        run.end, run.tail = state[1], make(st.slots[4])
+        run.first = make(st.slots[0]) if state[3] else None
+        run.settled = make(st.slots[1]) if state[4] else None
+        run.lagged = make(st.slots[2]) if state[5] else None
+        run.last = make(st.slots[3]) if state[6] else None
+
+    def _end_rest(self) -> None:
+        if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:
+            self.stop = self._rest
+        self._rest = None
+
+    def status(self, t: float, state: float, active: float, T_CL_pred: float, T_CH_pred: float,
+               truth: Sample) -> None:
+        """A TCU_STATUS frame at ``t`` (raw State/ActiveClutch values), with the truth at that time."""
+        state_name = STATES.get(int(state), f"UNKNOWN_{int(state)}")
+        clutch = CLUTCHES.get(int(active), "NONE")
+        if clutch in ("CL", "CH") and self.active_clutch in ("CL", "CH") and clutch != self.active_clutch:
+            self.handovers.append({"t_s": round(t, 3), "from": self.active_clutch, "to": clutch,
+                                   "T_CL_c": _r(truth.T_CL, 2), "T_CH_c": _r(truth.T_CH, 2),
+                                   "T_CL_pred_c": round(T_CL_pred, 1), "T_CH_pred_c": round(T_CH_pred, 1)})
+        if state_name == "STOPPED_OVERHEAT" and self.tcu_stop_s is None:
+            self.tcu_stop_s = round(t, 3)
+        self.tcu_state, self.active_clutch = state_name, clutch
+        for name, pred, true in (("CL", T_CL_pred, truth.T_CL), ("CH", T_CH_pred, truth.T_CH)):
+            peak, worst = self.max_pred[name], self.pred_error[name]
+            if peak is None or pred > peak:
+                self.max_pred[name] = pred
+            if _known(true):
+                err = pred - true
+                if worst is None or abs(err) > abs(worst[0]):
+                    self.pred_error[name] = (err, t)
+
+    def as_json(self) -> dict:
+        self._materialise()
+        self._end_rest()  # the record ends: a vehicle resting since long enough has stopped
+        ph = phases(self.runs)
+        first_ch = next((p for p in ph if p.clutch == "CH"), None)
+        stop_t, stop_s = self.stop if self.stop is not None else (None, None)
+        both = lambda d, nd: {k: _r(v, nd) for k, v in d.items()}  # noqa: E731
+        if self.tcu_stop_s is not None:
+            reason = "STOPPED_OVERHEAT"
+        else:
+            reason = "vehicle_stopped" if stop_t is not None else "end_of_record"
+        return {
+            "creep_time_s": round(self.creep_time, 3),
+            "standstill_time_s": round(self.standstill_time, 3),
+            "slip_time_s": both(self.slip_time, 3),
+            "slip_overlap_s": round(self.slip_overlap, 3),
+            "phases": [_phase_json(p) for p in ph],
+            "max_plate_temp_c": both(self.max_T, 2),
+            "time_above_limit_s": both(self.above_limit, 3),
+            "friction_energy_kj": {k: round(v / 1e3, 1) for k, v in self.energy.items()},
+            "speed_min_creeping_mps": _r(self.speed_min_creeping, 4),
+            "rollback_mps": round(self.rollback_speed, 4),
+            "rollback_m": round(self.rollback_distance, 4),
+            "speed_error_rms_mps": _r(math.sqrt(self._sq_speed_error / self._driven_time), 4)
+            if self._driven_time > 0 else None,
+            "stop_reason": reason,
+            "stop_time_s": _r(stop_t, 3),
+            "tcu_stop_time_s": self.tcu_stop_s,
+            "T_CL_at_stop_c": None if stop_s is None else _r(stop_s.T_CL, 2),
+            "T_CL_at_first_CH_limit_c": None if first_ch is None else _r(first_ch.values()[2].T_CL, 2),
+            "mu_CH_first_slip": None if first_ch is None else _phase_json(first_ch)["mu"],
+            "P_CH_first_slip_mpa": None if first_ch is None else _phase_json(first_ch)["P_mpa"],
+            "max_predicted_temp_c": both(self.max_pred, 1),
+            "worst_prediction_error_c": {k: None if e is None else {"error_c": round(e[0], 2), "t_s": round(e[1], 3)}
+                                         for k, e in self.pred_error.items()},
+            "handovers": self.handovers,
+        }
+
+
+@dataclass
+class RunSummary:
+    """A run of the plant: the creep metrics of its steps and TCU_STATUS frames, and the run's bookkeeping."""
+
+    dt: float
+    creep: CreepMetrics = field(default_factory=CreepMetrics)
+    fallback_events: int = 0
+    fallback_time_s: float = 0.0
+    realtime_factor: float | None = None  # simulated s per wall s of a real-time run
+    wall_time_s: float | None = None  # of the run itself (after the lockstep handshake)
+    command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
+    stop_reason: str | None = None  # ended early: interrupted, terminated, peer_lost, no_peer; else the creep's
+
+    @property
+    def tcu_state(self) -> str:
+        return self.creep.tcu_state or "IDLE"
+
+    @property
+    def active_clutch(self) -> str:
+        return self.creep.active_clutch or "NONE"
+
+    def on_step(self, out: Sample, creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
+        """One plant step: ``out`` holds the outputs at its end, and stands for the step just taken."""
+        self.creep.add(out, self.dt, creeping, desired_speed)
+        if fallback:
+            self.fallback_time_s += self.dt
+
+    def on_period(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample],
+                  creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
+        """Plant steps as the rows of an array (:meth:`CreepMetrics.add_rows`): :meth:`on_step` on each row."""
+        self.creep.add_rows(rows, fields, sample, self.dt, creeping, desired_speed)
+        if fallback:
+            self.fallback_time_s = _in_order(self.fallback_time_s, np.full(len(rows), self.dt))
+
+    def on_status(self, t: float, values: dict[str, float], truth: Sample) -> None:
+        self.creep.status(t, values["State"], values["ActiveClutch"], values["T_CL_Pred"], values["T_CH_Pred"],
+                          truth)
+
+    def as_json(self, frames: dict[str, int], scenario: str, mode: str, interface: str, duration_s: float) -> dict:
+        creep = self.creep.as_json()
+        if self.stop_reason is not None:
+            creep["stop_reason"] = self.stop_reason
+        return {
+            "scenario": scenario, "mode": mode, "interface": interface, "duration_s": round(duration_s, 3),
+            **creep,
+            "command_fallback": {"events": self.fallback_events, "time_s": round(self.fallback_time_s, 3)},
+            "frames": frames,
+            "realtime_factor": None if self.realtime_factor is None else round(self.realtime_factor, 3),
+            "wall_time_s": None if self.wall_time_s is None else round(self.wall_time_s, 3),
+            "command_latency_ms": _percentiles(self.command_latency_s),
+        }
+
+
+def _percentiles(samples: list[float]) -> dict | None:
+    if not samples:
+        return None
+    s = sorted(samples)
+    pick = lambda q: s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))]  # noqa: E731
+    return {"n": len(s), "p50": round(1000 * pick(0.5), 3), "p99": round(1000 * pick(0.99), 3),
+            "max": round(1000 * s[-1], 3)}

@@ -1,0 +1,196 @@
+"""The assembled plant: steady states by hand, stick/slip, energy balance, determinism, no NaN."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dsg_hil.physics.thermal import NODES
+from dsg_hil.physics.plant import Plant, PlantInputs
+
+
+def run(plant, inputs, seconds):
+    out = None
+    for _ in range(int(round(seconds / plant.dt))):
+        out = plant.step(inputs)
+    return out
+
+
+def test_locked_creep_steady_state_by_hand(params):
+    """CL locked at idle on Table I's grade: v from the ratios, engine torque from the road load (13)."""
+    pt, veh = params.powertrain, params.vehicle
+    plant = Plant(params, T_init=80.0)
+    out = run(plant, PlantInputs(P_CL_cmd=0.7e6), 40.0)
+    assert out.locked_CL and not out.locked_CH
+    ratio = pt.i_a * pt.i_L * pt.i_1 * pt.i_b
+    v = params.engine.omega_idle / ratio * veh.r_w
+    assert out.v == pytest.approx(v, rel=1e-3)
+    force = (veh.m * veh.g * (math.sin(veh.beta) + veh.f * math.cos(veh.beta))
+             + 0.5 * veh.rho_air * veh.C_D * veh.A * v**2)
+    M_e = force * veh.r_w / (ratio * pt.eta_a * pt.eta_L * pt.eta_1 * pt.eta_b)
+    assert out.M_e == pytest.approx(M_e, rel=2e-3)
+    assert out.Q_CL == 0.0
+
+
+def test_zero_pressure_transmits_nothing(params):
+    plant = Plant(params, T_init=60.0)
+    out = run(plant, PlantInputs(P_CL_cmd=0.0, P_CH_cmd=0.0, brake=1.0), 2.0)
+    assert out.M_CL == 0.0 and out.M_CH == 0.0 and out.Q_CL == 0.0
+    assert out.vehicle_held and out.v == 0.0
+    # brake released on a 0.174 rad grade with open clutches: gravity beats rolling resistance, it rolls back
+    out = run(plant, PlantInputs(brake=0.0), 1.0)
+    assert out.v < -0.1
+
+
+def test_slipping_clutch_locks_and_unlocks(params):
+    plant = Plant(params, T_init=80.0)
+    out = run(plant, PlantInputs(P_CL_cmd=1.0e6, brake=1.0), 1.0)  # brake held: the clutch slips
+    assert not out.locked_CL and out.vehicle_held and out.Q_CL > 0.0
+    out = run(plant, PlantInputs(P_CL_cmd=1.0e6), 6.0)  # brake off: drives away and locks
+    # locked: no heat but that of the micro-slip of the ~690 Hz shaft modes within a step (W, against kW slipping)
+    assert out.locked_CL and not out.vehicle_held and out.Q_CL < 20.0
+    out = run(plant, PlantInputs(P_CL_cmd=0.35e6), 3.0)  # below what the grade needs: slips again, stops
+    assert not out.locked_CL and out.omega_in - out.omega_CL > 10.0 and out.Q_CL > 0.0
+    assert out.vehicle_held
+
+
+def test_energy_balance_of_a_creep_run(params):
+    """Friction work + hydraulic heat = heat stored + heat rejected to E, to 0.1 %."""
+    plant = Plant(params, T_init=90.0)
+    net = plant.network
+    T0 = plant.state.T.copy()
+    work = rejected = hydraulic = 0.0
+    c = params.circuit
+    for k in range(20_000):
+        T_before = plant.state.T.copy()
+        P_CL = plant.state.P_CL
+        out = plant.step(PlantInputs(P_CL_cmd=0.45e6 + 0.05e6 * math.sin(k / 500.0), brake=0.0))
+        work += (out.Q_CL + out.Q_CH) * plant.dt
+        hydraulic += (c.Q_pump * c.p_line / c.eta_pump) * plant.dt
+        rejected += 0.5 * (net.heat_to_environment(T_before) + net.heat_to_environment(plant.state.T)) * plant.dt
+        del P_CL
+    stored = float(net.C @ (plant.state.T - T0))
+    assert work > 1e5
+    assert work + hydraulic == pytest.approx(stored + rejected, rel=1e-3)
+
+
+def test_same_inputs_same_outputs_bit_for_bit(params):
+    def trace():
+        plant = Plant(params, T_init={"CL": 100.0, "CH": 100.0, "Fo": 80.0})
+        rows = []
+        for k in range(3000):
+            rows.append(tuple(plant.step(PlantInputs(P_CL_cmd=0.4e6 + 100.0 * k, P_CH_cmd=0.1e6, brake=0.0))))
+        return rows
+    assert trace() == trace()
+
+
+def test_no_nan_on_random_inputs(params):
+    rng = np.random.default_rng(7)
+    plant = Plant(params, T_init=float(rng.uniform(20, 200)))
+    for _ in range(60):
+        inputs = PlantInputs(P_CL_cmd=float(rng.uniform(-0.5e6, 2.5e6)), P_CH_cmd=float(rng.uniform(-0.5e6, 2.5e6)),
+                             brake=float(rng.uniform(0, 1)), grade=float(rng.uniform(-0.2, 0.2)),
+                             engine_speed_request=float(rng.uniform(70, 260)))
+        for _ in range(100):
+            out = plant.step(inputs)
+        values = [v for v in out if isinstance(v, float)]
+        assert all(math.isfinite(v) for v in values)
+        assert 0.0 <= out.P_CL <= params.hydraulics.P_max and 0.0 <= out.P_CH <= params.hydraulics.P_max
+    assert np.all(np.isfinite(plant.state.T)) and plant.state.T.max() < 400.0
+
+
+def test_unknown_initial_node_is_rejected(params):
+    with pytest.raises(ValueError, match="unknown thermal node"):
+        Plant(params, T_init={"XX": 1.0})
+    assert len(NODES) == 14
+
+
+def test_fast_thermal_path_equals_the_network_step(params):
+    """The plant's precomputed thermal step is the network's exact step with heat_sources, for any sources."""
+    from dsg_hil.physics.thermal import heat_sources
+
+    plant = Plant(params)
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        T = rng.uniform(20.0, 250.0, len(NODES))
+        Q_CL, Q_CH = rng.uniform(0.0, 2e4), rng.uniform(0.0, 2e4)
+        P_CL, P_CH = rng.uniform(0, 1.5e6), rng.uniform(0, 1.5e6)
+        fast = plant.thermal.Phi @ T + plant._T_const + plant._T_src @ np.array([Q_CL, Q_CH, P_CL, P_CH])
+        np.testing.assert_allclose(fast, plant.thermal.step(T, heat_sources(params, Q_CL, Q_CH, P_CL, P_CH)),
+                                   rtol=1e-12, atol=1e-9)
+
+
+def test_heat_dissipated_is_the_heat_leaving_the_plate_nodes(params):
+    """Q_diss (SIM_HEAT, Fig. 8) = the network's flow out of each plate node, -(L T)_i + g_E,i T_E reversed,
+    averaged over the step (trapezoid of the node temperatures at both ends of a 1-ms step)."""
+    plant = Plant(params, T_init=100.0)
+    run(plant, PlantInputs(P_CL_cmd=0.5e6, brake=1.0), 3.0)  # CL slips against the held vehicle
+    net = plant.network
+    T0 = plant.state.T.copy()
+    out = plant.step(PlantInputs(P_CL_cmd=0.5e6, brake=1.0))
+    leaving = 0.5 * (net.L @ T0 + net.L @ plant.state.T) - net.g_E * net.T_E
+    assert out.Q_CL > 1000.0 and 0.0 < out.Q_diss_CL < out.Q_CL  # heats: not all generated heat leaves
+    assert out.Q_diss_CL == pytest.approx(leaving[NODES.index("CL")], rel=1e-4)
+    assert out.Q_diss_CH == pytest.approx(leaving[NODES.index("CH")], rel=1e-4, abs=1e-3)
+
+
+def test_two_runs_give_identical_state_arrays(params):
+    """Determinism of the compiled step: the same scenario, the same state bit for bit."""
+    def final_state():
+        plant = Plant(params, T_init={"CL": 120.0, "CH": 90.0, "Fo": 80.0})
+        for k in range(300):  # engage, lock, brake, slip: every branch of the contact law
+            plant.advance(PlantInputs(P_CL_cmd=0.9e6 if k < 200 else 0.3e6, brake=1.0 if 100 <= k < 150 else 0.0), 10)
+        return plant.state.array.copy()
+    first, second = final_state(), final_state()
+    assert first.tobytes() == second.tobytes()
+
+
+def test_advance_is_steps_in_one_call(params):
+    """advance(inputs, n) = n calls of step, bit for bit; its trace holds each step's outputs, its period the
+    peak plate temperatures and the friction energy of the steps."""
+    from dsg_hil.physics.plant import N_OUT, PERIOD
+
+    inputs = PlantInputs(P_CL_cmd=0.6e6, brake=0.0)
+    stepped, advanced = Plant(params, T_init=100.0), Plant(params, T_init=100.0)
+    run(stepped, inputs, 0.5)
+    advanced.advance(inputs, 500)
+    outs = [stepped.step(inputs) for _ in range(10)]
+    trace = np.zeros((10, N_OUT))
+    last = advanced.advance(inputs, 10, trace)
+    assert stepped.state.array.tobytes() == advanced.state.array.tobytes()
+    assert tuple(outs[-1]) == tuple(last) and last.Q_CL > 0.0
+    np.testing.assert_array_equal(trace, np.array([tuple(o) for o in outs], dtype=float))
+    period = dict(zip(PERIOD, advanced.period, strict=True))
+    assert period["T_CL_max"] == max(o.T_CL for o in outs)
+    assert period["E_CL"] == pytest.approx(sum(o.Q_CL for o in outs) * stepped.dt, rel=1e-12)
+    with pytest.raises(ValueError, match="trace"):
+        advanced.advance(inputs, 3, np.zeros((2, N_OUT)))
+
+
+def test_numba_is_imported_only_when_a_plant_is_built():
+    """Commands that never build a plant (dsg-hil --help, dbc, params) do not pay numba's import."""
+    import subprocess
+    import sys
+
+    code = ("import sys, dsg_hil.cli, dsg_hil.physics.plant, dsg_hil.physics.rig, dsg_hil.sim.runner; "
+            "assert 'numba' not in sys.modules, 'numba imported'")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_add_products_sums_each_row_in_order():
+    """The kernel's matrix-vector product: every sum bit for bit that of a plain loop over the columns in order
+    (so the plant's results do not depend on how the loop is arranged), on a padded matrix."""
+    from dsg_hil.physics.plant import _blocked, add_products
+
+    rng = np.random.default_rng(9)
+    M, v = rng.normal(size=(17, 12)) * 10.0 ** rng.integers(-8, 8, size=(17, 12)), rng.normal(size=15)
+    acc = np.zeros(20)
+    acc[:17] = rng.normal(size=17)
+    expected = acc[:17].copy()
+    for i in range(17):
+        for j in range(12):
+            expected[i] += M[i, j] * v[3 + j]
+    add_products(acc.reshape(5, 4), _blocked(M), v, 3)
+    assert acc[:17].tobytes() == expected.tobytes() and not acc[17:].any()

@@ -1,0 +1,187 @@
+"""The summary's definitions (dsg_hil.results.summary) on hand-built plant output sequences."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from dsg_hil.physics.plant import PlantOutputs
+from dsg_hil.results.summary import CreepMetrics, RunSummary
+
+DT = 0.01
+W_IN = 100.0  # rad/s, clutch input
+BASE = {f: 0.0 for f in PlantOutputs._fields} | {"omega_in": W_IN, "omega_CL": W_IN, "omega_CH": W_IN,
+                                                  "T_CL": 100.0, "T_CH": 100.0, "locked_CL": False,
+                                                  "locked_CH": False, "vehicle_held": False}
+
+
+def out(t: float, **kw) -> PlantOutputs:
+    return PlantOutputs(**(BASE | {"t": t} | kw))
+
+
+def feed(m: CreepMetrics, seconds: float, t0: float, creep: bool = True, desired: float = 0.1, **kw) -> float:
+    """``seconds`` of identical samples from ``t0``; returns the time after them."""
+    n = round(seconds / DT)
+    for k in range(n):
+        m.add(out(t0 + k * DT, **kw), DT, creep, desired)
+    return t0 + n * DT
+
+
+CL_SLIPS = {"omega_CL": 20.0, "M_CL": 300.0, "P_CL": 0.5e6}
+CH_SLIPS = {"omega_CH": 30.0, "M_CH": 300.0, "P_CH": 0.7e6}
+
+
+def test_crossover_is_counted_once_for_the_clutch_with_the_larger_torque():
+    m = CreepMetrics()
+    t = feed(m, 1.0, 0.0, v=0.1, **CL_SLIPS)
+    t = feed(m, 0.1, t, v=0.1, **CL_SLIPS | CH_SLIPS | {"M_CH": 100.0})  # both slip, CL drives
+    t = feed(m, 0.1, t, v=0.1, **CL_SLIPS | CH_SLIPS | {"M_CL": 100.0})  # both slip, CH drives
+    feed(m, 1.0, t, v=0.1, **CH_SLIPS)
+    j = m.as_json()
+    assert j["slip_time_s"]["CL"] == pytest.approx(1.1) and j["slip_time_s"]["CH"] == pytest.approx(1.1)
+    assert j["slip_overlap_s"] == pytest.approx(0.2)
+    assert sum(j["slip_time_s"].values()) == pytest.approx(2.2)  # the time during which some clutch slips
+    assert [(p["clutch"], p["start_s"], p["end_s"]) for p in j["phases"]] == [("CL", 0.0, 1.1), ("CH", 1.1, 2.2)]
+
+
+def test_a_locked_or_open_clutch_does_not_slip():
+    m = CreepMetrics()
+    feed(m, 1.0, 0.0, v=0.1, M_CL=300.0)  # torque, no slip: locked
+    feed(m, 1.0, 1.0, v=0.1, omega_CL=20.0, M_CL=2.0)  # slip, no torque: open
+    assert m.as_json()["slip_time_s"] == {"CL": 0.0, "CH": 0.0}
+
+
+def test_without_truth_torque_the_pressure_tells_which_clutch_transmits():
+    m = CreepMetrics()
+    feed(m, 1.0, 0.0, v=0.1, omega_CL=20.0, M_CL=float("nan"), P_CL=0.5e6)
+    feed(m, 1.0, 1.0, v=0.1, omega_CL=20.0, M_CL=float("nan"), P_CL=0.01e6)
+    assert m.as_json()["slip_time_s"]["CL"] == pytest.approx(1.0)
+
+
+def test_roll_back_and_standstill_while_creep_is_requested():
+    m = CreepMetrics()
+    t = feed(m, 1.0, 0.0, creep=False, v=0.0)  # braked, no request: neither creep nor standstill
+    t = feed(m, 0.5, t, v=-0.04, **CL_SLIPS)  # rolls back
+    t = feed(m, 1.5, t, v=0.0, **CL_SLIPS)  # stands
+    feed(m, 2.0, t, v=0.1, **CL_SLIPS)  # creeps
+    j = m.as_json()
+    assert j["rollback_mps"] == pytest.approx(-0.04) and j["rollback_m"] == pytest.approx(0.02)
+    assert j["standstill_time_s"] == pytest.approx(1.5)
+    assert j["creep_time_s"] == pytest.approx(2.0)
+    assert j["stop_time_s"] is None and j["stop_reason"] == "end_of_record"
+
+
+def test_creep_time_needs_no_tcu_status():
+    """A third-party ECU that sends no TCU_STATUS: creep time from the driver's request and the vehicle."""
+    m = CreepMetrics()
+    feed(m, 3.0, 0.0, v=0.1, **CL_SLIPS)
+    j = m.as_json()
+    assert j["creep_time_s"] == pytest.approx(3.0)
+    assert j["max_predicted_temp_c"] == {"CL": None, "CH": None}
+    assert j["worst_prediction_error_c"] == {"CL": None, "CH": None} and j["handovers"] == []
+
+
+def test_stop_is_the_start_of_the_final_rest_while_creep_is_requested():
+    m = CreepMetrics()
+    t = feed(m, 2.0, 0.0, v=0.1, **CL_SLIPS, T_CL=230.0)
+    t = feed(m, 1.0, t, v=0.0, **CL_SLIPS, T_CL=240.0)  # a short rest (a handover dip) ...
+    t = feed(m, 2.0, t, v=0.1, **CL_SLIPS, T_CL=245.0)  # ... is not the stop
+    feed(m, 3.0, t, v=0.0, T_CL=246.0)  # rests until the end of the record
+    j = m.as_json()
+    assert j["stop_time_s"] == pytest.approx(5.0) and j["T_CL_at_stop_c"] == 246.0
+    assert j["stop_reason"] == "vehicle_stopped"
+    assert j["standstill_time_s"] == pytest.approx(4.0) and j["creep_time_s"] == pytest.approx(4.0)
+    assert j["speed_min_creeping_mps"] == 0.0
+
+
+def test_a_rest_shorter_than_the_stop_time_at_the_end_is_no_stop():
+    m = CreepMetrics()
+    t = feed(m, 2.0, 0.0, v=0.1, **CL_SLIPS)
+    feed(m, 1.0, t, v=0.0)
+    assert m.as_json()["stop_time_s"] is None
+
+
+def test_time_above_the_limit_and_friction_energy():
+    m = CreepMetrics()
+    t = feed(m, 2.0, 0.0, v=0.1, **CL_SLIPS, T_CL=249.0, Q_CL=1000.0)
+    feed(m, 1.5, t, v=0.1, **CH_SLIPS, T_CL=251.0, T_CH=250.0, Q_CH=3000.0)  # exactly 250 is not above
+    j = m.as_json()
+    assert j["time_above_limit_s"] == {"CL": pytest.approx(1.5), "CH": 0.0}
+    assert j["friction_energy_kj"] == {"CL": pytest.approx(2.0), "CH": pytest.approx(4.5)}
+    assert j["max_plate_temp_c"] == {"CL": 251.0, "CH": 250.0}
+
+
+def test_first_ch_phase_values_outside_the_crossovers():
+    m = CreepMetrics()
+    t = feed(m, 2.0, 0.0, v=0.1, **CL_SLIPS)
+    t = feed(m, 0.2, t, v=0.1, **CL_SLIPS | CH_SLIPS | {"M_CL": 100.0, "P_CH": 1.2e6})  # crossover ramps
+    for k in range(300):  # CH alone 3 s: mu rises, P falls, T_CL cools
+        m.add(out(t + k * DT, v=0.1, **CH_SLIPS | {"mu_CH": 0.06 + 1e-4 * k, "P_CH": 0.8e6 - 1e3 * k,
+                                                   "T_CL": 240.0 - 0.1 * k}), DT, True, 0.1)
+    t += 3.0
+    feed(m, 1.0, t, v=0.1, **CL_SLIPS | {"T_CL": 150.0})
+    j = m.as_json()
+    assert [p["clutch"] for p in j["phases"]] == ["CL", "CH", "CL"]
+    assert j["mu_CH_first_slip"] == {"start": pytest.approx(0.065), "end": pytest.approx(0.0849)}  # 0.5 s in/out
+    assert j["P_CH_first_slip_mpa"] == {"start": pytest.approx(0.75), "end": pytest.approx(0.551)}
+    assert j["T_CL_at_first_CH_limit_c"] == pytest.approx(240.0 - 29.9)  # at CH's last instant alone
+
+
+def test_prediction_error_is_the_worst_by_magnitude_with_its_time():
+    m = CreepMetrics()
+    m.status(0.1, 2, 1, 195.0, 100.0, out(0.1, T_CL=200.0))
+    m.status(0.2, 2, 1, 203.0, 100.5, out(0.2, T_CL=200.0))
+    m.status(0.3, 2, 2, 210.0, 101.0, out(0.3, T_CL=200.0, T_CH=100.0))
+    j = m.as_json()
+    assert j["worst_prediction_error_c"]["CL"] == {"error_c": 10.0, "t_s": 0.3}
+    assert j["worst_prediction_error_c"]["CH"] == {"error_c": 1.0, "t_s": 0.3}
+    assert j["max_predicted_temp_c"] == {"CL": 210.0, "CH": 101.0}
+    assert [(h["from"], h["to"]) for h in j["handovers"]] == [("CL", "CH")]
+
+
+def test_run_summary_json_has_no_sentinels_and_one_wall_time():
+    s = RunSummary(dt=DT)
+    s.on_step(out(DT), False, False)
+    j = s.as_json({"sent": 0, "received": 0, "rejected": 0}, "x", "lockstep", "virtual:x", 1.0)
+    text = json.dumps(j, allow_nan=False)
+    assert "-1000000000" not in text and "run_wall_time_s" not in j and "wall_time_s" in j
+    assert j["speed_error_rms_mps"] is None and j["phases"] == []
+
+
+# Segments of a record exercising every definition: (seconds, creep requested, outputs)
+RECORD = [(1.0, False, {"v": 0.0}), (0.5, True, {"v": -0.04, **CL_SLIPS}), (1.5, True, {"v": 0.0, **CL_SLIPS}),
+          (2.03, True, {"v": 0.1, **CL_SLIPS, "T_CL": 249.0, "Q_CL": 1000.0}),
+          (0.17, True, {"v": 0.1, **CL_SLIPS, **CH_SLIPS, "M_CH": 100.0}),
+          (0.2, True, {"v": 0.1, **CL_SLIPS, **CH_SLIPS, "M_CL": 100.0, "P_CH": 1.2e6}),
+          (2.97, True, {"v": 0.12, **CH_SLIPS, "T_CL": 251.0, "T_CH": 250.5, "Q_CH": 3000.0}),
+          (1.0, True, {"v": 0.0, **CH_SLIPS}), (0.4, True, {"v": 0.1, "omega_CL": 20.0, "M_CL": float("nan"),
+                                                           "P_CL": 0.5e6}),
+          (3.0, True, {"v": 0.0, "T_CL": 246.0}), (1.0, False, {"v": 0.0, "T_CL": float("nan")})]
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 10, 1000])
+def test_rows_of_an_array_count_as_samples_one_by_one(chunk):
+    """add_rows (the plant's trace of a period) gives what add gives row by row, to the last bit."""
+    one, rows = CreepMetrics(), CreepMetrics()
+    t, n = 0.0, 0
+    for seconds, creep, kw in RECORD:
+        samples = []
+        for _ in range(round(seconds / DT)):
+            drift = {"v": kw["v"] + 1e-4 * math.sin(n), "mu_CH": 0.06 + 1e-5 * n, "P_CL": kw.get("P_CL", 0.0) + n}
+            samples.append(out(round(t, 9), **kw | drift))
+            one.add(samples[-1], DT, creep, 0.1)
+            t, n = t + DT, n + 1
+        array = np.array([[float(x) for x in s] for s in samples])
+        for lo in range(0, len(array), chunk):
+            rows.add_rows(array[lo:lo + chunk], PlantOutputs._fields, lambda r: PlantOutputs(*r.tolist()), DT,
+                          creep, 0.1)
+    assert json.dumps(rows.as_json()) == json.dumps(one.as_json())
+    skip = ("runs", "_rows", "stop", "_rest")
+    assert {k: v for k, v in vars(rows).items() if k not in skip} == {k: v for k, v in vars(one).items()
+                                                                        if k not in skip}
+    assert one.stop is not None and rows.stop is not None and rows.stop[0] == one.stop[0]
+    assert [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in rows.runs] == \
+        [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in one.runs]

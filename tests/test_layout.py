@@ -1,0 +1,127 @@
+"""The layout shows the data flow, one direction: each part imports only the parts upstream of it (the table
+below), the top level holds only ``__init__``, ``__main__`` and subpackages, and the paths of 0.1 still import,
+as the very modules that moved (with a DeprecationWarning)."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+import dsg_hil
+import ecu_stub
+from dsg_hil.common.moved import MOVED
+
+PACKAGE = Path(dsg_hil.__file__).resolve().parent
+ECU_STUB = Path(ecu_stub.__file__).resolve().parent
+
+# part: the parts it may import (besides itself). Upstream first: the data flow is
+# scenario -> physics/plant -> runner -> bus -> TCU -> results -> paper report.
+ALLOWED: dict[str, set[str]] = {
+    "common": set(),
+    "protocol": {"common"},
+    "physics": {"common"},
+    "results": {"common", "physics"},
+    "sim": {"common", "protocol", "physics", "results", "ecu_stub"},  # ecu_stub: the default in-process TCU
+    "paper": {"common", "protocol", "physics", "results", "sim"},
+    "testing": {"common", "protocol", "physics", "results", "sim", "ecu_stub"},
+    "cli": {"common", "protocol", "physics", "results", "sim", "paper", "e2e", "ecu_stub"},
+    "e2e": {"common", "protocol", "physics", "results", "sim", "ecu_stub"},
+    "ecu_stub": {"common", "protocol"},  # the TCU knows the plant only through the DBC
+    "__init__": {"common", "protocol", "physics", "sim", "testing"},  # the lazy public API
+    "__main__": {"cli"},
+}
+LOOP = ("common", "protocol", "physics", "results", "sim")  # nothing of the loop imports the paper's reproduction
+
+
+def part_of(module: str) -> str:
+    """``dsg_hil.sim.runner`` -> ``sim``; ``ecu_stub.runner`` -> ``ecu_stub``; ``dsg_hil`` -> ``__init__``."""
+    parts = module.split(".")
+    if parts[0] == "ecu_stub":
+        return "ecu_stub"
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def module_name(path: Path, root: Path) -> str:
+    parts = list(path.relative_to(root.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(path: Path, root: Path) -> set[str]:
+    """Every dsg_hil / ecu_stub module ``path`` imports, anywhere in it (functions, TYPE_CHECKING blocks too)."""
+    name = module_name(path, root)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join([*base, node.module] if node.module else base)
+            else:
+                target = node.module or ""
+            found.add(target)
+            found.update(f"{target}.{alias.name}" for alias in node.names)  # 'from . import x': x may be a module
+    return {m for m in found if m.split(".")[0] in ("dsg_hil", "ecu_stub") and _is_module(m)}
+
+
+def _is_module(name: str) -> bool:
+    root = PACKAGE.parent if name.startswith("dsg_hil") else ECU_STUB.parent
+    path = root.joinpath(*name.split("."))
+    return path.with_suffix(".py").exists() or (path / "__init__.py").exists()
+
+
+def sources() -> list[tuple[Path, Path]]:
+    return [(p, root) for root in (PACKAGE, ECU_STUB) for p in sorted(root.rglob("*.py"))]
+
+
+def test_every_part_imports_only_what_the_table_allows():
+    bad = []
+    for path, root in sources():
+        source = module_name(path, root)
+        mine = part_of(source)
+        assert mine in ALLOWED, f"{path}: part {mine!r} is not in the table"
+        for target in imports(path, root):
+            theirs = part_of(target)
+            if theirs != mine and theirs not in ALLOWED[mine] and target != "dsg_hil":
+                bad.append(f"{source} imports {target} ({mine} -> {theirs})")
+    assert not bad, "\n".join(bad)
+
+
+def test_nothing_in_the_loop_imports_the_paper():
+    assert not any("paper" in ALLOWED[part] for part in LOOP)
+
+
+def test_the_table_can_fail():
+    """The checker sees a forbidden import (so the test above could fail)."""
+    runner = PACKAGE / "sim" / "runner.py"
+    assert "dsg_hil.results.summary" in imports(runner, PACKAGE)
+    assert "results" not in ALLOWED["protocol"]
+
+
+def test_the_top_level_holds_only_init_main_and_subpackages():
+    modules = sorted(p.name for p in PACKAGE.glob("*.py"))
+    assert modules == ["__init__.py", "__main__.py"]
+    for directory in PACKAGE.iterdir():
+        if directory.is_dir() and directory.name not in ("data", "__pycache__"):
+            assert (directory / "__init__.py").exists(), directory
+
+
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_an_old_import_path_is_the_moved_module(old):
+    sys.modules.pop(old, None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        module = importlib.import_module(old)
+    assert module is importlib.import_module(MOVED[old])
+    assert any(issubclass(w.category, DeprecationWarning) and MOVED[old] in str(w.message) for w in caught)
+
+
+def test_the_public_api_is_lazy_and_complete():
+    for name in dsg_hil.__all__:
+        assert getattr(dsg_hil, name) is not None, name
