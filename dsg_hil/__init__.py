@@ -12,6 +12,7 @@ The layout follows the data flow, one direction (``tests/test_layout.py`` holds 
     e2e/       the vcan end-to-end suite and 'dsg-hil vcan'  data/ the shipped DBC, parameters, scenario
 
 The names below are imported when first used (PEP 562): ``import dsg_hil`` loads no numpy, cantools or python-can.
+A run is scripted with ``dsg_hil.open_run(dsg_hil.RunConfig(...))`` (see :mod:`dsg_hil.sim.run`).
 """
 
 from __future__ import annotations
@@ -28,16 +29,21 @@ if TYPE_CHECKING:
     from .physics.params import Params, load_params
     from .physics.plant import Plant
     from .protocol import load_dbc
+    from .results.outcome import Summary
+    from .sim.loop import run_closed_loop
+    from .sim.run import Run, RunConfig, open_run
     from .sim.scenario import Scenario, load_scenario
     from .testing import run_plant
 
 _WHERE = {"DsgHilError": "common.errors", "InputError": "common.errors", "ResultError": "common.errors",
           "RunError": "common.errors", "Params": "physics.params", "load_params": "physics.params",
           "Plant": "physics.plant", "load_dbc": "protocol", "Scenario": "sim.scenario",
-          "load_scenario": "sim.scenario", "run_plant": "testing"}
+          "load_scenario": "sim.scenario", "run_plant": "testing", "Summary": "results.outcome",
+          "run_closed_loop": "sim.loop", "Run": "sim.run", "RunConfig": "sim.run", "open_run": "sim.run"}
 
-__all__ = ["DsgHilError", "InputError", "Params", "Plant", "ResultError", "RunError", "Scenario", "__version__",
-           "load_dbc", "load_params", "load_scenario", "run_plant"]
+__all__ = ["DsgHilError", "InputError", "Params", "Plant", "ResultError", "Run", "RunConfig", "RunError", "Scenario",
+           "Summary", "__version__", "load_dbc", "load_params", "load_scenario", "open_run", "run_closed_loop",
+           "run_plant"]
 
 __getattr__ = lazy_names(__name__, _WHERE, globals())
 _install_moved()

@@ -1,4 +1,5 @@
-"""Bus, scenario, log and mode options shared by ``dsg-hil plant`` and ``dsg-hil run``.
+"""Bus, scenario, log and mode options shared by ``dsg-hil plant`` and ``dsg-hil run``, and the one place they
+become a :class:`~dsg_hil.sim.run.RunConfig` (:func:`run_config`).
 
 The options need python-can only; the plant and its run (numpy, cantools ...) are imported when a run starts.
 """
@@ -6,34 +7,21 @@ The options need python-can only; the plant and its run (numpy, cantools ...) ar
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
-from collections.abc import Callable
-from contextlib import ExitStack
-from pathlib import Path
-from types import TracebackType
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
-from ..protocol.bus import LOG_CHANNEL, FrameLog, add_bus_arguments, bus_config, bus_name, log_channel, open_bus
-from ..protocol.faults import add_fault_arguments, check_faults, faults_from_args
-from ..sim.scenario import Scenario, load_scenario
 from ..common.files import check_output_path
-from .common import Terminated, params_from, positive_number, progress
+from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config
+from ..protocol.faults import add_fault_arguments, faults_from_args
+from ..sim.scenario import load_scenario
+from .common import positive_number, progress
 
 if TYPE_CHECKING:
-    import can
+    from ..sim.run import RunConfig
 
-    from ..physics.plant import Plant
-    from ..sim.runner import PlantRunner
-
-
-def stop_reasons() -> tuple[tuple[type[BaseException], str], ...]:
-    """How a run that ends early ends: the exception and the summary's stop reason."""
-    from ..sim.runner import PeerLost, PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
-
-    return ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"),
-            (PeerTimeout, "no_peer"))  # after PeerLost, its subclass: no TCU answered the presence probe
+__all__ = ["add_bus_options", "frames_line", "run_config", "setup_logging"]
 
 
 def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
@@ -65,102 +53,26 @@ def setup_logging(verbose: bool) -> None:
                         format="%(levelname)s %(name)s: %(message)s")
 
 
-def scenario_from(args: argparse.Namespace) -> Scenario:
-    scenario = load_scenario(args.scenario)
-    return scenario.with_duration(args.duration) if args.duration is not None else scenario
+def run_config(args: argparse.Namespace, **fields: Any) -> RunConfig:
+    """The run the options describe (``fields`` set the rest, e.g. ``tcu``): output paths checked first, the
+    scenario loaded with the options' faults after its own, the bus resolved (a fresh group for udp_multicast)."""
+    from ..sim.run import RunConfig  # noqa: PLC0415 - the plant (numpy ...) when a run starts
 
-
-def make_plant(args: argparse.Namespace, scenario: Scenario) -> Plant:
-    from ..sim.loop import plant_for  # noqa: PLC0415 - the plant (numpy ...) when a run starts
-
-    return plant_for(scenario, params_from(args))
-
-
-def start(args: argparse.Namespace, stack: ExitStack, what: str) -> tuple[PlantRunner, dict, Scenario]:
-    """Logging, scenario, the plant's bus and log from the options, announced; all closed by ``stack``."""
     setup_logging(args.verbose)
     for option in ("log", "summary"):
         check_output_path(f"--{option}", getattr(args, option, None))
-    scenario = scenario_from(args)
-    runner, config = plant_runner(args, stack, scenario)
-    stack.push(_summary_on_abort(args, runner, config, scenario))
-    progress(f"{what}: {scenario.name}, {scenario.duration_s:g} s, {args.mode} on {bus_name(config)}")
-    return runner, config, scenario
+    scenario = load_scenario(args.scenario)
+    if args.duration is not None:
+        scenario = scenario.with_duration(args.duration)
+    return RunConfig(scenario=scenario, params=args.params, dbc=args.dbc, mode=args.mode,
+                     bus=bus_config(args, fresh_udp=True), faults=[*scenario.faults, *faults_from_args(args)],
+                     fault_seed=getattr(args, "fault_seed", 0), log=args.log, summary=getattr(args, "summary", None),
+                     reply_timeout=args.reply_timeout, startup_timeout=args.startup_timeout, progress=progress,
+                     **fields)
 
 
-def _summary_on_abort(args: argparse.Namespace, runner: PlantRunner, config: dict,
-                      scenario: Scenario) -> Callable[..., bool]:
-    """An exit handler (ExitStack.push) that writes the summary so far when the run ends early: Ctrl-C,
-    SIGTERM or a lost peer (stop reasons interrupted, terminated, peer_lost)."""
-    reasons = stop_reasons()
-
-    def on_exit(exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> bool:
-        reason = next((r for kind, r in reasons if exc_type is not None and issubclass(exc_type, kind)), None)
-        if reason is not None:
-            runner.summary.stop_reason = reason
-            finish(args, runner, config, scenario)
-        return False
-    return on_exit
-
-
-def plant_runner(args: argparse.Namespace, stack: ExitStack, scenario: Scenario) -> tuple[PlantRunner, dict]:
-    """Open the plant's bus (and log) from the options; everything is closed by ``stack``.
-
-    ``args.tcu_in_process`` (``dsg-hil run``, ``report``) on ``virtual`` in lockstep: the plant and the TCU of
-    this process talk over a direct in-process bus instead (:mod:`dsg_hil.protocol.local`: the same frames,
-    without python-can's copies), the TCU's end left in ``args.tcu_bus``."""
-    from ..sim.plant_io import PLANT_RX, PLANT_USES  # noqa: PLC0415 - the plant (numpy, cantools ...) when a run starts
-    from ..protocol import Codec, load_dbc  # noqa: PLC0415
-    from ..protocol.local import local_pair  # noqa: PLC0415
-    from ..sim.runner import PlantRunner  # noqa: PLC0415
-
-    config = bus_config(args, fresh_udp=True)
-    db = load_dbc(args.dbc)
-    args.faults_by_side = check_faults([*scenario.faults, *faults_from_args(args)], db)
-    if getattr(args, "tcu_in_process", False) and config["interface"] == "virtual" and args.mode == "lockstep":
-        plant_end, args.tcu_bus = local_pair(str(config["channel"]))
-        stack.callback(args.tcu_bus.shutdown)
-        bus: can.BusABC = plant_end
-    else:
-        bus = open_bus(config, receive=[db.get_message_by_name(name) for name in PLANT_RX])
-    stack.callback(bus.shutdown)
-    listeners: tuple[FrameLog, ...] = ()
-    if args.log:
-        listener = FrameLog(args.log, log_channel(config))
-        stack.callback(listener.stop)
-        listeners = (listener,)
-    runner = PlantRunner(make_plant(args, scenario), scenario, Codec(db, PLANT_USES), bus, listeners, progress)
-    runner.inject(args.faults_by_side["plant"], getattr(args, "fault_seed", 0))
-    if runner.bus is not bus:
-        stack.callback(runner.bus.shutdown)
-    return runner, config
-
-
-def drive(runner: PlantRunner, args: argparse.Namespace, pump: Callable[[], None] | None = None) -> None:
-    """Run the scenario in the chosen mode (``pump``: an in-process TCU on the virtual bus, lockstep)."""
-    if args.mode == "lockstep":
-        runner.run_lockstep(args.reply_timeout, pump=pump, startup_timeout=args.startup_timeout)
-    else:
-        runner.run_realtime()
-
-
-def frames_line(frames: dict) -> str:
+def frames_line(frames: Mapping[str, Any]) -> str:
     """The frame totals of a summary, in one line."""
     return (f"frames sent {frames['sent']} (re-sent {frames['retries']}), received {frames['received']}, rejected "
             f"{frames['rejected']}, lost {frames['lost']}, duplicates {frames['duplicates']}, unanswered ticks "
             f"{frames['unanswered_ticks']}")
-
-
-def finish(args: argparse.Namespace, runner: PlantRunner, config: dict, scenario: Scenario,
-           **extra: object) -> dict:
-    """The run's summary (written to --summary if given)."""
-    summary = runner.summary.as_json(runner.frames(), scenario.name, args.mode, bus_name(config),
-                                     scenario.duration_s)
-    summary["sim_time_s"] = round(runner.plant.state.t, 3)  # where the run ended (< duration_s if cut short)
-    summary["faults"] = runner.fault_summary()
-    summary.update(extra)
-    if args.summary:
-        Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.summary).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-        progress(f"wrote {args.summary}")
-    return summary

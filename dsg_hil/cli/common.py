@@ -6,16 +6,10 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
+from ..common.cli import Terminated, raise_terminated  # noqa: F401 - the commands' SIGTERM
+
 if TYPE_CHECKING:
     from ..physics.params import Params
-
-
-class Terminated(BaseException):
-    """SIGTERM, raised in the main thread so that the run ends like on Ctrl-C: summary and log written."""
-
-
-def raise_terminated(signum: int, frame: object) -> None:
-    raise Terminated
 
 
 def positive_number(text: str) -> float:

@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import argparse
 import shlex
-from contextlib import ExitStack
 
 from ..protocol.bus import bus_args, per_process_warning
-from ..protocol.faults import FaultError
 from . import command_help
-from .busopts import add_bus_options, drive, finish, frames_line, start
+from .busopts import add_bus_options, frames_line, run_config
 from .common import add_params_option, progress
 
 
@@ -29,21 +27,20 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def _do_plant(args: argparse.Namespace) -> int:
-    from ..sim.runner import PeerTimeout  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+    from ..sim.run import open_run  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+    from ..sim.runner import PeerTimeout  # noqa: PLC0415
 
-    with ExitStack() as stack:
-        runner, config, scenario = start(args, stack, "plant")
-        if args.faults_by_side["tcu"]:
-            raise FaultError(f"{args.faults_by_side['tcu'][0].origin}: changes the TCU's frames: give it to "
-                             f"ecu-stub (--fault), not to the plant")
-        warning = per_process_warning(config)
-        progress(f"warning: {warning}" if warning else f"TCU: ecu-stub {shlex.join(bus_args(config))}")
+    with open_run(run_config(args, tcu=None)) as run:
+        progress(f"plant: {run.scenario.name}, {run.scenario.duration_s:g} s, {args.mode} on {run.interface}")
+        warning = per_process_warning(run.bus_config)
+        progress(f"warning: {warning}" if warning else f"TCU: ecu-stub {shlex.join(bus_args(run.bus_config))}")
         try:
-            drive(runner, args)
+            summary = run.run()
         except PeerTimeout as exc:  # (PeerLost too: the type decides the summary's stop reason)
             if warning:
                 raise type(exc)(f"{exc} ({warning})") from None
             raise
-        summary = finish(args, runner, config, scenario)
-    progress(f"done: stop {summary['stop_reason']}; {frames_line(summary['frames'])}")
+    if args.summary:
+        progress(f"wrote {args.summary}")
+    progress(f"done: stop {summary.stop_reason}; {frames_line(summary.frames)}")
     return 0

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-from contextlib import ExitStack
 from pathlib import Path
 
 from ..common.errors import InputError
 from . import command_help
+from .busopts import setup_logging
 from .common import add_params_option, params_from, progress
 
 CREEP_LOG = "creep.log"
@@ -55,19 +55,17 @@ def _run_creep(args: argparse.Namespace, out: Path) -> Path:
     """The real loop, as ``dsg-hil run`` with no interface configured: plant and ecu-stub in lockstep on
     python-can's virtual bus, the traffic recorded to DIR/creep.log, the run's summary to DIR/summary.json."""
     from ..protocol.bus import VIRTUAL_CHANNEL  # noqa: PLC0415 - python-can when the run starts
-    from .busopts import drive, finish, start  # noqa: PLC0415
-    from .run import _tcu_in_process  # noqa: PLC0415
+    from ..sim.run import RunConfig, open_run, resolve_scenario  # noqa: PLC0415
+
     log = out / CREEP_LOG
-    run_args = argparse.Namespace(**vars(args), interface="virtual", channel=f"{VIRTUAL_CHANNEL}_report",
-                                  config_context=None, mode="lockstep", log=str(log),
-                                  summary=str(out / "summary.json"), reply_timeout=5.0, startup_timeout=60.0,
-                                  tcu_in_process=True)
-    with ExitStack() as stack:
-        runner, config, scenario = start(run_args, stack, "creep run")
-        tcu = _tcu_in_process(config, runner.codec.db, runner, run_args)
-        stack.callback(tcu.bus.shutdown)
-        drive(runner, run_args, pump=tcu.pump)
-        finish(run_args, runner, config, scenario)
+    setup_logging(args.verbose)
+    config = RunConfig(scenario=resolve_scenario(args.scenario, args.duration), params=args.params, dbc=args.dbc,
+                       bus={"interface": "virtual", "channel": f"{VIRTUAL_CHANNEL}_report"}, log=log,
+                       summary=out / "summary.json", progress=progress)
+    with open_run(config) as run:
+        progress(f"creep run: {run.scenario.name}, {run.scenario.duration_s:g} s, lockstep on {run.interface}")
+        run.run()
+    progress(f"wrote {config.summary}")
     return log
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Mapping
+import dataclasses
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any, TypeVar, dataclass_transform
@@ -312,3 +313,18 @@ def load_params(path: str | Path | None = None) -> Params:
     path = Path(path) if path is not None else DEFAULT_PARAMS_PATH
     text = read_input_file(path, "parameter file", ParameterError)
     return parse_params(text, str(path))
+
+
+def with_overrides(params: Params, overrides: Mapping[str, float]) -> Params:
+    """``params`` with values replaced by dotted key (``{"vehicle.m": 1900.0}``, SI as ``dsg-hil params`` lists
+    them); an unknown key is a :class:`ParameterError` naming it."""
+    for key, value in overrides.items():
+        params = _replace_dotted(params, key.split("."), value, key)
+    return params
+
+
+def _replace_dotted(obj: Any, path: list[str], value: float, key: str) -> Any:
+    if not is_dataclass(obj) or isinstance(obj, type) or not hasattr(obj, path[0]):
+        raise ParameterError(f"params: no parameter {key!r} (see 'dsg-hil params' for the keys)")
+    inner = value if len(path) == 1 else _replace_dotted(getattr(obj, path[0]), path[1:], value, key)
+    return dataclasses.replace(obj, **{path[0]: inner})

@@ -1,0 +1,501 @@
+"""One way to set up and run a simulation: :class:`RunConfig` says what to run, :func:`open_run` builds it (plant,
+bus, log, faults, TCU) and :meth:`Run.run` runs it; the summary is finished here and nowhere else.
+
+Every entry point is built on this: ``dsg-hil run``, ``dsg-hil plant``, ``dsg-hil report``,
+:func:`dsg_hil.sim.loop.run_closed_loop`, :func:`dsg_hil.testing.run_plant` and the pytest fixture::
+
+    from dsg_hil.sim.run import RunConfig, open_run
+
+    config = RunConfig(scenario="my_creep.toml", duration=60.0, log="run.asc", summary="summary.json")
+    with open_run(config) as run:
+        summary = run.run()
+    print(summary.stop_reason, summary.max_plate_temp_c)
+
+The run's resources (buses, log, a TCU process) are closed when the ``with`` block ends, and the summary file is
+written however the run ends: at its end, on Ctrl-C, SIGTERM (:class:`~dsg_hil.common.cli.Terminated`), or a lost
+TCU, with the stop reason ``interrupted``, ``terminated``, ``peer_lost`` or ``no_peer``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from contextlib import ExitStack
+from dataclasses import dataclass, replace
+from pathlib import Path
+from types import TracebackType
+from typing import IO, Any, Literal, Protocol, runtime_checkable
+
+import can
+import numpy as np
+from cantools.database.can import Database
+
+from ..common.errors import InputError, RunError
+from ..physics.params import Params, load_params, with_overrides
+from ..physics.plant import PlantOutputs
+from ..protocol import Codec, load_dbc
+from ..protocol.bus import FrameLog, bus_args, bus_name, log_channel, open_bus
+from ..protocol.faults import FaultError, FaultSpec, check_faults, parse_fault, with_faults
+from ..protocol.local import local_pair
+from ..results.outcome import Summary
+from ..physics.thermal import NODES
+from ..physics.plant import Plant
+from .plant_io import PLANT_RX, PLANT_USES, SYNC
+from .runner import PeerLost, PeerTimeout, PlantRunner
+from .scenario import Scenario, load_scenario
+
+__all__ = ["ECU_STUB", "EcuStubProcess", "Run", "RunConfig", "TcuFactory", "TcuProcess", "answer_at_once",
+           "at_each_tick", "attach_tcu", "open_run", "plant_for", "private_channel"]
+
+ECU_STUB = "ecu-stub"  # RunConfig.tcu: the bundled TCU, in this process where the bus allows, else as a process
+Mode = Literal["lockstep", "realtime"]
+TcuFactory = Callable[[Database, can.BusABC], Any]  # (db, bus) -> an object with pump(), now, run(...), bus
+_channels = itertools.count()
+
+
+@runtime_checkable
+class TcuProcess(Protocol):
+    """A TCU started as a process on the run's bus (:class:`EcuStubProcess`,
+    :class:`dsg_hil.testing.ControllerProcess`)."""
+
+    def command(self, config: Mapping[str, Any]) -> list[str]: ...
+
+    def start(self, config: Mapping[str, Any], output: IO[bytes]) -> subprocess.Popen[bytes]: ...
+
+    def stop(self, proc: subprocess.Popen[bytes]) -> None: ...
+
+
+@dataclass(frozen=True)
+class EcuStubProcess:
+    """The bundled TCU as a process (``python -m ecu_stub`` with the run's bus options), its output on this
+    process's (``inherit_output``). ``faults``: ``--fault`` options for the TCU's own frames (it counts them);
+    ``idle_exit``: it ends once the plant is silent this long (so a TCU whose plant died does not linger)."""
+
+    faults: tuple[FaultSpec, ...] = ()
+    fault_seed: int = 0
+    idle_exit: float = 5.0
+    inherit_output: bool = True
+    stop_timeout: float = 5.0
+
+    def command(self, config: Mapping[str, Any]) -> list[str]:
+        faults = [arg for spec in self.faults for arg in ("--fault", spec.as_option())]
+        if faults:
+            faults += ["--fault-seed", str(self.fault_seed)]
+        return [sys.executable, "-m", "ecu_stub", *bus_args(dict(config)), "--idle-exit", f"{self.idle_exit:g}",
+                *faults]
+
+    def start(self, config: Mapping[str, Any], output: IO[bytes]) -> subprocess.Popen[bytes]:
+        sink = None if self.inherit_output else output
+        return subprocess.Popen(self.command(config), stdout=sink, stderr=None if sink is None else subprocess.STDOUT)
+
+    def stop(self, proc: subprocess.Popen[bytes]) -> None:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=self.stop_timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What to run. Every field has a default: ``RunConfig()`` is the shipped creep scenario against the bundled
+    TCU in lockstep on a direct in-process bus.
+
+    * ``scenario``: a :class:`~dsg_hil.sim.scenario.Scenario` or a scenario TOML (None: the shipped one);
+      ``duration`` [s] overrides its duration.
+    * ``params``: a :class:`~dsg_hil.physics.params.Params`, a parameter TOML, or overrides of the shipped
+      parameters by dotted key (``{"vehicle.m": 1900.0}``, SI as ``dsg-hil params`` lists them).
+    * ``dbc``: a DBC file or a loaded cantools database (None: the shipped one).
+    * ``mode``: ``lockstep`` (the plant is the time master; bit-for-bit reproducible) or ``realtime``.
+    * ``bus``: a python-can configuration (``{"interface": "socketcan", "channel": "vcan0"}``); None: a direct
+      in-process bus (:mod:`dsg_hil.protocol.local`). ``direct``: an in-process TCU in lockstep on python-can's
+      ``virtual`` interface talks over the direct bus instead (the same frames, faster).
+    * ``tcu``: :data:`ECU_STUB` (the bundled TCU: in this process on a direct or ``virtual`` bus, else started
+      as a process), a factory ``(db, bus) -> TCU`` for a TCU object in this process, a :class:`TcuProcess`,
+      or None (none: a TCU runs elsewhere, as for ``dsg-hil plant``).
+    * ``faults``: fault specs or ``--fault`` strings (None: the scenario's ``[[fault]]`` tables), each on the
+      side whose frames it changes, drawn from generators seeded ``fault_seed``.
+    * ``log``: record the bus traffic to this file (by extension: ``.log`` candump -L, ``.asc``, ``.blf`` ...);
+      ``summary``: write the JSON summary here however the run ends; ``tcu_output``: a TCU process's output.
+    * ``capture``: keep every frame in :attr:`Run.frames`; ``truth``: keep the plant's outputs each control period
+      (:meth:`Run.truth`); ``listeners`` get every frame the plant sent or took; ``on_period(runner)`` is called
+      once per control period, as the plant sends the period's SIM_SYNC tick.
+    * ``reply_timeout``/``startup_timeout`` [s of wall time]: lockstep waits for a silent TCU, and for the first
+      answer to the presence probe. ``progress``: a callable for progress lines (None: quiet).
+    * ``reference_codec``: encode and decode through cantools instead of the generated codec (the same frames,
+      slower: a benchmark's baseline).
+    """
+
+    scenario: Scenario | str | Path | None = None
+    duration: float | None = None
+    params: Params | str | Path | Mapping[str, float] | None = None
+    dbc: Database | str | Path | None = None
+    mode: Mode = "lockstep"
+    bus: Mapping[str, Any] | None = None
+    direct: bool = True
+    tcu: str | TcuFactory | TcuProcess | None = ECU_STUB
+    faults: Sequence[FaultSpec | str] | None = None
+    fault_seed: int = 0
+    log: str | Path | None = None
+    summary: str | Path | None = None
+    tcu_output: str | Path | None = None
+    capture: bool = False
+    truth: bool = False
+    listeners: tuple[Callable[[can.Message], None], ...] = ()
+    on_period: Callable[[PlantRunner], None] | None = None
+    reply_timeout: float = 5.0
+    startup_timeout: float = 60.0
+    progress: Callable[[str], None] | None = None
+    reference_codec: bool = False
+
+
+def resolve_scenario(scenario: Scenario | str | Path | None, duration: float | None = None) -> Scenario:
+    """The scenario of a :class:`RunConfig`, its duration overridden if given."""
+    resolved = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    return resolved if duration is None else resolved.with_duration(duration)
+
+
+def resolve_params(params: Params | str | Path | Mapping[str, float] | None) -> Params:
+    """The parameters of a :class:`RunConfig`."""
+    if isinstance(params, Params):
+        return params
+    if isinstance(params, Mapping):
+        return with_overrides(load_params(), params)
+    return load_params(params)
+
+
+class Run:
+    """A run set up by :func:`open_run`: the plant runner (``runner``; its plant holds the truth), the TCU if it
+    runs in this process (``tcu``), the frames if captured (``frames``). A context manager: leaving it closes
+    the run's resources and writes the summary file."""
+
+    def __init__(self, config: RunConfig, stack: ExitStack) -> None:
+        self.config = config
+        self._stack = stack
+        self.scenario = resolve_scenario(config.scenario, config.duration)
+        self.params = resolve_params(config.params)
+        self.db = config.dbc if isinstance(config.dbc, Database) else load_dbc(config.dbc)
+        self.frames: list[can.Message] = []
+        self._truth: list[tuple[float, PlantOutputs]] = []
+        self.tcu: Any = None
+        self._result: Summary | None = None
+        specs = [parse_fault(f) if isinstance(f, str) else f
+                 for f in (self.scenario.faults if config.faults is None else config.faults)]
+        self.faults_by_side = check_faults(specs, self.db)
+        self.bus_config, direct = self._bus_config()
+        self.interface = bus_name(self.bus_config)
+        process = self._tcu_process()
+        self._check_paths()
+        # nothing was opened or written up to here: bad input fails before this line
+        plant_bus, tcu_bus = self._open_buses(direct)
+        listeners = self._listeners()
+        codec = Codec(self.db, PLANT_USES, reference=config.reference_codec)
+        self.runner = PlantRunner(plant_for(self.scenario, self.params), self.scenario, codec, plant_bus,
+                                  listeners, config.progress)
+        self.runner.inject(self.faults_by_side["plant"], config.fault_seed)
+        if self.runner.bus is not plant_bus:
+            stack.callback(self.runner.bus.shutdown)
+        if tcu_bus is not None:
+            self._attach_tcu(tcu_bus)
+        elif process is not None and isinstance(process, EcuStubProcess) and process.faults:
+            self._progress("faults on the TCU's frames: passed to ecu-stub, which counts them (see its output)")
+            self.runner.faults_in_tcu = [spec.describe() for spec in process.faults]
+        self._process = process
+
+    # ---- set-up ----------------------------------------------------------------------------------------------
+    def _check_paths(self) -> None:
+        from ..common.files import check_output_path  # noqa: PLC0415
+
+        for option, path in (("log", self.config.log), ("summary", self.config.summary),
+                             ("tcu_output", self.config.tcu_output)):
+            check_output_path(option, None if path is None else str(path))
+
+    def _bus_config(self) -> tuple[dict[str, Any], bool]:
+        """The bus configuration, and whether the plant and an in-process TCU share a direct in-process bus."""
+        config = self.config
+        if isinstance(config.tcu, str) and config.tcu != ECU_STUB:
+            raise InputError(f"RunConfig.tcu {config.tcu!r}: {ECU_STUB!r}, a factory, a TcuProcess or None")
+        if config.mode not in ("lockstep", "realtime"):
+            raise InputError(f"RunConfig.mode {config.mode!r}: 'lockstep' or 'realtime'")
+        in_process = config.tcu is not None and not isinstance(config.tcu, TcuProcess)
+        if config.bus is None:
+            if not in_process:
+                raise InputError("RunConfig: a TCU process or an external TCU needs a bus (bus=None is the "
+                                 "in-process bus)")
+            return {"interface": "local", "channel": private_channel()}, True
+        bus = dict(config.bus)
+        direct = in_process and config.direct and bus.get("interface") == "virtual" and config.mode == "lockstep"
+        if in_process and bus.get("interface") != "virtual":
+            if config.tcu != ECU_STUB:
+                raise InputError(f"RunConfig: a TCU in this process needs bus None or interface 'virtual', not "
+                                 f"{bus.get('interface')!r} (give a TcuProcess)")
+        return bus, direct
+
+    def _open_buses(self, direct: bool) -> tuple[can.BusABC, can.BusABC | None]:
+        """The plant's bus and, for a TCU in this process, its own end of the same bus."""
+        channel = str(self.bus_config["channel"])
+        if direct:
+            pair: tuple[can.BusABC, can.BusABC] = local_pair(channel)
+            for end in pair:
+                self._stack.callback(end.shutdown)
+            return pair
+        plant_bus = open_bus(self.bus_config, receive=[self.db.get_message_by_name(name) for name in PLANT_RX])
+        self._stack.callback(plant_bus.shutdown)
+        if self._tcu_in_process():
+            tcu_bus = open_bus(self.bus_config)
+            self._stack.callback(tcu_bus.shutdown)
+            return plant_bus, tcu_bus
+        return plant_bus, None
+
+    def _tcu_in_process(self) -> bool:
+        tcu = self.config.tcu
+        if tcu is None or isinstance(tcu, TcuProcess):
+            return False
+        return tcu != ECU_STUB or self.bus_config["interface"] in ("local", "virtual")
+
+    def _listeners(self) -> tuple[Callable[[can.Message], None], ...]:
+        config = self.config
+        listeners = config.listeners
+        if config.log is not None:
+            log = FrameLog(str(config.log), log_channel(self.bus_config), option="log")
+            self._stack.callback(log.stop)
+            listeners = (*listeners, log)
+        if config.capture:
+            listeners = (*listeners, self.frames.append)
+        periodic = [f for f in (config.on_period, self._record_truth if config.truth else None) if f is not None]
+        if periodic:
+            listeners = (*listeners, at_each_tick(self.db, lambda: [f(self.runner) for f in periodic]))
+        return listeners
+
+    def _record_truth(self, runner: PlantRunner) -> None:
+        self._truth.append((runner.tick * runner.period, runner.out))
+
+    def _tcu_process(self) -> TcuProcess | None:
+        """The TCU process to start, if the TCU is one; TCU-side faults checked against the kind of TCU."""
+        tcu, side = self.config.tcu, self.faults_by_side["tcu"]
+        if tcu is None:
+            if side:
+                raise FaultError(f"{side[0].origin}: changes the TCU's frames: give it to ecu-stub (--fault), not "
+                                 f"to the plant")
+            return None
+        if self._tcu_in_process():
+            return None
+        process = EcuStubProcess() if tcu == ECU_STUB else tcu
+        assert isinstance(process, TcuProcess)
+        if isinstance(process, EcuStubProcess):
+            # the TCU waits for a silent plant as long as the plant waits for a silent TCU
+            return replace(process, faults=tuple(side), fault_seed=self.config.fault_seed,
+                           idle_exit=max(self.config.reply_timeout, 2.0))
+        if side:
+            raise InputError(f"{side[0].origin}: changes the controller's frames: a controller process injects "
+                             f"its own (ecu-stub: --fault)")
+        return process
+
+    def _attach_tcu(self, tcu_bus: can.BusABC) -> None:
+        """The TCU in this process, on its end of the bus, behind the TCU-side faults."""
+        tcu = self.config.tcu
+        factory = None if isinstance(tcu, str) or isinstance(tcu, TcuProcess) else tcu
+        self.tcu = attach_tcu(self.runner, tcu_bus, self.db, self.faults_by_side["tcu"], self.config.fault_seed,
+                              factory)
+        if self.tcu.bus is not tcu_bus:
+            self._stack.callback(self.tcu.bus.shutdown)
+
+    def _progress(self, message: str) -> None:
+        if self.config.progress is not None:
+            self.config.progress(message)
+
+    # ---- running ---------------------------------------------------------------------------------------------
+    def run(self) -> Summary:
+        """Run the scenario to its end (or until it is stopped); returns the finished summary."""
+        config, runner = self.config, self.runner
+        if self._process is not None:
+            self._run_with_process(self._process)
+        elif self.tcu is not None and config.mode == "lockstep":
+            answer_at_once(runner)
+            runner.run_lockstep(config.reply_timeout, pump=self.tcu.pump, startup_timeout=config.startup_timeout)
+        elif self.tcu is not None:
+            self._run_realtime_with_thread()
+        else:
+            self._drive()
+        return self.summary()
+
+    def _drive(self, pump: Callable[[], None] | None = None) -> None:
+        if self.config.mode == "lockstep":
+            self.runner.run_lockstep(self.config.reply_timeout, pump=pump, startup_timeout=self.config.startup_timeout)
+        else:
+            self.runner.run_realtime()
+
+    def _run_realtime_with_thread(self) -> None:
+        """Real time with the TCU in this process: it serves the bus in a thread of its own."""
+        errors: list[BaseException] = []
+        done = threading.Event()
+
+        def serve() -> None:
+            try:
+                self.tcu.run(should_stop=done.is_set)
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the main thread
+                errors.append(exc)
+
+        thread = threading.Thread(target=serve, name="tcu", daemon=True)
+        thread.start()
+        try:
+            self.runner.run_realtime()
+        finally:
+            done.set()
+            thread.join()
+        if errors:
+            raise errors[0]
+
+    def _run_with_process(self, process: TcuProcess) -> None:
+        output = self.config.tcu_output
+        sink: IO[bytes] = open(output, "w+b") if output is not None else tempfile.TemporaryFile()  # noqa: SIM115
+        with sink:
+            try:
+                proc = process.start(self.bus_config, sink)
+            except OSError as exc:
+                raise RunError(f"cannot start the TCU {process.command(self.bus_config)}: {exc}") from exc
+            try:
+                try:
+                    status = proc.wait(timeout=0.5)
+                except subprocess.TimeoutExpired:
+                    status = None
+                if status is not None:  # (a TCU that never answers costs the startup timeout: the same error)
+                    raise PeerTimeout("the TCU process exited at start")
+                self._drive()
+            except PeerTimeout as exc:  # (PeerLost too: the type decides the summary's stop reason)
+                raise type(exc)(f"{exc} (TCU {' '.join(process.command(self.bus_config))}: "
+                                f"{_process_state(proc, sink)})") from exc
+            finally:
+                process.stop(proc)
+
+    # ---- results ---------------------------------------------------------------------------------------------
+    def summary(self, **extra: Any) -> Summary:
+        """The summary of the run so far (the finished one once the run is over), written to ``summary``."""
+        runner = self.runner
+        data = runner.summary.as_json(runner.frames(), self.scenario.name, self.config.mode, self.interface,
+                                      self.scenario.duration_s)
+        self._result = Summary(
+            scenario=data.pop("scenario"), mode=data.pop("mode"), interface=data.pop("interface"),
+            duration_s=data.pop("duration_s"), command_fallback=data.pop("command_fallback"),
+            frames=data.pop("frames"), realtime_factor=data.pop("realtime_factor"),
+            wall_time_s=data.pop("wall_time_s"), command_latency_ms=data.pop("command_latency_ms"),
+            sim_time_s=round(runner.plant.state.t, 3), faults=runner.fault_summary(), metrics=data, extra=extra)
+        if self.config.summary is not None:
+            path = Path(self.config.summary)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(self._result.as_json(), indent=2) + "\n", encoding="utf-8")
+        return self._result
+
+    def truth(self) -> dict[str, np.ndarray]:
+        """The plant each control period at the tick's time (``RunConfig.truth``): ``t`` [s] and each field of
+        :class:`~dsg_hil.physics.plant.PlantOutputs` (SI; temperatures degC), e.g. ``truth()["T_CL"]``."""
+        arrays = {"t": np.array([t for t, _ in self._truth], dtype=float)}
+        for i, name in enumerate(PlantOutputs._fields):
+            arrays[name] = np.array([out[i] for _, out in self._truth])
+        return arrays
+
+    # ---- context manager -------------------------------------------------------------------------------------
+    def __enter__(self) -> Run:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        try:
+            reason = _stop_reason(exc_type)
+            if reason is not None:
+                self.runner.summary.stop_reason = reason
+                self.summary()
+        finally:
+            self._stack.close()
+
+
+def _stop_reason(exc_type: type[BaseException] | None) -> str | None:
+    """How a run that ends early ends: the summary's stop reason for the exception, None for others."""
+    from ..common.cli import Terminated  # noqa: PLC0415
+
+    if exc_type is None:
+        return None
+    for kind, reason in ((KeyboardInterrupt, "interrupted"), (Terminated, "terminated"), (PeerLost, "peer_lost"),
+                         (PeerTimeout, "no_peer")):  # PeerLost before its base class PeerTimeout
+        if issubclass(exc_type, kind):
+            return reason
+    return None
+
+
+def open_run(config: RunConfig | None = None) -> Run:
+    """Set up the run ``config`` describes (default: :class:`RunConfig`'s defaults): the scenario, parameters and
+    DBC loaded, the buses, log and TCU opened, the faults in place. Bad input raises :class:`InputError` before
+    anything runs or is written. Use it as a context manager (see the module's docstring)."""
+    stack = ExitStack()
+    try:
+        return Run(config or RunConfig(), stack)
+    except BaseException:
+        stack.close()
+        raise
+
+
+def private_channel() -> str:
+    """A channel name of this run's own (the in-process bus, python-can's virtual interface)."""
+    return f"dsg_hil_loop_{os.getpid()}_{next(_channels)}"
+
+
+def plant_for(scenario: Scenario, params: Params, dt: float = 1e-3) -> Plant:
+    """A plant in the scenario's initial state (plate and oil temperatures, vehicle speed)."""
+    return Plant(params, dt=dt, T_init=scenario.initial_temperatures(NODES), v_init=scenario.v_mps)
+
+
+def answer_at_once(runner: PlantRunner) -> None:
+    """An in-process TCU has answered when ``pump()`` returns: re-send a late tick at once instead of waiting
+    on the wall clock (a fault that loses answers then costs no wall time, and no silence toward PeerLost)."""
+    runner.retry_first_s = runner.retry_max_s = 0.0
+
+
+def at_each_tick(db: Database, call: Callable[[], object]) -> Callable[[can.Message], None]:
+    """A plant listener that calls ``call()`` at each SIM_SYNC tick the plant sends (once per control period:
+    listeners see first transmissions only, never re-sends or the presence probe)."""
+    sync_id = db.get_message_by_name(SYNC).frame_id
+
+    def listener(msg: can.Message) -> None:
+        if msg.arbitration_id == sync_id:
+            call()
+    return listener
+
+
+def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Iterable[FaultSpec], fault_seed: int,
+               tcu_factory: TcuFactory | None = None) -> Any:
+    """A TCU in this process on ``bus``, its frames through the TCU-side ``faults`` (windows in the TCU's own time,
+    its ``now``); the injector is registered on ``runner`` for the summary. Default TCU: the bundled ecu-stub,
+    which knows the plant only by the DBC (with the plant's kind of codec)."""
+    if tcu_factory is None:
+        from ecu_stub.runner import TCU_USES, TcuRunner  # noqa: PLC0415 - the TCU when one is attached
+
+        reference = runner.codec.reference
+
+        def tcu_factory(tcu_db: Database, tcu_bus: can.BusABC) -> Any:
+            return TcuRunner(Codec(tcu_db, TCU_USES, reference=reference), tcu_bus)
+    built: list[Any] = []  # the TCU, once built: the fault clock reads its time
+    tcu_bus, runner.injectors["tcu"] = with_faults(bus, db, faults, fault_seed, lambda: built[0].now)
+    built.append(tcu_factory(db, tcu_bus))
+    return built[0]
+
+
+def _output_tail(sink: IO[bytes]) -> str:
+    sink.flush()
+    sink.seek(0)
+    tail = sink.read()[-2000:].decode(errors="replace").strip()
+    return f"its output: {tail or '(none)'}"
+
+
+def _process_state(proc: subprocess.Popen[bytes], sink: IO[bytes]) -> str:
+    status = proc.poll()
+    state = "still running" if status is None else f"exited with status {status}"
+    return f"{state}; {_output_tail(sink)}"
+
