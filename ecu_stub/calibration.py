@@ -14,7 +14,6 @@ the key. Units are SI with temperatures in degC and pressures in MPa (the DBC's 
 from __future__ import annotations
 
 import functools
-import math
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
@@ -23,6 +22,7 @@ from typing import Any
 
 from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import read_input_file
+from dsg_hil.common.quantities import finite, quantity
 
 DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
 SOURCES = ("identified", "derived", "chosen")
@@ -122,28 +122,9 @@ SECTIONS = {"strategy": Strategy, "speed": SpeedControl, "launch": Launch, "vehi
             "friction": FrictionMap, "clutch.CL": Clutch, "clutch.CH": Clutch}
 
 
-def _check_number(key: str, x: Any, lo: float | None, hi: float | None) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-        raise CalibrationError(f"{key}: must be a finite number, got {x!r}")
-    if (lo is not None and x < lo) or (hi is not None and x > hi):
-        raise CalibrationError(f"{key}: {x} is out of range [{lo}, {hi}]")
-    return float(x)
-
-
 def _value(key: str, entry: Any, meta: Mapping[str, Any]) -> Any:
-    if not isinstance(entry, dict) or "value" not in entry:
-        raise CalibrationError(f"{key}: must be an inline table {{ value, unit, source, how }}")
-    extra = set(entry) - {"value", "unit", "source", "how"}
-    if extra:
-        raise CalibrationError(f"{key}.{sorted(extra)[0]}: unknown field")
-    if entry.get("unit") != meta["unit"]:
-        raise CalibrationError(f"{key}: unit must be {meta['unit']!r}, got {entry.get('unit')!r}")
-    if entry.get("source") not in SOURCES:
-        raise CalibrationError(f"{key}: source must be one of {', '.join(SOURCES)}, got {entry.get('source')!r}")
-    if not isinstance(entry.get("how"), str) or not entry["how"].strip():
-        raise CalibrationError(f"{key}: needs 'how' (how the value was obtained)")
-    value, lo, hi = entry["value"], meta["lo"], meta["hi"]
-    return _nested(key, value, lo, hi)
+    value, _, _ = quantity(key, entry, meta["unit"], dict.fromkeys(SOURCES, "how"), CalibrationError)
+    return _nested(key, value, meta["lo"], meta["hi"])
 
 
 def _nested(key: str, value: Any, lo: float | None, hi: float | None) -> Any:
@@ -152,7 +133,7 @@ def _nested(key: str, value: Any, lo: float | None, hi: float | None) -> Any:
         if not value:
             raise CalibrationError(f"{key}: empty list")
         return tuple(_nested(f"{key}[{i}]", x, lo, hi) for i, x in enumerate(value))
-    return _check_number(key, value, lo, hi)
+    return finite(key, value, CalibrationError, lo, hi)
 
 
 def _section(data: dict, name: str, cls: type) -> Any:

@@ -12,7 +12,6 @@ Anything missing, unknown, mistyped, out of range or in the wrong unit raises :c
 
 from __future__ import annotations
 
-import math
 import tomllib
 from collections.abc import Mapping
 import dataclasses
@@ -22,6 +21,7 @@ from typing import Any, TypeVar, dataclass_transform
 
 from ..common.errors import InputError
 from ..common.files import read_input_file
+from ..common.quantities import finite, quantity
 
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
 SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}
@@ -233,31 +233,12 @@ class Params:
 
 
 def _entry(key: str, raw: Any, meta: Mapping[str, Any], provenance: dict) -> float:
-    if not isinstance(raw, dict) or "value" not in raw:
-        raise ParameterError(f"{key}: expected {{ value = ..., unit = ..., source = ... }}, got {raw!r}")
-    extra = set(raw) - {"value", "unit", "source", "ref", "why", "target"}
-    if extra:
-        raise ParameterError(f"{key}: unknown field(s) {sorted(extra)}")
-    value = raw["value"]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ParameterError(f"{key}: value must be a finite number, got {value!r}")
-    if raw.get("unit") != meta["unit"]:
-        raise ParameterError(f"{key}: unit must be {meta['unit']!r}, got {raw.get('unit')!r}")
-    source = raw.get("source")
-    if source not in SOURCES:
-        raise ParameterError(f"{key}: source must be one of {sorted(SOURCES)}, got {source!r}")
-    reason = raw.get(SOURCES[source])
-    if not isinstance(reason, str) or not reason.strip():
-        raise ParameterError(f"{key}: source {source!r} needs a non-empty {SOURCES[source]!r}")
-    if meta.get("whole") and value != int(value):
+    value, source, reason = quantity(key, raw, meta["unit"], SOURCES, ParameterError)
+    number = finite(key, value, ParameterError, meta["lo"], meta["hi"], meta["lo_open"])
+    if meta.get("whole") and number != int(number):
         raise ParameterError(f"{key}: must be a whole number (a count), got {value!r}")
-    lo, hi = meta["lo"], meta["hi"]
-    if lo is not None and (value < lo or (meta["lo_open"] and value == lo)):
-        raise ParameterError(f"{key}: {value} is out of range (must be {'>' if meta['lo_open'] else '>='} {lo})")
-    if hi is not None and value > hi:
-        raise ParameterError(f"{key}: {value} is out of range (must be <= {hi})")
     provenance[key] = (source, reason)
-    return float(value)
+    return number
 
 
 def _build(cls: type, table: Any, prefix: str, provenance: dict) -> Any:
