@@ -1,10 +1,14 @@
-"""``ecu-stub`` (also ``python -m ecu_stub``): the TCU process on a CAN bus."""
+"""``ecu-stub`` (also ``python -m ecu_stub``): the TCU process on a CAN bus.
+
+Exit status as dsg-hil's (:func:`dsg_hil.common.cli.run_main`): 0 at ``--duration`` or ``--idle-exit``, 1 the run
+failed, 2 bad input or usage (one ``error:`` line naming the file or option), 130 Ctrl-C, 143 SIGTERM (serving
+stops, the frame counts are printed).
+"""
 
 from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
 import threading
 from collections.abc import Mapping
@@ -12,7 +16,8 @@ from importlib import metadata
 
 from dsg_hil.protocol.bus import (FrameLog, add_bus_arguments, bus_config, bus_name, log_channel, open_bus,
                                   per_process_warning)
-from dsg_hil.common.errors import EXIT_OK, InputError, exit_code
+from dsg_hil.common.cli import run_main
+from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import check_output_path
 from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
 
@@ -59,7 +64,12 @@ def by_cause(rejected: Mapping[str, int]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parse_args(argv)
+    """``ecu-stub``: serve until ``--duration``, ``--idle-exit``, Ctrl-C or SIGTERM; returns the exit status."""
+    stop = threading.Event()  # SIGTERM: stop serving, report the counts, exit 143
+    return run_main(_parse_args, argv, lambda args: _serve(args, stop), stop)
+
+
+def _serve(args: argparse.Namespace, stop: threading.Event) -> None:
     from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
 
     from .calibration import load_calibration  # noqa: PLC0415
@@ -68,50 +78,38 @@ def main(argv: list[str] | None = None) -> int:
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
-    try:
-        for option in ("duration", "idle_exit"):
-            value = getattr(args, option)
-            if value is not None and not 0.0 < value < float("inf"):
-                raise InputError(f"--{option.replace('_', '-')}: must be a positive number of seconds, got {value}")
-        check_output_path("--log", args.log)
-        controller = CreepController(load_calibration(args.calibration))
-        config = bus_config(args)
-        db = load_dbc(args.dbc)
-        codec = Codec(db, TCU_USES)
-        faults = check_faults(faults_from_args(args), db)
-        if faults["plant"]:
-            raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
-                             f"side=tcu")
-        inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
-        tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
-        bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
-        stop = threading.Event()  # SIGTERM: stop serving, report its counts, exit 143
-        if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
-        record = FrameLog(args.log, log_channel(config)) if args.log else None
-        tcu = TcuRunner(codec, bus, controller, (record,) if record else ())
-        tcu_side.append(tcu)
-        try:  # 'listening' inside: a signal from then on still reaches the counts below
-            print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
-            if warning := per_process_warning(config):
-                print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
-            tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
-        finally:
-            bus.shutdown()
-            if record is not None:
-                record.stop()
-            c = tcu.frame_counts()
-            print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
-                  f"{c['incomplete_answers']} on incomplete plant frames); received "
-                  f"{c['received']}, rejected {c['rejected']}{by_cause(tcu.rx.rejected)}, lost {c['lost']}, "
-                  f"duplicates {c['duplicates']}", file=sys.stderr, flush=True)
-            if injector is not None:
-                print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)
-    except KeyboardInterrupt:
-        return 128 + signal.SIGINT  # as dsg-hil: 130
-    except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors
-        if args.debug:
-            raise
-        print(f"error: {exc}", file=sys.stderr)
-        return exit_code(exc)  # as dsg-hil: 1 run failed, 2 bad input (dsg_hil.common.errors)
-    return 128 + signal.SIGTERM if stop.is_set() else EXIT_OK  # as dsg-hil: 143 when ended by SIGTERM
+    for option in ("duration", "idle_exit"):
+        value = getattr(args, option)
+        if value is not None and not 0.0 < value < float("inf"):
+            raise InputError(f"--{option.replace('_', '-')}: must be a positive number of seconds, got {value}")
+    check_output_path("--log", args.log)
+    controller = CreepController(load_calibration(args.calibration))
+    config = bus_config(args)
+    db = load_dbc(args.dbc)
+    codec = Codec(db, TCU_USES)
+    faults = check_faults(faults_from_args(args), db)
+    if faults["plant"]:
+        raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
+                         f"side=tcu")
+    inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
+    tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
+    bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
+    record = FrameLog(args.log, log_channel(config)) if args.log else None
+    tcu = TcuRunner(codec, bus, controller, (record,) if record else ())
+    tcu_side.append(tcu)
+    try:  # 'listening' inside: a signal from then on still reaches the counts below
+        print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
+        if warning := per_process_warning(config):
+            print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
+        tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
+    finally:
+        bus.shutdown()
+        if record is not None:
+            record.stop()
+        c = tcu.frame_counts()
+        print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
+              f"{c['incomplete_answers']} on incomplete plant frames); received "
+              f"{c['received']}, rejected {c['rejected']}{by_cause(tcu.rx.rejected)}, lost {c['lost']}, "
+              f"duplicates {c['duplicates']}", file=sys.stderr, flush=True)
+        if injector is not None:
+            print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)

@@ -18,6 +18,9 @@ controller runs it (start-up observer, then predictor), and prints the predictio
 prediction: its maximum is what the handover margin must cover). ``--write FILE`` writes a calibration: the base
 calibration (``--calibration``, default the shipped one) with the identified entries replaced and
 ``prediction_error_k`` set from the replay (worst error times ``ERROR_FACTOR``).
+
+A log that cannot be read, is not a run of this DBC or lacks what a fit needs is a
+:class:`~dsg_hil.common.errors.LogError` naming the file(s): one ``error:`` line and exit 2, nothing written.
 """
 
 from __future__ import annotations
@@ -25,12 +28,16 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import can
 import numpy as np
 
+from dsg_hil.common.cli import run_main
+from dsg_hil.common.errors import LogError
+from dsg_hil.common.files import check_output_path
 from dsg_hil.protocol import Codec, FrameError, load_dbc
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
@@ -61,6 +68,15 @@ class Record:
     signals: dict[str, np.ndarray]
 
 
+def _messages(path: str | Path) -> Iterator[can.Message]:
+    """The log's frames; whatever python-can's reader raises on a missing or garbled file becomes a LogError."""
+    try:
+        with can.LogReader(str(path)) as reader:
+            yield from reader
+    except Exception as exc:  # noqa: BLE001 - each of python-can's readers raises its own types on garbage
+        raise LogError(f"{path}: cannot read the log ({type(exc).__name__}: {exc})") from exc
+
+
 def read_log(path: str | Path, codec: Codec) -> Record:
     """Decode a log; rows at each PLANT_SPEEDS frame, every other signal its last value (NaN before the first).
     ``SIM_TRUTH_CL.fresh`` / ``SIM_TRUTH_CH.fresh`` mark the rows where a truth frame came since the previous row:
@@ -68,25 +84,20 @@ def read_log(path: str | Path, codec: Codec) -> Record:
     pressure), so only those rows are used where torque, mu and pressure are combined."""
     latest: dict[str, float] = {}
     rows: list[tuple[float, dict[str, float]]] = []
-    try:
-        reader = can.LogReader(str(path))
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path}: cannot read log: {exc}") from None
-    with reader:
-        for msg in reader:
-            try:
-                frame = codec.decode(msg.arbitration_id, bytes(msg.data))
-            except FrameError:
-                continue
-            for signal in USES[frame.name]:
-                latest[f"{frame.name}.{signal}"] = frame.values[signal]
-            if frame.name.startswith("SIM_TRUTH"):
-                latest[f"{frame.name}.fresh"] = 1.0
-            if frame.name == "PLANT_SPEEDS":
-                rows.append((msg.timestamp, dict(latest)))
-                latest["SIM_TRUTH_CL.fresh"] = latest["SIM_TRUTH_CH.fresh"] = 0.0
+    for msg in _messages(path):
+        try:
+            frame = codec.decode(msg.arbitration_id, bytes(msg.data))
+        except FrameError:
+            continue
+        for signal in USES[frame.name]:
+            latest[f"{frame.name}.{signal}"] = frame.values[signal]
+        if frame.name.startswith("SIM_TRUTH"):
+            latest[f"{frame.name}.fresh"] = 1.0
+        if frame.name == "PLANT_SPEEDS":
+            rows.append((msg.timestamp, dict(latest)))
+            latest["SIM_TRUTH_CL.fresh"] = latest["SIM_TRUTH_CH.fresh"] = 0.0
     if len(rows) < 100:
-        raise ValueError(f"{path}: only {len(rows)} PLANT_SPEEDS frames: not a recorded run of this DBC")
+        raise LogError(f"{path}: only {len(rows)} PLANT_SPEEDS frames: not a recorded run of this DBC")
     keys = [f"{m}.{s}" for m, sigs in USES.items() for s in sigs] + ["SIM_TRUTH_CL.fresh", "SIM_TRUTH_CH.fresh"]
     t = np.array([r[0] for r in rows]) - rows[0][0]
     return Record(Path(path).name, t, {k: np.array([r[1].get(k, np.nan) for r in rows]) for k in keys})
@@ -107,7 +118,7 @@ def fit_speed_ratio(cols: list[dict]) -> float:
     w = np.concatenate([d["out"] for d in cols]) * RPM_TO_RAD_S
     ok = np.isfinite(v) & (v > 0.03) & (w > 0.5)
     if ok.sum() < 10:
-        raise ValueError("speed ratio: the runs never moved (vehicle speed > 0.03 m/s)")
+        raise LogError("speed ratio: the runs never moved (vehicle speed > 0.03 m/s)")
     return float(np.median(v[ok] / w[ok]))
 
 
@@ -119,7 +130,7 @@ def _slipping(d: dict, P_min: float = 0.1) -> np.ndarray:
 def fit_k_geom(cols: list[dict]) -> float:
     k = [d["M"][m] / (d["mu"][m] * d["P"][m] * 1e6) for d in cols if (m := _slipping(d)).any()]
     if not k:
-        raise ValueError("k_geom: the clutch never slipped under pressure (P > 0.1 MPa) in these runs")
+        raise LogError("k_geom: the clutch never slipped under pressure (P > 0.1 MPa) in these runs")
     return float(np.median(np.abs(np.concatenate(k))))
 
 
@@ -139,7 +150,7 @@ def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
     T, n, P, mu = (np.concatenate([f(d)[m] for d, m in zip(cols, pick)]) for f in (
         lambda d: d["T"], lambda d: np.abs(d["slip"]), lambda d: d["P"], lambda d: d["mu"]))
     if len(mu) < 50:
-        raise ValueError("friction map: fewer than 50 slipping samples")
+        raise LogError("friction map: fewer than 50 slipping samples")
     shape = (len(T_GRID), len(SLIP_GRID), len(P_GRID))
     (i, wt), (j, ws), (k, wp) = _cell(T_GRID, T), _cell(SLIP_GRID, n), _cell(P_GRID, P)
     rows, cols_, vals = [], [], []
@@ -181,7 +192,7 @@ def fit_thermal(cols: list[dict], times: list[np.ndarray]) -> tuple[float, float
         if len(idx) > 20:
             series.append((t[idx], d["T"][idx], d["Q"][idx], d["T_oil"][idx]))
     if not series:
-        raise ValueError("thermal fit: no plate temperature record in these runs")
+        raise LogError("thermal fit: no plate temperature record in these runs")
 
     def residuals(x: np.ndarray) -> np.ndarray:
         C, K = np.exp(x)
@@ -246,8 +257,17 @@ def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
 
 
 def identify(paths: list[str], base: TcuCalibration, dbc: str | None = None) -> tuple[TcuCalibration, dict]:
+    """The calibration identified from the logs at ``paths`` (``base`` for the rest) and the report of the fits;
+    :class:`LogError` naming the logs when they lack what a fit needs."""
     codec = Codec(load_dbc(dbc), USES)
     records = [read_log(p, codec) for p in paths]
+    try:
+        return _identify(records, base)
+    except LogError as exc:
+        raise LogError(f"{', '.join(str(p) for p in paths)}: {exc}") from exc
+
+
+def _identify(records: list[Record], base: TcuCalibration) -> tuple[TcuCalibration, dict]:
     report: dict = {"logs": [r.name for r in records]}
     clutches = {}
     for c in ("CL", "CH"):
@@ -275,6 +295,7 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--calibration", metavar="FILE", help="base calibration (default: the shipped one)")
     parser.add_argument("--write", metavar="FILE", help="write the identified calibration here")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
+    parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
     return parser.parse_args(argv)
 
 
@@ -332,13 +353,13 @@ The identification runs: dsg-hil run --scenario ecu_stub/data/identification/NAM
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parse_args(argv)
-    try:
-        base = load_calibration(args.calibration)
-        cal, rep = identify(args.logs, base, args.dbc)
-    except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    """``python -m ecu_stub.identify``: exit 0, or 2 with one ``error:`` line naming the file (nothing written)."""
+    return run_main(_parse_args, argv, _identify_and_print)
+
+
+def _identify_and_print(args: argparse.Namespace) -> None:
+    check_output_path("--write", args.write)
+    cal, rep = identify(args.logs, load_calibration(args.calibration), args.dbc)
     print(f"logs: {', '.join(rep['logs'])}")
     for c in ("CL", "CH"):
         k = cal.clutch(c)
@@ -359,7 +380,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.write:
         write_calibration(args.write, cal, args.calibration, args.logs, rep)
         print(f"wrote {args.write}")
-    return 0
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ from collections.abc import Callable
 
 import can
 
-from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
+from dsg_hil.protocol import Codec, ProtocolError, RxMonitor, TxScheduler
 from dsg_hil.protocol.frame import data_frame
 from dsg_hil.protocol.validity import DUPLICATE, IGNORED, NEW
 
@@ -82,7 +82,7 @@ class TcuRunner:
         self.clutches = _choices(codec, "TCU_STATUS", "ActiveClutch")
         missing = {"IDLE", "ENGAGE", "CREEP", "HANDOVER", "STOPPED_OVERHEAT", "FAULT"} - set(self.states)
         if missing or {"NONE", "CL", "CH"} - set(self.clutches):
-            raise ValueError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
+            raise ProtocolError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
         self.lockstep = False
         self._sim_now = 0.0  # lock-step: the time of the last tick answered [s]
         self.now = -1.0  # the TCU's time of the frames it sends (fault windows): tick time, or run time; < 0 before

@@ -4,22 +4,22 @@ Only the module of the command given is imported (and its modules import what th
 so ``dsg-hil --help`` and ``dsg-hil COMMAND --help`` start without numpy, scipy, matplotlib or cantools.
 
 Errors reach the user as one line ``error: ...`` (``--debug`` shows the traceback) and an exit status, the same
-for ``ecu-stub`` (:mod:`dsg_hil.common.errors`): 0 ok, 1 the run failed (peer lost ...), 2 bad input or usage (the line
-names the file, key or option), 3 a result outside its band (``dsg-hil validate``), 130 Ctrl-C (SIGINT), 143
-SIGTERM (128 + the signal number, as a shell reports a killed process).
+for ``ecu-stub`` and ``python -m ecu_stub.identify`` (one ``main``: :func:`dsg_hil.common.cli.run_main`; the tree of
+errors: :mod:`dsg_hil.common.errors`): 0 ok, 1 the run failed (peer lost ...), 2 bad input or usage (the line
+names the file, key or option), 3 a result outside its band (``dsg-hil validate``, ``dsg-hil dbc``), 130 Ctrl-C
+(SIGINT), 143 SIGTERM (128 + the signal number, as a shell reports a killed process).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import signal
 import sys
-import threading
 
 from .. import __version__
-from ..common.errors import EXIT_RUN_FAILED, EXIT_SIGINT, EXIT_SIGTERM, exit_code
-from .common import Terminated, raise_terminated
+from ..common.cli import run_main
+
+__all__ = ["COMMANDS", "command_help", "main"]
 
 COMMANDS = {  # command: (module, one-line help), in the order of 'dsg-hil --help'
     "run": ("run", "run the plant and the TCU (ecu-stub) together on a bus"),
@@ -32,7 +32,6 @@ COMMANDS = {  # command: (module, one-line help), in the order of 'dsg-hil --hel
     "params": ("params_cmd", "list the model parameters and where each comes from"),
     "report": ("report_cmd", "figures and a 'paper vs dsg-hil' table: validation rig and creep run"),
 }
-EXIT_ERROR = EXIT_RUN_FAILED
 
 
 def command_help(name: str) -> str:
@@ -61,22 +60,5 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parse_args(argv)
-    main_thread = threading.current_thread() is threading.main_thread()  # only there can signals be handled
-    previous = signal.signal(signal.SIGTERM, raise_terminated) if main_thread else None
-    try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return EXIT_SIGINT
-    except Terminated:
-        print("error: terminated", file=sys.stderr)
-        return EXIT_SIGTERM
-    except Exception as exc:  # noqa: BLE001 - the CLI's single exit point for errors
-        if args.debug:
-            raise
-        print(f"error: {exc}", file=sys.stderr)
-        return exit_code(exc)
-    finally:
-        if main_thread:
-            signal.signal(signal.SIGTERM, previous)
+    """``dsg-hil``: run the command given and return its exit status (argparse's usage errors exit 2 themselves)."""
+    return run_main(_parse_args, argv, lambda args: args.func(args))

@@ -6,10 +6,10 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
-from ..common.cli import Terminated, raise_terminated  # noqa: F401 - the commands' SIGTERM
-
 if TYPE_CHECKING:
     from ..physics.params import Params
+
+__all__ = ["add_params_option", "params_from", "non_negative_int", "positive_number", "progress"]
 
 
 def positive_number(text: str) -> float:
@@ -20,6 +20,17 @@ def positive_number(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not 0.0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """An argparse type: a whole number >= 0 (else a usage error, exit 2)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
     return value
 
 

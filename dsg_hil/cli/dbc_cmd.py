@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..common.errors import ResultError
 from . import command_help
 from .common import positive_number
 
@@ -32,4 +33,6 @@ def _do_dbc(args: argparse.Namespace) -> int:
         print(f"{name:<16}{ids[name]:>#7x}  {senders[name]:<7}{cycle:>9}{rate:>10.1f}{load:>8.2%}")
     print(f"total at {args.bitrate / 1000:g} kbit/s (worst case {frame_bits(8)} bits per 8-byte frame): "
           f"{total:.1%} (limit {LOAD_LIMIT:.0%})")
-    return 0 if total <= LOAD_LIMIT else 3
+    if total > LOAD_LIMIT:
+        raise ResultError(f"bus load {total:.1%} at {args.bitrate / 1000:g} kbit/s above the limit {LOAD_LIMIT:.0%}")
+    return 0

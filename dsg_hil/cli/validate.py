@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..paper.reference import TOL_MU, TOL_RISE_C, TOL_TORQUE_REL
 from . import command_help
+from ..common.errors import ResultError
 from ..common.files import check_output_path
 from .common import add_params_option, params_from, positive_number, progress
 
@@ -62,6 +63,5 @@ def _do_validate(args: argparse.Namespace) -> int:
         for path in paths:
             progress(f"wrote {path}")
     if not all_ok:
-        print("some numbers fall outside the accepted band (see README, 'Validation')")
-        return 3
+        raise ResultError("some numbers fall outside the accepted band (see README, 'Validation')")
     return 0

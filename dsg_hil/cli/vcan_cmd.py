@@ -9,9 +9,10 @@ import sys
 import tempfile
 from pathlib import Path
 
+from ..common.files import check_output_path
 from ..e2e import vcan
 from . import command_help
-from .common import progress
+from .common import non_negative_int, positive_number, progress
 
 # The end-to-end tests ship inside the package (dsg_hil/e2e), so this runs from a checkout and from a wheel alike.
 DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "--pyargs", "dsg_hil.e2e"]
@@ -29,16 +30,16 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--native", action="store_true", help="never use the VM")
     where.add_argument("--vm", action="store_true", help="always use the VM")
-    parser.add_argument("--duration", type=float, default=10.0, metavar="S",
+    parser.add_argument("--duration", type=positive_number, default=10.0, metavar="S",
                         help="simulated seconds of each end-to-end scenario (default 10; Python runs ~10x "
                              "slower under emulation)")
-    parser.add_argument("--load", type=int, default=0, metavar="N",
+    parser.add_argument("--load", type=non_negative_int, default=0, metavar="N",
                         help="run COMMAND on a busy machine: beside 'stress-ng --cpu N' (N CPU hogs where the "
                              "command runs, in the VM or natively; needs stress-ng; default 0: idle)")
     parser.add_argument("--kernel", metavar="FILE", help="kernel image for the VM (default: newest /boot/vmlinuz-*)")
     parser.add_argument("--outdir", metavar="DIR", help="writable directory for logs and results (default: a "
                         "temporary one, kept when the command fails)")
-    parser.add_argument("--timeout", type=float, default=4500.0, metavar="S",
+    parser.add_argument("--timeout", type=positive_number, default=4500.0, metavar="S",
                         help="VM time limit (default 4500: the suite under --load took 26-48 min emulated)")
     parser.add_argument("command", nargs=argparse.REMAINDER, help="command to run (after --)")
     parser.set_defaults(func=_do_vcan)
@@ -48,10 +49,8 @@ def _do_vcan(args: argparse.Namespace) -> int:
     command = [c for c in args.command if c != "--"] or list(DEFAULT_TESTS)
     if command[0] == "python":
         command[0] = sys.executable
-    if not args.duration > 0.0:
-        raise ValueError(f"--duration must be positive, got {args.duration}")
-    if args.load < 0:
-        raise ValueError(f"--load must be >= 0, got {args.load}")
+    kernel = vcan.find_kernel(args.kernel) if args.kernel else None  # bad input fails before anything is made
+    check_output_path("--outdir", args.outdir, directory=True)
     if args.load:
         command = vcan.with_load(command, args.load)
     outdir = Path(args.outdir or tempfile.mkdtemp(prefix="dsg-hil-vcan-")).resolve()
@@ -75,7 +74,7 @@ def _do_vcan(args: argparse.Namespace) -> int:
         progress(f"vcan0 present: running natively; logs in {outdir}")
         rc = subprocess.run(command, env={**os.environ, **env}).returncode
     else:
-        kernel = vcan.find_kernel(args.kernel)
+        kernel = kernel or vcan.find_kernel()
         env |= vcan.compiled_code_env(outdir)
         progress("compiling the plant's physics on the host for the VM (numba cache in the log directory)")
         vcan.warm_compiled_code(env)

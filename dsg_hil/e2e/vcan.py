@@ -19,6 +19,12 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..common.errors import InputError, RunError
+
+__all__ = ["ENV_DURATION", "ENV_OUTDIR", "ENV_REQUIRE", "ENV_WHERE", "VCAN", "VcanError", "VmPlan",
+           "compiled_code_env", "create_vcan", "find_kernel", "output_tail", "run_in_vm", "vcan_present",
+           "vm_plan", "warm_compiled_code", "with_load"]
+
 VCAN = "vcan0"
 ENV_REQUIRE = "DSG_HIL_REQUIRE_VCAN"  # tests that need vcan fail (instead of skipping) when it is set
 ENV_DURATION = "DSG_HIL_VCAN_DURATION"  # simulated seconds of the end-to-end scenarios
@@ -26,8 +32,8 @@ ENV_OUTDIR = "DSG_HIL_VCAN_OUTDIR"  # where the end-to-end tests leave their log
 ENV_WHERE = "DSG_HIL_VCAN_WHERE"  # "native" or "emulated VM (QEMU TCG)": where the figures come from
 
 
-class VcanError(RuntimeError):
-    """Neither a native vcan0 nor the VM can be had; the message says what to install."""
+class VcanError(RunError):
+    """Neither a native vcan0 nor the VM can be had, or the VM failed; the message says what to install."""
 
 
 def vcan_present() -> bool:
@@ -48,10 +54,12 @@ def create_vcan() -> str | None:
 
 
 def find_kernel(explicit: str | None = None) -> Path:
+    """The VM's kernel image: ``explicit`` (``--kernel``; :class:`InputError` if it is no file), else the newest
+    ``/boot/vmlinuz-*`` (:class:`VcanError` if there is none)."""
     if explicit:
         path = Path(explicit)
         if not path.is_file():
-            raise VcanError(f"--kernel {explicit}: no such file")
+            raise InputError(f"--kernel {explicit}: no such file")
         return path
     images = sorted(Path("/boot").glob("vmlinuz-*"), key=lambda p: [int(x) if x.isdigit() else x
                                                                       for x in p.name.replace("-", ".").split(".")])

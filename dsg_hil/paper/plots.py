@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..common.errors import RunError
 from .reference import RIG_DURATION_S, RIG_T_START_C
 
 if TYPE_CHECKING:
@@ -21,7 +22,7 @@ def require_matplotlib():
     try:
         import matplotlib
     except ImportError:
-        raise RuntimeError("--plots needs matplotlib: pip install 'dsg-hil[plots]'") from None
+        raise RunError("--plots needs matplotlib: pip install 'dsg-hil[plots]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt

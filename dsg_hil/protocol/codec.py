@@ -33,7 +33,7 @@ class ProtocolError(InputError):
     """The DBC is missing, unreadable, or lacks a message or signal the code needs."""
 
 
-class FrameError(ValueError):
+class FrameError(InputError):
     """A received frame is not acceptable. ``reason`` is one of: unknown, dlc, crc, range, malformed."""
 
     def __init__(self, reason: str, message: str) -> None:

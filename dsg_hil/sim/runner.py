@@ -28,7 +28,7 @@ from ..physics.friction import RAD_S_TO_RPM
 from ..physics.plant import N_OUT, Plant, PlantInputs, PlantOutputs
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
 from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
-from ..common.errors import RunError
+from ..common.errors import PeerLost, PeerTimeout  # defined with the other errors, importable here
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import data_frame
 from ..protocol.validity import IGNORED, NEW, REJECTED, TIMEOUT_CYCLES
@@ -42,14 +42,6 @@ RETRY_FIRST_S = 0.1  # lock-step: wall-clock wait for a tick's answer before the
 RETRY_MAX_S = 1.0  # ... the wait doubles after each re-send up to this [s]
 RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.8+1+1+1 = 4.5 s in all)
 STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
-
-
-class PeerTimeout(RunError):  # noqa: N818 - public name, kept
-    """The TCU did not answer the lock-step presence probe in time."""
-
-
-class PeerLost(PeerTimeout):
-    """The TCU fell silent during a lock-step run (stop reason ``peer_lost``; the summary is valid so far)."""
 
 
 class PlantRunner:

@@ -17,6 +17,7 @@ import can
 
 from ecu_stub.runner import REQUIRED, TcuRunner
 
+from ..common.errors import RunError
 from ..protocol import Codec
 from ..protocol.bus import bus_args
 
@@ -96,7 +97,7 @@ class ControllerProcess:
             return subprocess.Popen(self.command(config), stdout=output, stderr=subprocess.STDOUT, env=env,
                                     cwd=self.cwd)
         except OSError as exc:
-            raise OSError(f"cannot start the controller {list(self.argv)}: {exc}") from None
+            raise RunError(f"cannot start the controller {list(self.argv)}: {exc}") from exc
 
     def stop(self, proc: subprocess.Popen[bytes]) -> None:
         if proc.poll() is None:

@@ -1,27 +1,21 @@
 """Bad input: exit 2 and one line naming the file, key or option and what is wrong, nothing written; the same
-exit codes for dsg-hil and ecu-stub (dsg_hil.common.errors). Each case was a crash or a silent acceptance before."""
+exit codes for dsg-hil, ecu-stub and python -m ecu_stub.identify (one main: dsg_hil.common.cli.run_main; the tree
+of errors: tests/common/test_errors.py). Each case was a crash or a silent acceptance before."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
+import can
 import pytest
 
-from dsg_hil.cli import main
-from dsg_hil.common.errors import (
-    EXIT_BAD_INPUT,
-    EXIT_OUT_OF_BAND,
-    EXIT_RUN_FAILED,
-    InputError,
-    ResultError,
-    RunError,
-    exit_code,
-)
-from dsg_hil.protocol.faults import FaultError
+from dsg_hil.cli import COMMANDS, main
 from dsg_hil.physics.params import DEFAULT_PARAMS_PATH, ParameterError, parse_params
-from dsg_hil.protocol import Codec, ProtocolError, load_dbc
+from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.codec import DEFAULT_DBC, signal_range
-from dsg_hil.sim.runner import PeerLost
 from dsg_hil.sim.scenario import ScenarioError, load_scenario
-from ecu_stub.calibration import CalibrationError
 from ecu_stub.cli import main as ecu_stub_main
 
 SCENARIO = "duration_s = 1.0\n[[driver]]\nt_s = 0.0\n"
@@ -33,15 +27,6 @@ def one_error_line(capsys, *needles: str) -> str:
     assert all(needle in err[-1] for needle in needles), err[-1]
     assert not any("Traceback" in line for line in err)
     return err[-1]
-
-
-def test_one_hierarchy_and_its_exit_codes():
-    for error in (ScenarioError, ParameterError, ProtocolError, FaultError, CalibrationError):
-        assert issubclass(error, InputError) and issubclass(error, ValueError)
-    assert issubclass(PeerLost, RunError)
-    assert exit_code(ScenarioError("x")) == EXIT_BAD_INPUT == 2
-    assert exit_code(PeerLost("x")) == exit_code(KeyError("a bug")) == EXIT_RUN_FAILED == 1
-    assert exit_code(ResultError("x")) == EXIT_OUT_OF_BAND == 3
 
 
 @pytest.mark.parametrize("text, needle", [
@@ -160,3 +145,119 @@ def test_a_dbc_signal_without_range_has_the_range_of_its_bits(tmp_path, capsys):
     frame = codec.decode(codec.frame_id("PLANT_VEHICLE"), codec.encode("PLANT_VEHICLE", {"VehicleSpeed": 99.0}, 0))
     assert frame.values["VehicleSpeed"] == pytest.approx(32.767)  # clamped to what the bits carry
     assert main(["run", "-i", "virtual", "--dbc", str(dbc), "--duration", "0.2"]) == 0
+
+
+# Every command line, as a user runs it (a subprocess in a directory of its own): a bad option value and a bad or
+# missing input file each exit 2 before anything runs, with nothing written and one line on stderr:
+#   ERROR: exactly the line 'error: ...' (the command's own check: dsg_hil.common.cli.run_main);
+#   USAGE: argparse's usage, then 'PROG: error: argument ...' (a value its type rejects), the only 'error:' line.
+ERROR, USAGE = "error", "usage"
+PROGRAMS = {"dsg-hil": ["-m", "dsg_hil"], "ecu-stub": ["-m", "ecu_stub"], "identify": ["-m", "ecu_stub.identify"]}
+BUS = ["-i", "virtual"]
+OUT = ["--summary", "s.json", "--log", "r.log"]
+# (program, argv, bad: 'option' or 'file', form, needle). In the directory: bad.toml (not TOML), garbage.log,
+# short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty directory).
+CASES = [
+    ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
+    ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
+    ("dsg-hil", ["plant", *BUS, "--reply-timeout", "0", *OUT], "option", USAGE,
+     "argument --reply-timeout: must be a positive finite number, got 0"),
+    ("dsg-hil", ["plant", *BUS, "--dbc", "bad.toml", *OUT], "file", ERROR, "bad.toml: cannot load DBC"),
+    ("dsg-hil", ["bridge", "--from-interface", "virtual", "--from-channel", "a", "--to-interface", "virtual",
+                 "--to-channel", "b", "--fault", "explode:TCU_CMD"], "option", ERROR, "kind must be one of"),
+    ("dsg-hil", ["bridge", "--from-interface", "virtual", "--from-channel", "a", "--to-interface", "virtual",
+                 "--to-channel", "b", "--dbc", "nosuch.dbc"], "file", ERROR, "nosuch.dbc: DBC file not found"),
+    ("dsg-hil", ["dbc", "--bitrate", "-3"], "option", USAGE, "argument --bitrate: must be a positive finite number"),
+    ("dsg-hil", ["dbc", "--dbc", "nosuch.dbc"], "file", ERROR, "nosuch.dbc: DBC file not found"),
+    ("dsg-hil", ["vcan", "--duration", "-5", "--outdir", "o"], "option", USAGE,
+     "argument --duration: must be a positive finite number, got -5"),
+    ("dsg-hil", ["vcan", "--load", "-1", "--outdir", "o"], "option", USAGE, "argument --load: must be >= 0, got -1"),
+    ("dsg-hil", ["vcan", "--kernel", "nosuch", "--outdir", "o"], "file", ERROR, "--kernel nosuch: no such file"),
+    ("dsg-hil", ["validate", "--dt=-1", "--json", "v.json"], "option", USAGE,
+     "argument --dt: must be a positive finite number"),
+    ("dsg-hil", ["validate", "--params", "nosuch.toml", "--json", "v.json"], "file", ERROR,
+     "nosuch.toml: cannot read parameter file"),
+    ("dsg-hil", ["calibrate", "--scenario", "bad.toml"], "option", ERROR, "bad.toml: not valid TOML"),
+    ("dsg-hil", ["calibrate", "--params", "nosuch.toml"], "file", ERROR, "nosuch.toml: cannot read parameter file"),
+    ("dsg-hil", ["params", "--source", "nosuch"], "option", USAGE, "argument --source: invalid choice: 'nosuch'"),
+    ("dsg-hil", ["params", "--params", "bad.toml"], "file", ERROR, "bad.toml: not valid TOML"),
+    ("dsg-hil", ["report", "--out", "afile"], "option", ERROR, "--out afile: not a writable directory"),
+    ("dsg-hil", ["report", "--from-log", "garbage.log", "--out", "outdir"], "file", ERROR,
+     "garbage.log: cannot read the log"),
+    ("ecu-stub", [*BUS, "--idle-exit", "0", "--log", "t.log"], "option", ERROR,
+     "--idle-exit: must be a positive number of seconds"),
+    ("ecu-stub", [*BUS, "--calibration", "nosuch.toml", "--log", "t.log"], "file", ERROR,
+     "nosuch.toml: cannot read calibration"),
+    ("identify", ["short.log", "--write", "outdir"], "option", ERROR, "--write outdir: is a directory"),
+    ("identify", ["nosuch.log", "--write", "cal.toml"], "file", ERROR, "nosuch.log: cannot read the log"),
+    ("identify", ["garbage.log", "--write", "cal.toml"], "file", ERROR, "garbage.log: cannot read the log"),
+    ("identify", ["short.log", "--write", "cal.toml"], "file", ERROR,
+     "short.log: thermal fit: no plate temperature record"),  # no usable data
+]
+
+
+def write_inputs(where: Path) -> None:
+    (where / "bad.toml").write_text("x = = 1\n", encoding="utf-8")
+    (where / "garbage.log").write_text("garbage\n", encoding="utf-8")
+    (where / "afile").write_text("a file, not a directory\n", encoding="utf-8")
+    (where / "outdir").mkdir()
+    codec = Codec(load_dbc(), {"PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed")})
+    with can.Logger(str(where / "short.log")) as log:  # 2 s of speeds, nothing else
+        for k in range(200):
+            data = codec.encode("PLANT_SPEEDS", {"ClutchInputSpeed": 800.0, "CLOutputSpeed": 0.0,
+                                                 "CHOutputSpeed": 0.0}, k % 16)
+            log.on_message_received(can.Message(timestamp=k * 0.01, arbitration_id=codec.frame_id("PLANT_SPEEDS"),
+                                                data=data, is_extended_id=False))
+
+
+def run_bad(where: Path, program: str, argv: list[str]) -> tuple[subprocess.CompletedProcess, list[str]]:
+    """Run the command in ``where``; its result and the lines on stderr, after checking that it wrote nothing."""
+    before = sorted(where.rglob("*"))
+    proc = subprocess.run([sys.executable, *PROGRAMS[program], *argv], cwd=where, capture_output=True, text=True,
+                          timeout=120)
+    assert sorted(where.rglob("*")) == before, "the command wrote something"
+    return proc, proc.stderr.strip().splitlines()
+
+
+@pytest.mark.parametrize("program, argv, bad, form, needle", CASES,
+                         ids=[f"{c[0]} {' '.join(c[1][:1])} {c[2]}: {c[4][:30]}" for c in CASES])
+def test_every_command_line_rejects_bad_input_with_exit_2_and_one_line(tmp_path, program, argv, bad, form, needle):
+    write_inputs(tmp_path)
+    proc, err = run_bad(tmp_path, program, argv)
+    assert proc.returncode == 2 and proc.stdout == "", (proc.returncode, proc.stdout, err)
+    assert "Traceback" not in proc.stderr and [line for line in err if "error:" in line] == err[-1:], err
+    if form == ERROR:
+        assert len(err) == 1 and err[0].startswith("error: ") and needle in err[0], err
+    else:
+        assert err[0].startswith("usage: ") and f": error: {needle}" in err[-1], err
+
+
+def test_the_cases_cover_every_command_line_with_an_option_and_a_file():
+    covered = {(c[0] if c[0] != "dsg-hil" else c[1][0], c[2]) for c in CASES}
+    for command in [*COMMANDS, "ecu-stub", "identify"]:
+        assert {(command, "option"), (command, "file")} <= covered, command
+
+
+@pytest.mark.xfail(strict=True, reason="not yet: 'plant'/'run' open --log before they load --params "
+                                       "(cli/busopts.py, plant_runner)")
+def test_a_bad_parameter_file_writes_no_log(tmp_path):
+    write_inputs(tmp_path)
+    proc, err = run_bad(tmp_path, "dsg-hil", ["plant", *BUS, "--params", "nosuch.toml", *OUT])
+    assert proc.returncode == 2 and err == ["error: nosuch.toml: cannot read parameter file (No such file or "
+                                            "directory)"]
+
+
+@pytest.mark.xfail(strict=True, reason="not yet: 'report' makes --out before it checks its inputs "
+                                       "(cli/report_cmd.py, _do_report)")
+def test_report_makes_no_output_directory_for_bad_input(tmp_path):
+    write_inputs(tmp_path)
+    proc, err = run_bad(tmp_path, "dsg-hil", ["report", "--from-log", "garbage.log", "--out", "new"])
+    assert proc.returncode == 2 and len(err) == 1
+
+
+@pytest.mark.xfail(strict=True, reason="not yet: 'report' runs the validation before it checks --duration and "
+                                       "--scenario (cli/report_cmd.py, _do_report): its progress lines come first")
+def test_report_checks_its_options_before_the_validation(tmp_path):
+    write_inputs(tmp_path)
+    proc, err = run_bad(tmp_path, "dsg-hil", ["report", "--duration", "-1", "--out", "outdir"])
+    assert proc.returncode == 2 and err == ["error: --duration: must be within [0.001, 1e6] s, got -1.0"]

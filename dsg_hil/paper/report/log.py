@@ -20,7 +20,7 @@ from cantools.database.can import Database
 
 from ...physics.friction import RAD_S_TO_RPM
 from ...protocol import Codec, FrameError
-from ...common.errors import InputError
+from ...common.errors import LogError
 from ...results.summary import CreepMetrics
 
 NAN = float("nan")
@@ -84,10 +84,6 @@ SIGNALS: dict[tuple[str, str], tuple[str, float]] = {
 STATUS = "TCU_STATUS"
 GRID_MESSAGE = "TCU_CMD"  # the sampling period: the control period of the DBC
 INDEX = {name: i for i, name in enumerate(LogSample._fields)}
-
-
-class LogError(InputError):
-    """A log that cannot be read or holds no frame of the DBC (the message names the file)."""
 
 
 @dataclass(frozen=True)
