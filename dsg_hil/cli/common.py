@@ -1,4 +1,4 @@
-"""Helpers shared by the commands: the parameter-file option and progress output (stderr)."""
+"""Helpers shared by the commands: argparse types for numbers, the parameter-file option, progress output (stderr)."""
 
 from __future__ import annotations
 

@@ -26,7 +26,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                     "can be created (modprobe vcan, ip link), else inside a throw-away VM with a stock kernel "
                     "(virtme-ng + QEMU software emulation; needs qemu-system-x86, busybox-static, "
                     "linux-image-amd64 and pip virtme-ng). The same command on a laptop with vcan and on a CI "
-                    "runner without it. Exit status: COMMAND's.")
+                    "runner without it. Exit status: COMMAND's (2 for a bad option, 1 when neither vcan0 nor the VM "
+                    "can be had).")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--native", action="store_true", help="never use the VM")
     where.add_argument("--vm", action="store_true", help="always use the VM")

@@ -7,6 +7,7 @@ import subprocess
 
 import pytest
 
+from dsg_hil.common.errors import InputError, RunError, exit_code
 from dsg_hil.e2e import vcan
 
 
@@ -59,3 +60,13 @@ def test_load_that_cannot_start_fails_the_run(tmp_path, monkeypatch):
     hog.chmod(0o755)
     monkeypatch.setattr(vcan, "_tool", lambda name, hint: str(hog))
     assert subprocess.run(vcan.with_load(["true"], 2), timeout=20).returncode == 1
+
+
+def test_a_missing_kernel_is_bad_input_and_no_vm_a_failed_run(monkeypatch, tmp_path):
+    """--kernel naming no file: exit 2 (InputError); no kernel in /boot at all: exit 1 (VcanError, a RunError)."""
+    with pytest.raises(InputError, match=f"--kernel {tmp_path / 'nosuch'}: no such file"):
+        vcan.find_kernel(str(tmp_path / "nosuch"))
+    monkeypatch.setattr(vcan.Path, "glob", lambda self, pattern: iter(()))
+    with pytest.raises(vcan.VcanError, match="no kernel image in /boot") as exc:
+        vcan.find_kernel()
+    assert isinstance(exc.value, RunError) and exit_code(exc.value) == 1
