@@ -5,11 +5,16 @@ from __future__ import annotations
 import argparse
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..common.errors import InputError
 from . import command_help
+from ..common.files import check_output_path
 from .busopts import setup_logging
 from .common import add_params_option, params_from, progress
+
+if TYPE_CHECKING:
+    from ..sim.run import RunConfig
 
 CREEP_LOG = "creep.log"
 
@@ -42,7 +47,7 @@ def run_validation(params, **kwargs):
 
 
 def _writable(out: Path) -> None:
-    """Fail now, not after minutes of simulation."""
+    """Make ``--out`` (checked before: :func:`check_output_path`) and make sure a file can be written in it."""
     try:
         out.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=out):
@@ -51,37 +56,45 @@ def _writable(out: Path) -> None:
         raise InputError(f"--out {out}: not a writable directory ({exc.strerror or exc})") from None
 
 
-def _run_creep(args: argparse.Namespace, out: Path) -> Path:
+def _run_creep(config: RunConfig) -> Path:
     """The real loop, as ``dsg-hil run`` with no interface configured: plant and ecu-stub in lockstep on
     python-can's virtual bus, the traffic recorded to DIR/creep.log, the run's summary to DIR/summary.json."""
-    from ..protocol.bus import VIRTUAL_CHANNEL  # noqa: PLC0415 - python-can when the run starts
-    from ..sim.run import RunConfig, open_run, resolve_scenario  # noqa: PLC0415
+    from ..sim.run import open_run  # noqa: PLC0415 - the plant when the run starts
 
-    log = out / CREEP_LOG
-    setup_logging(args.verbose)
-    config = RunConfig(scenario=resolve_scenario(args.scenario, args.duration), params=args.params, dbc=args.dbc,
-                       bus={"interface": "virtual", "channel": f"{VIRTUAL_CHANNEL}_report"}, log=log,
-                       summary=out / "summary.json", progress=progress)
     with open_run(config) as run:
         progress(f"creep run: {run.scenario.name}, {run.scenario.duration_s:g} s, lockstep on {run.interface}")
         run.run()
     progress(f"wrote {config.summary}")
-    return log
+    assert config.log is not None
+    return Path(config.log)
 
 
 def _do_report(args: argparse.Namespace) -> int:
-    from ..paper.plots import require_matplotlib
-    from ..protocol import load_dbc
-    from ..paper.report import write_report
-    from ..paper.report.log import read_log
+    """Every input is checked before anything is written or run: --out, matplotlib, the DBC, --params, the
+    scenario and --duration, --from-log; then the validation, the creep run (unless --from-log) and the report."""
+    from ..paper.plots import require_matplotlib  # noqa: PLC0415 - numpy, matplotlib when the report runs
+    from ..paper.report import write_report  # noqa: PLC0415
+    from ..paper.report.log import read_log  # noqa: PLC0415
+    from ..protocol import load_dbc  # noqa: PLC0415
+    from ..protocol.bus import VIRTUAL_CHANNEL  # noqa: PLC0415
+    from ..sim.run import RunConfig, resolve_scenario  # noqa: PLC0415
+
     out = Path(args.out)
-    _writable(out)
+    check_output_path("--out", args.out, directory=True)
+    setup_logging(args.verbose)
     require_matplotlib()
     db = load_dbc(args.dbc)
-    record = read_log(args.from_log, db) if args.from_log else None  # a bad log fails before the runs
-    cases = run_validation(params_from(args), progress=progress)
+    params = params_from(args)
+    record = read_log(args.from_log, db) if args.from_log else None
+    creep = None if record is not None else RunConfig(
+        scenario=resolve_scenario(args.scenario, args.duration), params=params, dbc=db,
+        bus={"interface": "virtual", "channel": f"{VIRTUAL_CHANNEL}_report"}, log=out / CREEP_LOG,
+        summary=out / "summary.json", progress=progress)
+    _writable(out)
+    cases = run_validation(params, progress=progress)
     if record is None:
-        record = read_log(_run_creep(args, out), db)
+        assert creep is not None
+        record = read_log(_run_creep(creep), db)
     progress(f"creep: decoded {record.frames['decoded']} frames of {record.source}")
     data = write_report(out, record, cases, progress)
     rows = data["paper_vs_dsg_hil"]

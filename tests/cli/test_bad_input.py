@@ -238,8 +238,6 @@ def test_the_cases_cover_every_command_line_with_an_option_and_a_file():
         assert {(command, "option"), (command, "file")} <= covered, command
 
 
-@pytest.mark.xfail(strict=True, reason="not yet: 'plant'/'run' open --log before they load --params "
-                                       "(cli/busopts.py, plant_runner)")
 def test_a_bad_parameter_file_writes_no_log(tmp_path):
     write_inputs(tmp_path)
     proc, err = run_bad(tmp_path, "dsg-hil", ["plant", *BUS, "--params", "nosuch.toml", *OUT])
@@ -247,16 +245,12 @@ def test_a_bad_parameter_file_writes_no_log(tmp_path):
                                             "directory)"]
 
 
-@pytest.mark.xfail(strict=True, reason="not yet: 'report' makes --out before it checks its inputs "
-                                       "(cli/report_cmd.py, _do_report)")
 def test_report_makes_no_output_directory_for_bad_input(tmp_path):
     write_inputs(tmp_path)
     proc, err = run_bad(tmp_path, "dsg-hil", ["report", "--from-log", "garbage.log", "--out", "new"])
     assert proc.returncode == 2 and len(err) == 1
 
 
-@pytest.mark.xfail(strict=True, reason="not yet: 'report' runs the validation before it checks --duration and "
-                                       "--scenario (cli/report_cmd.py, _do_report): its progress lines come first")
 def test_report_checks_its_options_before_the_validation(tmp_path):
     write_inputs(tmp_path)
     proc, err = run_bad(tmp_path, "dsg-hil", ["report", "--duration", "-1", "--out", "outdir"])

@@ -10,13 +10,13 @@ from dsg_hil.common.quantities import finite, quantity
 SOURCES = {"paper": "ref", "assumed": "why"}
 
 
-class Bad(InputError):
+class BadError(InputError):
     pass
 
 
 def test_a_good_entry_gives_value_source_and_reason():
     raw = {"value": 2.5, "unit": "m", "source": "paper", "ref": "Table I"}
-    assert quantity("a.b", raw, "m", SOURCES, Bad) == (2.5, "paper", "Table I")
+    assert quantity("a.b", raw, "m", SOURCES, BadError) == (2.5, "paper", "Table I")
 
 
 @pytest.mark.parametrize(("raw", "needle"), [
@@ -28,8 +28,8 @@ def test_a_good_entry_gives_value_source_and_reason():
     ({"value": 1, "unit": "m", "source": "paper", "ref": "  "}, "needs a non-empty 'ref'"),
 ])
 def test_a_bad_entry_names_its_key_and_fault(raw, needle):
-    with pytest.raises(Bad, match=needle):
-        quantity("a.b", raw, "m", SOURCES, Bad)
+    with pytest.raises(BadError, match=needle):
+        quantity("a.b", raw, "m", SOURCES, BadError)
 
 
 @pytest.mark.parametrize(("value", "lo", "hi", "lo_open", "needle"), [
@@ -38,6 +38,6 @@ def test_a_bad_entry_names_its_key_and_fault(raw, needle):
     (0.0, 0.0, None, True, "must be > 0.0"), (2.0, None, 1.0, False, "must be <= 1.0"),
 ])
 def test_finite_checks_the_number_and_its_range(value, lo, hi, lo_open, needle):
-    with pytest.raises(Bad, match=needle):
-        finite("k", value, Bad, lo, hi, lo_open)
-    assert finite("k", 3, Bad, 0.0, 3.0) == 3.0 and isinstance(finite("k", 3, Bad), float)
+    with pytest.raises(BadError, match=needle):
+        finite("k", value, BadError, lo, hi, lo_open)
+    assert finite("k", 3, BadError, 0.0, 3.0) == 3.0 and isinstance(finite("k", 3, BadError), float)
