@@ -193,7 +193,8 @@ def load_calibration(path: str | Path | None = None) -> TcuCalibration:
     try:
         return _parse_once(text, str(path))
     except CalibrationError as exc:
-        raise CalibrationError(f"{path}: {exc}") from None
+        message = str(exc)  # name the file once (a TOML error already starts with it)
+        raise CalibrationError(message if message.startswith(f"{path}: ") else f"{path}: {message}") from None
 
 
 @functools.lru_cache(maxsize=8)

@@ -10,6 +10,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
 
+from ..common.errors import InputError
+
 __all__ = ["RUN_SPECIFIC", "Summary"]
 
 # keys that differ between two runs of the same scenario by nature (where and how fast it ran), not by result
@@ -64,7 +66,7 @@ class Summary:
         named = {f.name for f in fields(cls)} - {"metrics", "extra"}
         missing = sorted(named - set(data))
         if missing:
-            raise KeyError(f"not a dsg-hil summary: no {', '.join(missing)}")
+            raise InputError(f"not a dsg-hil summary: no {', '.join(missing)}")
         extra_keys = [k for k in data if k not in named and k not in _METRIC_KEYS]
         return cls(**{k: data[k] for k in named}, metrics={k: v for k, v in data.items() if k in _METRIC_KEYS},
                    extra={k: data[k] for k in extra_keys})

@@ -51,7 +51,7 @@ def test_the_summary_is_typed_and_round_trips_through_json(tmp_path):
     data = json.loads(path.read_text())
     assert data == summary.as_json()
     assert Summary.from_json(data) == summary
-    with pytest.raises(KeyError, match="not a dsg-hil summary"):
+    with pytest.raises(InputError, match="not a dsg-hil summary"):
         Summary.from_json({"scenario": "x"})
 
 
