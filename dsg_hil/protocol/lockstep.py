@@ -74,30 +74,25 @@ def frame_io(bus: can.BusABC) -> tuple[Callable[[int, bytes], None], Callable[[f
     return send_data or send, recv_data or bus.recv
 
 
-def _take(rx: RxMonitor, item: Received, now: float) -> tuple[int, str, DecodedFrame | None]:
-    """(ID, status, frame) of one frame received, through ``rx``."""
-    if isinstance(item, tuple):
-        return (item[0], *rx.take_data(item[0], item[1], now))
-    return (item.arbitration_id, *rx.take(item, now))
-
-
 class LockstepMaster:
     """The plant's end: the presence handshake (:meth:`handshake`), then per tick (:meth:`start`, the node's
     frames, the SIM_SYNC tick of :meth:`tick_data`) the wait for the answer with re-sends (:meth:`answer`).
 
     ``receives``: the TCU's messages the master checks (``rx``, renewed by the handshake; real time uses it alone).
     ``send(frame_id, data, stamp)`` puts a frame on the bus (``stamp``: the simulated time of the period, 0 for a
-    probe); ``recv(timeout)`` gives the next frame or None after ``timeout`` seconds; ``use(frame, received, t)``
-    gets each new frame of the TCU's that passed its checks, once the tick's answer is complete, TCU_CMD last (as
-    the TCU sends them, whatever re-sends brought them); ``clock`` times the waits. The node sends its period's
-    frames itself and hands each to :meth:`keep`, for re-sending."""
+    probe); ``recv(timeout)`` gives the next frame or None after ``timeout`` seconds (both attributes, re-bound
+    when the node's bus changes); ``use(frame, received, t)`` gets each new frame of the TCU's that passed its
+    checks, once the tick's answer is complete, TCU_CMD last (as the TCU sends them, whatever re-sends brought
+    them); ``clock`` times the waits. The node sends its period's frames itself (the tick too) and hands each to
+    :meth:`keep`, for re-sending."""
 
     def __init__(self, codec: Codec, receives: Iterable[str], send: Callable[[int, bytes, float], object],
                  recv: Callable[[float], Received | None], use: Callable[[DecodedFrame, Received, float], None],
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.codec = codec
         self._receives = list(receives)
-        self._send, self._recv, self._use, self._clock = send, recv, use, clock
+        self.send, self.recv = send, recv  # re-bound by the node when its bus changes
+        self._use, self._clock = use, clock
         self.rx = RxMonitor(codec, self._receives)
         self.sync = TxScheduler(codec, [SYNC])
         self.probe = probe_tick(codec)
@@ -122,13 +117,13 @@ class LockstepMaster:
         clock = self._clock
         deadline = clock() + timeout
         while clock() < deadline:
-            self._send(self.sync_id, self.sync.data(SYNC, {TICK: self.probe}), 0.0)
+            self.send(self.sync_id, self.sync.data(SYNC, {TICK: self.probe}), 0.0)
             self.probes += 1
             if pump is not None:
                 pump()
             probe_end = min(deadline, clock() + PROBE_INTERVAL_S)
             while (remaining := probe_end - clock()) > 0:
-                item = self._recv(remaining)
+                item = self.recv(remaining)
                 if item is None:
                     continue
                 msg = data_frame(*item) if isinstance(item, tuple) else item
@@ -174,7 +169,7 @@ class LockstepMaster:
         return answered
 
     def _await(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
-        clock, recv, rx, cmd_id = self._clock, self._recv, self.rx, self._cmd_id
+        clock, recv, rx, cmd_id = self._clock, self.recv, self.rx, self._cmd_id
         retries, interval = 0, self.retry_first_s
         since = clock()  # silence is counted from here, plus ``_silent_s`` of ticks given up
         next_retry = since + interval
@@ -185,7 +180,12 @@ class LockstepMaster:
                 lost_at = since + reply_timeout - self._silent_s
                 item = recv(max(0.0, min(next_retry, lost_at) - clock()))
                 if item is not None:
-                    frame_id, status, frame = _take(rx, item, t)
+                    if isinstance(item, tuple):
+                        frame_id = item[0]
+                        status, frame = rx.take_data(frame_id, item[1], t)
+                    else:
+                        frame_id = item.arbitration_id
+                        status, frame = rx.take(item, t)
                     if status != IGNORED:
                         since, self._silent_s = clock(), 0.0
                     if status == REJECTED and frame_id == cmd_id and not have_cmd:
@@ -219,7 +219,9 @@ class LockstepMaster:
                     if pump is not None:
                         pump()
         finally:
-            for frame, item in sorted(taken, key=lambda taken_frame: taken_frame[0].name == CMD):
+            if len(taken) > 1:
+                taken.sort(key=lambda taken_frame: taken_frame[0].name == CMD)
+            for frame, item in taken:
                 self._use(frame, item, t)
 
     def _answers_tick(self, frame: DecodedFrame) -> str | None:
@@ -243,8 +245,9 @@ class LockstepMaster:
         return self.tick == 0 or (state.last_time is not None and abs(state.last_time - previous) < 1e-9)
 
     def _resend(self) -> None:
+        send = self.send
         for frame_id, data, stamp in self._frames:
-            self._send(frame_id, data, stamp)
+            send(frame_id, data, stamp)
             self.retries[frame_id] += 1
 
 
@@ -337,7 +340,8 @@ class LockstepResponder:
                 return True
             self.answers_resent += self._answer_sends > 0
             self._answer_sends += 1
-            self._send_all(self._answer)
+            for frame_id, data in self._answer:
+                self._send(frame_id, data)
             return True
         if self._answered not in (None, self.probe) and tick < self._answered:
             return True  # a repeat of an older tick: answered long ago
@@ -361,13 +365,9 @@ class LockstepResponder:
                 if state.last_time is not None:
                     state.last_time = self.tick_time
         self._answer = self._step(self.tick_time, tick & 0xFF)
-        self._send_all(self._answer)
+        for frame_id, data in self._answer:
+            self._send(frame_id, data)
         self._answered, self._answer_sends = tick, 1
-
-    def _send_all(self, frames: Frames) -> None:
-        send = self._send
-        for frame_id, data in frames:
-            send(frame_id, data)
 
     def _missing(self, tick: int) -> list[str]:
         """The plant messages due at ``tick`` (each on its DBC cycle from tick 0) not yet taken in its period."""

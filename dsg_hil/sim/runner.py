@@ -63,8 +63,7 @@ class PlantRunner:
         self.sent_by: Tally[str] = Tally()  # frames sent (first transmissions, the ones logged)
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
-        self._recv_data: Callable[[float], Received | None] | None = None
-        self.link = LockstepMaster(codec, PLANT_RX, self._send, self._recv, self._use_stamped)  # lock-step protocol
+        self.link = LockstepMaster(codec, PLANT_RX, self._send, bus.recv, self._use_stamped)  # lock-step protocol
         self._keep: Callable[[int, bytes, float], None] | None = None  # lock-step: the period's frames, re-sent
         self._cmd_on_bus: float | None = None
         self._traces: dict[int, np.ndarray] = {}  # by number of steps: the plant's trace of a period (_advance)
@@ -124,7 +123,7 @@ class PlantRunner:
         """Frames as (ID, data), no :class:`can.Message` built unless a listener wants one, where the bus is the
         direct in-process one (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped: no plant-side faults)."""
         self._send_data = getattr(self.bus, "send_data", None)
-        self._recv_data = getattr(self.bus, "recv_data", None)
+        self.link.recv = getattr(self.bus, "recv_data", None) or self.bus.recv
         self._channel = getattr(self.bus, "channel", None)  # of the frames received as (ID, data), when logged
 
     def clock(self) -> float:
@@ -155,10 +154,6 @@ class PlantRunner:
         msg = data_frame(frame_id, data, stamp)
         self.bus.send(msg)
         return msg
-
-    def _recv(self, timeout: float) -> Received | None:
-        """The next frame from the bus within ``timeout`` seconds: (ID, data) as ``_bind_bus`` says, or a message."""
-        return (self._recv_data or self.bus.recv)(timeout)
 
     def _emit(self, frame_id: int, data: bytes, stamp: float) -> None:
         """Send a frame of this period (a first transmission: counted, kept for re-sending, logged)."""
