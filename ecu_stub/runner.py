@@ -4,7 +4,9 @@ Lock-step or real time is decided by the plant: once a SIM_SYNC tick has been se
 (controller time = tick x cycle time) and sends nothing on its own. It transmits nothing before it has heard the
 plant, and free-runs on its monotonic clock at the TCU_CMD cycle time only when no tick has come within
 ``SYNC_WAIT_S`` of the plant's first frame (a real-time plant sends no ticks). A lock-step plant first probes for
-the TCU (SIM_SYNC with Tick 0xFFFFFFFF): the TCU resets itself and answers, and the run starts from there.
+the TCU (SIM_SYNC with the Tick the DBC names PROBE, 0xFFFFFFFF): the TCU resets itself and answers, and the run
+starts from there. The lock-step answering is the protocol's TCU end,
+:class:`dsg_hil.protocol.lockstep.LockstepResponder`; this module keeps inputs -> control.
 
 Lost frames cost a retry, not the run: a plant that hears no answer re-sends the period's frames and its tick;
 the TCU answers a repeated tick (or probe) with the very frames it already sent for it, byte for byte (same
@@ -29,9 +31,11 @@ import can
 
 from dsg_hil.protocol import Codec, ProtocolError, RxMonitor, TxScheduler
 from dsg_hil.protocol.frame import data_frame
-from dsg_hil.protocol.validity import DUPLICATE, IGNORED, NEW
+from dsg_hil.protocol.lockstep import Frames, LockstepResponder, choices, frame_io
 
 from .controller import CreepController, TcuInputs, TcuOutputs
+
+__all__ = ["REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TcuRunner"]
 
 log = logging.getLogger(__name__)
 
@@ -52,17 +56,15 @@ TCU_USES = {**TCU_RX, **TCU_TX}
 REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
 SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
-SYNC_PROBE = 0xFFFFFFFF  # SIM_SYNC Tick of the lockstep presence probe (see the DBC comment)
-SIGHTS_BEFORE_INCOMPLETE = 3  # lock-step: a tick seen this often is answered even with plant frames missing
 DRAIN_MAX = 256  # real time: frames already waiting taken before a control cycle, at most (a busy bus: go on)
 
 
-def _choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
-    choices = codec.message(message).get_signal_by_name(signal).choices
-    return {str(name): int(value) for value, name in (choices or {}).items()}
-
-
 class TcuRunner:
+    """ecu-stub's TCU: the plant's frames -> :meth:`inputs` -> the controller -> :meth:`control` (TCU_STATUS,
+    TCU_CMD). In lock-step its end of the protocol (``link``, a
+    :class:`~dsg_hil.protocol.lockstep.LockstepResponder`, which also keeps the receive checks ``rx`` and the
+    transmit schedule ``tx``) runs the control step per tick; in real time :meth:`run` does, on its own clock."""
+
     def __init__(self, codec: Codec, bus: can.BusABC, controller: CreepController | None = None,
                  listeners: tuple[Callable[[can.Message], None], ...] = ()) -> None:
         for name in TCU_USES:
@@ -70,36 +72,44 @@ class TcuRunner:
         self.codec, self.bus = codec, bus
         self.listeners = listeners
         self._channel = getattr(bus, "channel", None)  # of the frames recorded for the listeners
-        # the direct in-process bus (dsg_hil.protocol.local, unwrapped): frames as (ID, data), no can.Message
-        self._send_data: Callable[[int, bytes], None] | None = getattr(bus, "send_data", None)
-        self._recv_data: Callable[[float], tuple[int, bytes] | can.Message | None] | None = \
-            getattr(bus, "recv_data", None)
+        self._send_frame, recv = frame_io(bus)  # the in-process bus: frames as (ID, data), no can.Message
         self.controller = controller or CreepController()
-        self.rx = RxMonitor(codec, list(TCU_RX))
-        self.tx = TxScheduler(codec, list(TCU_TX))
         self.cycle = codec.cycle_time("TCU_CMD")
-        self.states = _choices(codec, "TCU_STATUS", "State")
-        self.clutches = _choices(codec, "TCU_STATUS", "ActiveClutch")
+        self.states = choices(codec, "TCU_STATUS", "State")
+        self.clutches = choices(codec, "TCU_STATUS", "ActiveClutch")
         missing = {"IDLE", "ENGAGE", "CREEP", "HANDOVER", "STOPPED_OVERHEAT", "FAULT"} - set(self.states)
         if missing or {"NONE", "CL", "CH"} - set(self.clutches):
             raise ProtocolError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
-        self.lockstep = False
-        self._sim_now = 0.0  # lock-step: the time of the last tick answered [s]
         self.now = -1.0  # the TCU's time of the frames it sends (fault windows): tick time, or run time; < 0 before
-        self.heard_plant_at: float | None = None
         self.last: TcuOutputs | None = None
-        self._answered: int | None = None  # lock-step: the tick last answered (SYNC_PROBE: the probe) ...
-        self._answer: list[tuple[int, bytes]] = []  # ... the frames (ID, data) sent for it, re-sent if repeated ...
-        self._answer_sends = 0  # ... and how often they were sent
-        self._pending: int | None = None  # lock-step: a tick not answered for want of plant frames ...
-        self._pending_sights = 0  # ... and how often it was seen
-        self._answered_early = False  # the tick answered came before its last plant frame (see handle_data)
-        self._due_every = {name: round(codec.cycle_time(name) / self.cycle) for name in REQUIRED
-                           if abs(codec.cycle_time(name) / self.cycle - round(codec.cycle_time(name) / self.cycle))
-                           < 1e-9}  # lock-step: message due at every n-th tick
         self.sent = 0
-        self.answers_resent = 0
-        self.incomplete_answers = 0
+        self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
+                                      send=self._send_one, recv=recv, on_taken=self._taken if listeners else None)
+
+    # the bus side, kept by the lock-step end
+    @property
+    def rx(self) -> RxMonitor:
+        return self.link.rx
+
+    @property
+    def tx(self) -> TxScheduler:
+        return self.link.tx
+
+    @property
+    def lockstep(self) -> bool:
+        return self.link.lockstep
+
+    @property
+    def heard_plant_at(self) -> float | None:
+        return self.link.heard_at
+
+    @property
+    def answers_resent(self) -> int:
+        return self.link.answers_resent
+
+    @property
+    def incomplete_answers(self) -> int:
+        return self.link.incomplete_answers
 
     def inputs(self, now: float) -> TcuInputs:
         states = self.rx.states
@@ -116,9 +126,15 @@ class TcuRunner:
                          v["VehicleSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"], o["T_Sump"],
                          d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults)
 
-    def control(self, now: float, echo: int = 0) -> list[tuple[int, bytes]]:
-        """One controller cycle at ``now``: compute, then send TCU_STATUS when due and TCU_CMD, last (in lock-step
-        it completes the answer to the tick); returns the frames sent, as (ID, data)."""
+    def control(self, now: float, echo: int = 0) -> Frames:
+        """One controller cycle at ``now``, its frames sent (see :meth:`_step`); returns them, as (ID, data)."""
+        frames = self._step(now, echo)
+        self._send(frames)
+        return frames
+
+    def _step(self, now: float, echo: int) -> Frames:
+        """One controller cycle at ``now``: compute, then TCU_STATUS when due and TCU_CMD, last (in lock-step it
+        completes the answer to the tick), recorded for the listeners; returns the frames, unsent."""
         self.now = now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
@@ -132,11 +148,18 @@ class TcuRunner:
         if "TCU_CMD" in due:
             frames.append((tx.ids["TCU_CMD"], tx.data("TCU_CMD", {
                 "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa, "SyncEcho": echo})))
-        self._send(frames)
         if self.listeners:
             for frame_id, data in frames:
                 self._record(frame_id, data, now, is_rx=False)
         return frames
+
+    def _restart(self, now: float) -> None:
+        """A lock-step run starts (the presence probe, or a first tick): a fresh controller, the plant's time."""
+        self.controller = type(self.controller)(self.controller.cal)
+        self.now = now
+
+    def _taken(self, frame_id: int, data: bytes, stamp: float) -> None:
+        self._record(frame_id, data, stamp, is_rx=True)
 
     def _record(self, frame_id: int, data: bytes, stamp: float, is_rx: bool) -> None:
         """Hand a frame taken or sent to the listeners, stamped ``stamp`` (lock-step), else with the wall clock."""
@@ -144,121 +167,22 @@ class TcuRunner:
         for listener in self.listeners:
             listener(msg)
 
-    def _send(self, frames: list[tuple[int, bytes]]) -> None:
-        send_data = self._send_data
+    def _send(self, frames: Frames) -> None:
         for frame_id, data in frames:
-            if send_data is not None:
-                send_data(frame_id, data)
-            else:
-                self.bus.send(data_frame(frame_id, data))
-            self.sent += 1
+            self._send_one(frame_id, data)
+
+    def _send_one(self, frame_id: int, data: bytes) -> None:
+        self._send_frame(frame_id, data)
+        self.sent += 1
 
     def handle(self, msg: can.Message, now: float) -> bool:
-        """Take one frame; a SIM_SYNC tick is answered at once (lock-step). True if the frame was the plant's
-        (even a duplicate or a rejected one: the plant is alive), False for others (e.g. our own, looped back).
-
-        In lock-step, time is the plant's: frames arriving before a tick belong to it (tick time = the previous
-        tick's + one cycle), so validity and controller time never depend on the wall clock."""
-        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id or msg.is_fd:
-            status, _ = self.rx.take(msg, now)  # not ours, or one of ours as a CAN FD frame: rejected
-            return status != IGNORED
-        return self.handle_data(msg.arbitration_id, bytes(msg.data), now)
+        """Take one frame (:meth:`LockstepResponder.handle`): a SIM_SYNC tick is answered at once. True if the
+        frame was the plant's (even a duplicate or a rejected one: the plant is alive)."""
+        return self.link.handle(msg, now)
 
     def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
-        """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data (as the in-process
-        bus hands it over)."""
-        stamp = self._sim_now + self.cycle if self.lockstep else now
-        status, frame = self.rx.take_data(frame_id, data, stamp)
-        if status not in (NEW, DUPLICATE):
-            return status != IGNORED
-        assert frame is not None  # NEW and DUPLICATE come decoded
-        if self.heard_plant_at is None:
-            self.heard_plant_at = now
-        if frame.name != "SIM_SYNC":
-            if status == NEW:
-                if self.listeners:
-                    self._record(frame_id, data, stamp, is_rx=True)
-                if self._pending is not None and not self._missing(self._pending):  # its tick came first
-                    self._answer_tick(self._pending)
-                    self._answered_early = True
-            return True
-        tick = int(frame.values["Tick"])
-        if status == NEW and self.listeners and tick != SYNC_PROBE:
-            self._record(frame_id, data, stamp, is_rx=True)
-        if tick == SYNC_PROBE:
-            if self._answered != SYNC_PROBE:
-                self._reset_for_lockstep()
-            self.rx.states["SIM_SYNC"].forget()  # the plant's ticks restart their counter after the handshake
-        if tick == self._answered:  # a repeated tick (its answer was lost or late): the same frames again
-            if self._answered_early:  # the tick of a re-sent period whose frame just completed it: answered
-                self._answered_early = False
-                return True
-            self.answers_resent += self._answer_sends > 0
-            self._answer_sends += 1
-            self._send(self._answer)
-            return True
-        if self._answered not in (None, SYNC_PROBE) and tick < self._answered:
-            return True  # a repeat of an older tick: answered long ago
-        if status == DUPLICATE and tick != self._pending:
-            return True
-        if self._answered is not None and not self._complete(tick):
-            return True  # answered when the missing frames come (late, or with the plant's re-send)
-        self._answer_tick(tick)
-        return True
-
-    def _answer_tick(self, tick: int) -> None:
-        """Run the control step of ``tick`` and send its answer (kept for the tick's repeats)."""
-        self._pending, self._answered_early = None, False
-        self._sim_now = tick * self.cycle
-        if not self.lockstep:
-            log.info("SIM_SYNC seen: lock-step, answering each tick")
-            self.lockstep = True
-            self.controller = type(self.controller)(self.controller.cal)  # time base: the plant's from now on
-            self.tx.next_due = {name: self._sim_now for name in self.tx.next_due}
-            for state in self.rx.states.values():
-                if state.last_time is not None:
-                    state.last_time = self._sim_now
-        self._answer = self.control(self._sim_now, echo=tick & 0xFF)
-        self._answered, self._answer_sends = tick, 1
-
-    def _missing(self, tick: int) -> list[str]:
-        """The plant messages due at ``tick`` (each on its DBC cycle from tick 0) not yet taken in its period."""
-        t = tick * self.cycle
-        return [name for name, every in self._due_every.items() if tick % every == 0
-                and ((last := self.rx.states[name].last_time) is None or abs(last - t) > 1e-9)]
-
-    def _complete(self, tick: int) -> bool:
-        """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen
-        ``SIGHTS_BEFORE_INCOMPLETE`` times (then it is answered anyway, and counted). An incomplete tick stays
-        pending: the frame that completes it (one delivered after the tick, or the plant's re-send) answers it."""
-        self._pending_sights = self._pending_sights + 1 if tick == self._pending else 1
-        self._pending = tick
-        missing = self._missing(tick)
-        if not missing:
-            self._pending = None
-            return True
-        if self._pending_sights < SIGHTS_BEFORE_INCOMPLETE:
-            log.info("tick %d: %s missing, waiting for it (late, or re-sent)", tick, ", ".join(missing))
-            return False
-        log.warning("tick %d seen %d times without %s: answered with the last values", tick, self._pending_sights,
-                    ", ".join(missing))
-        self.incomplete_answers += 1
-        self._pending = None
-        return True
-
-    def _reset_for_lockstep(self) -> None:
-        """Prepare the answer to the plant's presence probe from a clean state, so every run starts alike.
-        Repeated probes (the plant probes every 0.2 s until it hears the answer) get the same answer, byte for
-        byte: the counters restart once, and the tick-0 answer follows the probe answer's counter."""
-        log.info("lock-step presence probe: reset and answer")
-        self.lockstep = True
-        self.controller = type(self.controller)(self.controller.cal)
-        self.rx = RxMonitor(self.codec, list(TCU_RX))
-        self.tx = TxScheduler(self.codec, list(TCU_TX))
-        self._answer = [(self.tx.ids["TCU_CMD"], self.tx.data("TCU_CMD", {"SyncEcho": SYNC_PROBE & 0xFF}))]
-        self._answered, self._answer_sends = SYNC_PROBE, 0
-        self._pending, self._pending_sights, self._answered_early = None, 0, False
-        self._sim_now = self.now = -self.cycle  # the next tick is tick 0
+        """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data."""
+        return self.link.handle_data(frame_id, data, now)
 
     def frame_counts(self) -> dict:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost
@@ -276,12 +200,7 @@ class TcuRunner:
 
     def pump(self) -> None:
         """Handle every frame already waiting (for an in-process peer on python-can's virtual bus)."""
-        recv = self._recv_data or self.bus.recv
-        while (item := recv(0.0)) is not None:
-            if isinstance(item, tuple):
-                self.handle_data(item[0], item[1], self._sim_now)
-            else:
-                self.handle(item, self._sim_now)
+        self.link.pump()
 
     def run(self, duration: float | None = None, clock: Callable[[], float] = time.monotonic,
             idle_timeout: float | None = None, should_stop: Callable[[], bool] = lambda: False) -> None:

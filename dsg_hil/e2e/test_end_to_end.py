@@ -10,7 +10,8 @@ import sys
 
 import pytest
 
-from ..sim.plant_io import PLANT_USES, SYNC_PROBE
+from ..protocol.lockstep import probe_tick
+from ..sim.plant_io import PLANT_USES
 from ..protocol import Codec
 from ecu_stub.runner import TCU_RX
 
@@ -58,7 +59,7 @@ def test_lockstep_command_answers_each_tick(db, lockstep):
     tick_sent = {}
     for t, ident, data in frames:
         if ident == sync.frame_id:
-            tick_sent.setdefault(sync.decode(data)["Tick"], t)
+            tick_sent.setdefault(sync.decode(data, decode_choices=False)["Tick"], t)
     answers = [(t, cmd.decode(data)["SyncEcho"]) for t, ident, data in first_transmissions(frames)
                if ident == cmd.frame_id]
     assert [echo for _, echo in answers] == [tick & 0xFF for tick in range(len(answers))]
@@ -122,7 +123,8 @@ def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
     tcu_reads = {db.get_message_by_name(name).frame_id for name in TCU_RX}
     tcu_sends = sent_by(db, "TCU")
     recorded = parse_candump(outdir / "lockstep.plant.log")
-    probe = Codec(db, PLANT_USES).encode("SIM_SYNC", {"Tick": SYNC_PROBE}, 0)  # the plant's first probe
+    codec = Codec(db, PLANT_USES)
+    probe = codec.encode("SIM_SYNC", {"Tick": probe_tick(codec)}, 0)  # the plant's first probe
     replay = outdir / "replay.log"
     lead = 0.5  # [s] the probe, then the run
     replay.write_text(f"(0.000000) vcan0 {sync.frame_id:03X}#{probe.hex().upper()}\n" + "".join(

@@ -19,7 +19,6 @@ PLANT_TX = {
     "SIM_HEAT": ("HeatDissCL", "HeatDissCH"),
 }
 SYNC = "SIM_SYNC"
-SYNC_PROBE = 0xFFFFFFFF  # Tick value of the lockstep presence probe (DBC comment of SIM_SYNC.Tick)
 PLANT_RX = {
     "TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"),
     "TCU_STATUS": ("State", "ActiveClutch", "BrakeRequest", "T_CL_Pred", "T_CH_Pred", "FaultBits"),

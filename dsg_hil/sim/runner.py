@@ -2,10 +2,12 @@
 
 * Lock-step (``run_lockstep``): the plant is the time master. Each control period (the TCU_CMD cycle time of the
   DBC) it sends the frames that are due and a SIM_SYNC tick, waits for the TCU_CMD whose SyncEcho answers that
-  tick, and advances. A late answer makes it re-send the period's frames, byte for byte (the TCU answers a
-  repeated tick with the frames it already sent); retransmissions and duplicates are counted, never logged, so
-  a run that needed them logs the same frames as one that did not. Frame timestamps are simulated time, so the
-  same scenario gives the same frames, bit for bit. A TCU silent for the reply timeout ends the run (PeerLost).
+  tick, and advances; the protocol (handshake, answer wait, re-sends) is its master end,
+  :class:`~dsg_hil.protocol.lockstep.LockstepMaster`. A late answer makes it re-send the period's frames, byte
+  for byte (the TCU answers a repeated tick with the frames it already sent); retransmissions and duplicates are
+  counted, never logged, so a run that needed them logs the same frames as one that did not. Frame timestamps
+  are simulated time, so the same scenario gives the same frames, bit for bit. A TCU silent for the reply
+  timeout ends the run (PeerLost).
 * Real time (``run_realtime``): the plant steps at its fixed step paced by a monotonic clock against absolute
   deadlines, sends each frame at its DBC cycle time, and uses commands as they arrive.
 
@@ -26,22 +28,19 @@ import numpy as np
 
 from ..physics.friction import RAD_S_TO_RPM
 from ..physics.plant import N_OUT, Plant, PlantInputs, PlantOutputs
-from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, SYNC, SYNC_PROBE, plant_signals
+from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, plant_signals
 from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
-from ..common.errors import PeerLost, PeerTimeout  # defined with the other errors, importable here
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import data_frame
-from ..protocol.validity import IGNORED, NEW, REJECTED, TIMEOUT_CYCLES
+from ..protocol.lockstep import LockstepMaster, PeerLost, PeerTimeout, Received
+from ..protocol.validity import NEW
 from .scenario import DriverInput, Scenario
 from ..results.summary import RunSummary
 
 log = logging.getLogger(__name__)
 
 
-RETRY_FIRST_S = 0.1  # lock-step: wall-clock wait for a tick's answer before the first re-send [s]
-RETRY_MAX_S = 1.0  # ... the wait doubles after each re-send up to this [s]
-RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.8+1+1+1 = 4.5 s in all)
-STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
+__all__ = ["PeerLost", "PeerTimeout", "PlantRunner"]  # the errors (common.errors) importable here, as before
 
 
 class PlantRunner:
@@ -56,28 +55,16 @@ class PlantRunner:
         self.period = codec.cycle_time("TCU_CMD")
         self.steps_per_period = max(1, round(self.period / plant.dt))
         self.tx = TxScheduler(codec, list(PLANT_TX))
-        self.sync = TxScheduler(codec, [SYNC])
-        self.rx = RxMonitor(codec, list(PLANT_RX))
         self.summary = RunSummary(plant.dt)
         self.out: PlantOutputs = plant.outputs()
         self.command_valid = False
         self.P_cmd = (0.0, 0.0)
-        self.tick = 0
         self.sent = 0
         self.sent_by: Tally[str] = Tally()  # frames sent (first transmissions, the ones logged)
-        self.retries: Tally[str] = Tally()  # lock-step re-sends (not logged)
-        self.unanswered_ticks = 0
-        self._given_up = 0  # lock-step: ticks given up in a row just before this one (their answers may come late)
-        self.probes = 0  # lock-step presence probes sent before tick 0 (not logged)
-        self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
-        self._cmd_id, self._sync_id = codec.frame_id("TCU_CMD"), codec.frame_id(SYNC)
-        self._status_every = round(codec.cycle_time("TCU_STATUS") / self.period)  # in control periods
-        self._period: list[tuple[int, bytes, float]] = []  # lock-step: this period's frames, for re-sending
-        self._held: list[can.Message] | None = None  # lock-step: frames taken, logged when the answer is complete
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
-        self._recv_data: Callable[[float], tuple[int, bytes] | can.Message | None] | None = None
-        self._silent_s = 0.0  # lock-step: wall time waited in vain on ticks given up since the TCU was last heard
+        self.link = LockstepMaster(codec, PLANT_RX, self._send, bus.recv, self._use_stamped)  # lock-step protocol
+        self._keep: Callable[[int, bytes, float], None] | None = None  # lock-step: the period's frames, re-sent
         self._cmd_on_bus: float | None = None
         self._traces: dict[int, np.ndarray] = {}  # by number of steps: the plant's trace of a period (_advance)
         self._running = False  # set once the run proper starts (after the lock-step handshake)
@@ -86,11 +73,57 @@ class PlantRunner:
         self.faults_in_tcu: list[str] = []  # faults passed on to a TCU process, which counts them itself
         self._bind_bus()
 
+    # the lock-step's state, kept by its master (``link``); ``rx`` also serves real time
+    @property
+    def rx(self) -> RxMonitor:
+        return self.link.rx
+
+    @property
+    def tick(self) -> int:
+        return self.link.tick
+
+    @property
+    def probes(self) -> int:
+        return self.link.probes
+
+    @property
+    def unanswered_ticks(self) -> int:
+        return self.link.unanswered_ticks
+
+    @property
+    def retries(self) -> Tally[str]:
+        """Lock-step re-sends (not logged), by message."""
+        return Tally({self._names[frame_id]: n for frame_id, n in self.link.retries.items()})
+
+    @property
+    def retry_first_s(self) -> float:
+        return self.link.retry_first_s
+
+    @retry_first_s.setter
+    def retry_first_s(self, value: float) -> None:
+        self.link.retry_first_s = value
+
+    @property
+    def retry_max_s(self) -> float:
+        return self.link.retry_max_s
+
+    @retry_max_s.setter
+    def retry_max_s(self, value: float) -> None:
+        self.link.retry_max_s = value
+
+    @property
+    def retries_per_tick(self) -> int:
+        return self.link.retries_per_tick
+
+    @retries_per_tick.setter
+    def retries_per_tick(self, value: int) -> None:
+        self.link.retries_per_tick = value
+
     def _bind_bus(self) -> None:
         """Frames as (ID, data), no :class:`can.Message` built unless a listener wants one, where the bus is the
         direct in-process one (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped: no plant-side faults)."""
         self._send_data = getattr(self.bus, "send_data", None)
-        self._recv_data = getattr(self.bus, "recv_data", None)
+        self.link.recv = getattr(self.bus, "recv_data", None) or self.bus.recv
         self._channel = getattr(self.bus, "channel", None)  # of the frames received as (ID, data), when logged
 
     def clock(self) -> float:
@@ -127,7 +160,8 @@ class PlantRunner:
         msg = self._send(frame_id, data, stamp)
         self.sent += 1
         self.sent_by[self._names[frame_id]] += 1
-        self._period.append((frame_id, data, stamp))
+        if self._keep is not None:
+            self._keep(frame_id, data, stamp)
         if self.listeners:
             if msg is None:
                 msg = data_frame(frame_id, data, stamp)
@@ -158,21 +192,20 @@ class PlantRunner:
         self._use(frame, msg)
         return status, frame
 
-    def _take_data(self, frame_id: int, data: bytes, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
-        """:meth:`_take` of a frame received as (ID, data) from the in-process bus (see ``_bind_bus``)."""
-        status, frame = self.rx.take_data(frame_id, data, now)
-        if status == NEW:
-            assert frame is not None  # a NEW frame comes decoded
-            self._use(frame, data_frame(frame_id, data, stamp, self._channel, True) if self.listeners else None)
-        return status, frame
+    def _use_stamped(self, frame: DecodedFrame, item: Received, stamp: float) -> None:
+        """:meth:`_use` of a new frame of a lock-step answer (from the master), logged with ``stamp``."""
+        if not self.listeners:
+            self._use(frame, None)
+        elif isinstance(item, tuple):
+            self._use(frame, data_frame(item[0], item[1], stamp, self._channel, True))
+        else:
+            item.timestamp = stamp
+            self._use(frame, item)
 
     def _use(self, frame: DecodedFrame, msg: can.Message | None) -> None:
         """A new frame from the TCU: logged (``msg``: None with no listeners), its values used."""
         if msg is not None and self.listeners:
-            if self._held is not None:
-                self._held.append(msg)
-            else:
-                self._log(msg)
+            self._log(msg)
         if frame.name == "TCU_CMD":
             self.P_cmd = (frame.values["P_CL_Cmd"] * 1e6, frame.values["P_CH_Cmd"] * 1e6)
         elif frame.name == "TCU_STATUS":
@@ -229,155 +262,43 @@ class PlantRunner:
     # ---- lock-step ------------------------------------------------------------------------------------------
     def run_lockstep(self, reply_timeout: float = 5.0, pump: Callable[[], None] | None = None,
                      startup_timeout: float = 60.0) -> RunSummary:
-        """Run the scenario in lock-step. ``pump`` lets an in-process TCU answer (python-can ``virtual``).
+        """Run the scenario in lock-step (:class:`~dsg_hil.protocol.lockstep.LockstepMaster`). ``pump`` lets an
+        in-process TCU answer (python-can ``virtual``).
 
-        First a presence handshake (not logged): a SIM_SYNC probe every 0.2 s until the TCU answers, which
-        resets it; so the run starts from the same state whenever the TCU came up, and no tick is lost to a TCU
-        still starting. Then each tick is re-sent while its answer is late (see ``_await_answer``); a TCU silent
-        for ``reply_timeout`` wall-clock seconds ends the run with :class:`PeerLost` (stop reason
-        ``peer_lost``), the summary being valid up to that point. Compiled code is loaded before the handshake:
-        once the TCU has answered, a pause of seconds (numba's cache loaded under emulation) would look to it
-        like a plant gone."""
+        First the presence handshake (not logged), for up to ``startup_timeout`` s (then :class:`PeerTimeout`);
+        so the run starts from the same state whenever the TCU came up. Then each tick is re-sent while its
+        answer is late; a TCU silent for ``reply_timeout`` wall-clock seconds ends the run with :class:`PeerLost`
+        (stop reason ``peer_lost``), the summary being valid up to that point. Compiled code is loaded before the
+        handshake: once the TCU has answered, a pause of seconds (numba's cache loaded under emulation) would
+        look to it like a plant gone."""
         self.summary.creep.prepare()
-        self._handshake(startup_timeout, pump)
-        self.rx.require("TCU_CMD", "echo", self._answers_tick)
+        link = self.link
+        link.handshake(startup_timeout, pump)
         self._running = True
+        self._keep = link.keep
         t0 = time.monotonic()
         try:
-            for self.tick in range(self.n_periods):  # noqa: B020 - the tick is kept on self on purpose
-                t = self.tick * self.period
-                self._period.clear()
+            for tick in range(self.n_periods):
+                t = tick * self.period
+                link.start(tick)
                 self._publish_due(t, stamp=t)
-                self._emit(self._sync_id, self.sync.data(SYNC, {"Tick": self.tick}), t)
+                self._emit(link.sync_id, link.tick_data(), t)
                 if pump is not None:
                     pump()
-                answered = self._await_answer(t, reply_timeout, pump)
-                self._given_up = 0 if answered else self._given_up + 1
-                if not answered:
-                    self.unanswered_ticks += 1
+                if not link.answer(t, reply_timeout, pump):
                     log.warning("t=%.2f s: lock-step tick %d unanswered after %d re-sends: the period runs on the "
                                 "last command while it is valid (DBC: 3 cycle times), then unpowered",
-                                t, self.tick, self.retries_per_tick)
+                                t, tick, link.retries_per_tick)
                 self._check_command(t)
                 self._advance(self.steps_per_period, t)
                 self._report()
+        except PeerLost:
+            self.summary.stop_reason = "peer_lost"
+            raise
         finally:
+            self._keep = None
             self.summary.wall_time_s = time.monotonic() - t0
         return self.summary
-
-    def _handshake(self, timeout: float, pump: Callable[[], None] | None) -> None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            self.bus.send(self.sync.frame(SYNC, {"Tick": SYNC_PROBE}))
-            self.probes += 1
-            if pump is not None:
-                pump()
-            probe_end = min(deadline, time.monotonic() + 0.2)
-            while (remaining := probe_end - time.monotonic()) > 0:
-                msg = self.bus.recv(timeout=remaining)
-                frame = None if msg is None else self.rx.receive(msg, 0.0)
-                if msg is not None and frame is not None and frame.name == "TCU_CMD" \
-                        and int(frame.values["SyncEcho"]) == SYNC_PROBE & 0xFF:
-                    self.rx = RxMonitor(self.codec, list(PLANT_RX))  # the run starts from clean counts,
-                    self.rx.prime(msg)  # its counters following the answer (a repeat of it is a duplicate)
-                    self.sync = TxScheduler(self.codec, [SYNC])
-                    return
-        raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
-                          f"(ecu-stub) running on the same bus?")
-
-    def _answers_tick(self, frame: DecodedFrame) -> str | None:
-        """Lock-step: a TCU_CMD is taken only as the answer to the present tick (its SyncEcho the tick's low byte)
-        or, late, to one of the ticks given up just before it (at most as many as a command stays valid, 3 cycle
-        times); another (an old answer, a random frame that passed CRC and counter) is rejected ("echo")."""
-        echo = int(frame.values["SyncEcho"])
-        late = (self.tick - echo) % 256
-        if late == 0 or late <= min(self._given_up, int(TIMEOUT_CYCLES)):
-            return None
-        return f"SyncEcho {echo} answers no tick waiting (tick {self.tick})"
-
-    def _await_answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
-        """Wait for the answer to this tick: the TCU_CMD whose SyncEcho is the tick's (see ``_answers_tick`` for
-        the others), after the TCU_STATUS when one is expected (see ``_status_expected``); True when the command
-        came.
-
-        While it is late the period's frames (tick included) are re-sent, byte for byte and not logged, after
-        ``retry_first_s`` and then at doubling intervals up to ``retry_max_s``; at once when a TCU_CMD is
-        rejected or comes without its TCU_STATUS (then ``STATUS_RETRIES`` times at most). The TCU answers a
-        repeated tick with the frames it already sent. After ``retries_per_tick`` re-sends the tick is given up
-        (False). Nothing at all from the TCU for ``reply_timeout`` seconds of waiting (summed over ticks given
-        up; the plant's own time between waits does not count, nor does a stall of the plant: what arrived
-        meanwhile is read first): PeerLost. The answer's frames are logged when it is complete, TCU_CMD last,
-        as the TCU sends them, whatever retries brought them."""
-        cmd_id = self._cmd_id
-        recv = self._recv_data or self.bus.recv
-        retries, interval = 0, self.retry_first_s
-        since = time.monotonic()  # silence is counted from here, plus ``_silent_s`` of ticks given up
-        next_retry = since + interval
-        have_cmd, status_retries = False, 0
-        self._held = []
-        try:
-            while True:
-                lost_at = since + reply_timeout - self._silent_s
-                msg = recv(max(0.0, min(next_retry, lost_at) - time.monotonic()))
-                if msg is not None:
-                    if isinstance(msg, tuple):
-                        frame_id = msg[0]
-                        status, frame = self._take_data(frame_id, msg[1], t, stamp=t)
-                    else:
-                        frame_id = msg.arbitration_id
-                        status, frame = self._take(msg, t, stamp=t)
-                    if status != IGNORED:
-                        since, self._silent_s = time.monotonic(), 0.0
-                    if status == REJECTED and frame_id == cmd_id and not have_cmd:
-                        next_retry = time.monotonic()  # a command that failed its checks: ask again at once
-                    elif status == NEW and frame is not None and frame.name == "TCU_CMD" \
-                            and int(frame.values["SyncEcho"]) == self.tick & 0xFF:
-                        have_cmd = True
-                        if not self._status_expected(t):
-                            return True
-                        next_retry = time.monotonic()  # its TCU_STATUS was lost: ask again at once
-                    elif status == NEW and frame is not None and frame.name == "TCU_STATUS" and have_cmd:
-                        return True
-                    continue
-                now = time.monotonic()
-                if now >= lost_at:
-                    self.summary.stop_reason = "peer_lost"
-                    raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} "
-                                   f"s): peer lost; the run ends here")
-                if now >= next_retry:
-                    if have_cmd and status_retries == STATUS_RETRIES:
-                        log.info("t=%.2f s: TCU_STATUS missing from the answer to tick %d", t, self.tick)
-                        return True
-                    if retries == self.retries_per_tick:
-                        self._silent_s += now - since
-                        return have_cmd
-                    self._resend_period()
-                    retries += 1
-                    status_retries += have_cmd
-                    interval = min(2.0 * interval, self.retry_max_s)
-                    next_retry = now + interval
-                    if pump is not None:
-                        pump()
-        finally:
-            if self._held:
-                for msg in sorted(self._held, key=lambda m: m.arbitration_id == cmd_id):
-                    self._log(msg)
-            self._held = None
-
-    def _status_expected(self, t: float) -> bool:
-        """Whether this tick's answer should hold a TCU_STATUS: due now on its DBC cycle from tick 0, as the last
-        one due came (so a TCU sending it on a schedule of its own costs no retries after tick 0)."""
-        every = self._status_every
-        state = self.rx.states["TCU_STATUS"]
-        if self.tick % every or (state.last_time is not None and abs(state.last_time - t) < 1e-9):
-            return False
-        previous = t - every * self.period
-        return self.tick == 0 or (state.last_time is not None and abs(state.last_time - previous) < 1e-9)
-
-    def _resend_period(self) -> None:
-        for frame_id, data, stamp in self._period:
-            self._send(frame_id, data, stamp)
-            self.retries[self._names[frame_id]] += 1
 
     # ---- real time ------------------------------------------------------------------------------------------
     def run_realtime(self, clock: Callable[[], float] = time.monotonic) -> RunSummary:
@@ -406,7 +327,6 @@ class PlantRunner:
                     self.summary.command_latency_s.append(latency)
                 self._cmd_on_bus = None
             self._advance(1, now)
-            self._period.clear()  # (re-sent in lock-step only)
             if k % self.steps_per_period == 0:
                 self._report()
         wall = self.summary.wall_time_s = clock() - start
@@ -421,12 +341,12 @@ class PlantRunner:
         message: sent, retries (lock-step re-sends), received (every frame of it heard), taken, rejected by
         cause, lost (counter gaps), duplicates (repeats ignored); ``unanswered_ticks``: lock-step periods run
         without their answer; ``probes``: lock-step presence probes it took to find the TCU."""
-        rx = self.rx.counts()
+        rx, retries = self.rx.counts(), self.retries
         by_message = {}
         for name in PLANT_USES:
             got = rx.get(name, {"received": 0, "taken": 0, "rejected": {}, "lost": 0, "duplicates": 0})
-            by_message[name] = {"sent": self.sent_by[name], "retries": self.retries[name], **got}
+            by_message[name] = {"sent": self.sent_by[name], "retries": retries[name], **got}
         return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total,
-                "retries": sum(self.retries.values()), "lost": sum(m["lost"] for m in rx.values()),
+                "retries": sum(retries.values()), "lost": sum(m["lost"] for m in rx.values()),
                 "duplicates": sum(m["duplicates"] for m in rx.values()), "unanswered_ticks": self.unanswered_ticks,
                 "probes": self.probes, "by_message": by_message}

@@ -15,11 +15,14 @@ from typing import IO, Any, Protocol, runtime_checkable
 
 import can
 
-from ecu_stub.runner import REQUIRED, TcuRunner
+from ecu_stub.runner import REQUIRED, TCU_RX, TCU_TX
 
 from ..common.errors import RunError
 from ..protocol import Codec
 from ..protocol.bus import bus_args
+from ..protocol.lockstep import Frames, LockstepResponder, frame_io
+
+__all__ = ["BUS_ARGS", "Controller", "ControllerProcess", "PythonControllerTcu"]
 
 
 @runtime_checkable
@@ -41,25 +44,34 @@ class Controller(Protocol):
     def step(self, t: float, inputs: Mapping[str, Mapping[str, float]]) -> Mapping[str, float]: ...
 
 
-class PythonControllerTcu(TcuRunner):
-    """ecu-stub's bus side (lockstep answers, repeated ticks, counters and CRC, receive checks) around a
-    :class:`Controller` in place of ecu-stub's own."""
+class PythonControllerTcu:
+    """A :class:`Controller` on the plant's bus, in lockstep: ecu-stub's bus side (the protocol's TCU end,
+    :class:`~dsg_hil.protocol.lockstep.LockstepResponder`: answers, repeated ticks, counters and CRC, receive
+    checks) around the controller's ``step``. ``pump()`` handles what waits; ``now`` is its time (fault windows)."""
 
     def __init__(self, codec: Codec, bus: can.BusABC, controller: Controller) -> None:
-        super().__init__(codec, bus)
         self.user = controller
+        self.now = -1.0
+        send, recv = frame_io(bus)
+        self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
+                                      send=send, recv=recv)
 
-    def control(self, now: float, echo: int = 0) -> list[tuple[int, bytes]]:
+    def pump(self) -> None:
+        self.link.pump()
+
+    def _restart(self, now: float) -> None:
+        self.now = now  # the controller is not reset: one object per run
+
+    def _step(self, now: float, echo: int) -> Frames:
         self.now = now
-        inputs = {name: dict(self.rx.values(name)) for name in REQUIRED if self.rx.valid(name, now)}
+        rx, tx = self.link.rx, self.link.tx
+        inputs = {name: dict(rx.values(name)) for name in REQUIRED if rx.valid(name, now)}
         values = {"TCU_CMD": {**self.user.step(now, inputs), "SyncEcho": echo}}
         status = getattr(self.user, "status", None)
         if status is not None:
             values["TCU_STATUS"] = dict(status(now))
-        due = sorted(self.tx.due(now), key=lambda name: name == "TCU_CMD")  # TCU_CMD last, as ecu-stub
-        frames = [(self.tx.ids[name], self.tx.data(name, values[name])) for name in due if name in values]
-        self._send(frames)
-        return frames
+        due = sorted(tx.due(now), key=lambda name: name == "TCU_CMD")  # TCU_CMD last, as ecu-stub
+        return [(tx.ids[name], tx.data(name, values[name])) for name in due if name in values]
 
 
 BUS_ARGS = "{bus_args}"

@@ -11,7 +11,10 @@ import pytest
 
 from dsg_hil.sim.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec, TxScheduler, load_dbc
-from ecu_stub.runner import SYNC_PROBE, TCU_USES, TcuRunner
+from dsg_hil.protocol.lockstep import probe_tick
+from ecu_stub.runner import TCU_USES, TcuRunner
+
+SYNC_PROBE = probe_tick(Codec(load_dbc(), PLANT_USES))  # the DBC's Tick value PROBE
 
 PLANT_DATA = ["PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"]
 

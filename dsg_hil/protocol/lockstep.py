@@ -1,0 +1,401 @@
+"""The lockstep protocol (CONTRACT.md, *Lockstep, step by step*), both ends: :class:`LockstepMaster`, the plant's
+(the time master), and :class:`LockstepResponder`, the TCU's.
+
+Neither owns a bus: each is given ``send`` and ``recv`` callables (classic data frames as (ID, data), or
+python-can messages; see :func:`frame_io`), the master also its clock (``time.monotonic``). What a node sends in a
+period and what its control step is stay the node's, passed in as callbacks. The messages and signals are the
+DBC's: SIM_SYNC.Tick (the presence probe is its value named ``PROBE``), TCU_CMD.SyncEcho, TCU_STATUS.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter as Tally
+from collections.abc import Callable, Iterable
+
+import can
+
+from ..common.errors import PeerLost, PeerTimeout  # the lock-step's errors, in the one tree
+from .codec import Codec, DecodedFrame, ProtocolError
+from .frame import data_frame
+from .validity import DUPLICATE, IGNORED, NEW, REJECTED, TIMEOUT_CYCLES, RxMonitor, TxScheduler
+
+__all__ = ["PROBE", "PROBE_INTERVAL_S", "RETRIES_PER_TICK", "RETRY_FIRST_S", "RETRY_MAX_S",
+           "SIGHTS_BEFORE_INCOMPLETE", "STATUS_RETRIES", "Frames", "LockstepMaster", "LockstepResponder", "PeerLost",
+           "PeerTimeout", "Received", "choices", "frame_io", "probe_tick"]
+
+log = logging.getLogger(__name__)
+
+SYNC, TICK, CMD, ECHO, STATUS = "SIM_SYNC", "Tick", "TCU_CMD", "SyncEcho", "TCU_STATUS"
+PROBE = "PROBE"  # the DBC's name of the SIM_SYNC Tick value of the presence probe (VAL_)
+PROBE_INTERVAL_S = 0.2  # master: wall-clock wait for the probe's answer before probing again [s]
+RETRY_FIRST_S = 0.1  # master: wall-clock wait for a tick's answer before the first re-send [s]
+RETRY_MAX_S = 1.0  # ... the wait doubles after each re-send up to this [s]
+RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.8+1+1+1 = 4.5 s in all)
+STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
+SIGHTS_BEFORE_INCOMPLETE = 3  # responder: a tick seen this often is answered even with plant frames missing
+
+Frames = list[tuple[int, bytes]]  # (ID, data) of classic data frames
+Received = tuple[int, bytes] | can.Message  # what ``recv`` gives: a classic data frame as (ID, data), or any message
+
+
+def choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
+    """The DBC's value table (VAL_) of ``message.signal``: {name: value}."""
+    table = codec.message(message).get_signal_by_name(signal).choices
+    return {str(name): int(value) for value, name in (table or {}).items()}
+
+
+def probe_tick(codec: Codec) -> int:
+    """The SIM_SYNC Tick of the presence probe: the DBC's value named ``PROBE``."""
+    try:
+        return choices(codec, SYNC, TICK)[PROBE]
+    except KeyError:
+        raise ProtocolError(f"DBC {SYNC}.{TICK} lacks the VAL_ entry {PROBE!r} (the lock-step presence probe)") \
+            from None
+
+
+def frame_io(bus: can.BusABC) -> tuple[Callable[[int, bytes], None], Callable[[float], Received | None]]:
+    """``send(frame_id, data)`` and ``recv(timeout)`` of classic data frames on ``bus``: the direct (ID, data) path of
+    the in-process bus (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped), else python-can messages."""
+    send_data = getattr(bus, "send_data", None)
+    recv_data = getattr(bus, "recv_data", None)
+
+    def send(frame_id: int, data: bytes) -> None:
+        bus.send(data_frame(frame_id, data))
+    return send_data or send, recv_data or bus.recv
+
+
+class LockstepMaster:
+    """The plant's end: the presence handshake (:meth:`handshake`), then per tick (:meth:`start`, the node's
+    frames, the SIM_SYNC tick of :meth:`tick_data`) the wait for the answer with re-sends (:meth:`answer`).
+
+    ``receives``: the TCU's messages the master checks (``rx``, renewed by the handshake; real time uses it alone).
+    ``send(frame_id, data, stamp)`` puts a frame on the bus (``stamp``: the simulated time of the period, 0 for a
+    probe); ``recv(timeout)`` gives the next frame or None after ``timeout`` seconds (both attributes, re-bound
+    when the node's bus changes); ``use(frame, received, t)`` gets each new frame of the TCU's that passed its
+    checks, once the tick's answer is complete, TCU_CMD last (as the TCU sends them, whatever re-sends brought
+    them); ``clock`` times the waits. The node sends its period's frames itself (the tick too) and hands each to
+    :meth:`keep`, for re-sending."""
+
+    def __init__(self, codec: Codec, receives: Iterable[str], send: Callable[[int, bytes, float], object],
+                 recv: Callable[[float], Received | None], use: Callable[[DecodedFrame, Received, float], None],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.codec = codec
+        self._receives = list(receives)
+        self.send, self.recv = send, recv  # re-bound by the node when its bus changes
+        self._use, self._clock = use, clock
+        self.rx = RxMonitor(codec, self._receives)
+        self.sync = TxScheduler(codec, [SYNC])
+        self.probe = probe_tick(codec)
+        self.sync_id, self._cmd_id = codec.frame_id(SYNC), codec.frame_id(CMD)
+        self.period = codec.cycle_time(CMD)
+        self._status_every = round(codec.cycle_time(STATUS) / self.period)  # in control periods
+        self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
+        self.tick = 0
+        self.probes = 0  # presence probes sent before tick 0 (not logged)
+        self.unanswered_ticks = 0
+        self.retries: Tally[int] = Tally()  # re-sends (not logged), by frame ID
+        self._given_up = 0  # ticks given up in a row just before this one (their answers may come late)
+        self._silent_s = 0.0  # wall time waited in vain on ticks given up since the TCU was last heard
+        self._frames: list[tuple[int, bytes, float]] = []  # this period's frames, for re-sending
+
+    # ---- the presence handshake -------------------------------------------------------------------------------
+    def handshake(self, timeout: float, pump: Callable[[], None] | None = None) -> None:
+        """Probe (SIM_SYNC with the probe's Tick, not logged) every ``PROBE_INTERVAL_S`` until the TCU answers
+        (TCU_CMD with SyncEcho 255), which resets it; then start from clean counts, the receive counters following
+        the answer (a repeat of it is a duplicate), SIM_SYNC's counter from 0. :class:`PeerTimeout` after
+        ``timeout`` seconds. ``pump`` lets an in-process TCU answer."""
+        clock = self._clock
+        deadline = clock() + timeout
+        while clock() < deadline:
+            self.send(self.sync_id, self.sync.data(SYNC, {TICK: self.probe}), 0.0)
+            self.probes += 1
+            if pump is not None:
+                pump()
+            probe_end = min(deadline, clock() + PROBE_INTERVAL_S)
+            while (remaining := probe_end - clock()) > 0:
+                item = self.recv(remaining)
+                if item is None:
+                    continue
+                msg = data_frame(*item) if isinstance(item, tuple) else item
+                frame = self.rx.receive(msg, 0.0)
+                if frame is not None and frame.name == CMD and int(frame.values[ECHO]) == self.probe & 0xFF:
+                    self.rx = RxMonitor(self.codec, self._receives)
+                    self.rx.prime(msg)
+                    self.rx.require(CMD, "echo", self._answers_tick)
+                    self.sync = TxScheduler(self.codec, [SYNC])
+                    return
+        raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
+                          f"(ecu-stub) running on the same bus?")
+
+    # ---- ticks ---------------------------------------------------------------------------------------------------
+    def start(self, tick: int) -> None:
+        """Begin the period of ``tick``: the node's frames follow (:meth:`keep`), then the tick."""
+        self.tick = tick
+        self._frames.clear()
+
+    def keep(self, frame_id: int, data: bytes, stamp: float) -> None:
+        """A frame the node sent in this period (first transmission), re-sent with the period."""
+        self._frames.append((frame_id, data, stamp))
+
+    def tick_data(self) -> bytes:
+        """The data of this period's SIM_SYNC tick (counter advanced); the node sends it last, ID ``sync_id``."""
+        return self.sync.data(SYNC, {TICK: self.tick})
+
+    def answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None = None) -> bool:
+        """Wait for the TCU's answer to this tick (period time ``t``); True when the command came, False when the
+        tick was given up (counted in ``unanswered_ticks``).
+
+        The answer is the TCU_CMD whose SyncEcho is the tick's low byte (see ``_answers_tick`` for the others),
+        after the TCU_STATUS when one is expected (see ``_status_expected``). While it is late the period's frames
+        (tick included) are re-sent, byte for byte and not logged, after ``retry_first_s`` and then at doubling
+        intervals up to ``retry_max_s``; at once when a TCU_CMD is rejected or comes without its TCU_STATUS (then
+        ``STATUS_RETRIES`` times at most). After ``retries_per_tick`` re-sends the tick is given up. Nothing at
+        all from the TCU for ``reply_timeout`` seconds of waiting (summed over ticks given up; the node's own time
+        between waits does not count, nor does a stall of it: what arrived meanwhile is read first):
+        :class:`PeerLost`."""
+        answered = self._await(t, reply_timeout, pump)
+        self._given_up = 0 if answered else self._given_up + 1
+        self.unanswered_ticks += not answered
+        return answered
+
+    def _await(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
+        clock, recv, rx, cmd_id = self._clock, self.recv, self.rx, self._cmd_id
+        retries, interval = 0, self.retry_first_s
+        since = clock()  # silence is counted from here, plus ``_silent_s`` of ticks given up
+        next_retry = since + interval
+        have_cmd, status_retries = False, 0
+        taken: list[tuple[DecodedFrame, Received]] = []
+        try:
+            while True:
+                lost_at = since + reply_timeout - self._silent_s
+                item = recv(max(0.0, min(next_retry, lost_at) - clock()))
+                if item is not None:
+                    if isinstance(item, tuple):
+                        frame_id = item[0]
+                        status, frame = rx.take_data(frame_id, item[1], t)
+                    else:
+                        frame_id = item.arbitration_id
+                        status, frame = rx.take(item, t)
+                    if status != IGNORED:
+                        since, self._silent_s = clock(), 0.0
+                    if status == REJECTED and frame_id == cmd_id and not have_cmd:
+                        next_retry = clock()  # a command that failed its checks: ask again at once
+                    elif status == NEW and frame is not None:
+                        taken.append((frame, item))
+                        if frame.name == CMD and int(frame.values[ECHO]) == self.tick & 0xFF:
+                            have_cmd = True
+                            if not self._status_expected(t):
+                                return True
+                            next_retry = clock()  # its TCU_STATUS was lost: ask again at once
+                        elif frame.name == STATUS and have_cmd:
+                            return True
+                    continue
+                now = clock()
+                if now >= lost_at:
+                    raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} "
+                                   f"s): peer lost; the run ends here")
+                if now >= next_retry:
+                    if have_cmd and status_retries == STATUS_RETRIES:
+                        log.info("t=%.2f s: TCU_STATUS missing from the answer to tick %d", t, self.tick)
+                        return True
+                    if retries == self.retries_per_tick:
+                        self._silent_s += now - since
+                        return have_cmd
+                    self._resend()
+                    retries += 1
+                    status_retries += have_cmd
+                    interval = min(2.0 * interval, self.retry_max_s)
+                    next_retry = now + interval
+                    if pump is not None:
+                        pump()
+        finally:
+            if len(taken) > 1:
+                taken.sort(key=lambda taken_frame: taken_frame[0].name == CMD)
+            for frame, item in taken:
+                self._use(frame, item, t)
+
+    def _answers_tick(self, frame: DecodedFrame) -> str | None:
+        """A TCU_CMD is taken only as the answer to the present tick (its SyncEcho the tick's low byte) or, late,
+        to one of the ticks given up just before it (at most as many as a command stays valid, 3 cycle times);
+        another (an old answer, a random frame that passed CRC and counter) is rejected ("echo")."""
+        echo = int(frame.values[ECHO])
+        late = (self.tick - echo) % 256
+        if late == 0 or late <= min(self._given_up, int(TIMEOUT_CYCLES)):
+            return None
+        return f"SyncEcho {echo} answers no tick waiting (tick {self.tick})"
+
+    def _status_expected(self, t: float) -> bool:
+        """Whether this tick's answer should hold a TCU_STATUS: due now on its DBC cycle from tick 0, as the last
+        one due came (so a TCU sending it on a schedule of its own costs no retries after tick 0)."""
+        every = self._status_every
+        state = self.rx.states[STATUS]
+        if self.tick % every or (state.last_time is not None and abs(state.last_time - t) < 1e-9):
+            return False
+        previous = t - every * self.period
+        return self.tick == 0 or (state.last_time is not None and abs(state.last_time - previous) < 1e-9)
+
+    def _resend(self) -> None:
+        send = self.send
+        for frame_id, data, stamp in self._frames:
+            send(frame_id, data, stamp)
+            self.retries[frame_id] += 1
+
+
+class LockstepResponder:
+    """The TCU's end: takes the plant's frames (receive checks in ``rx``; ``tx`` numbers the TCU's frames), answers
+    each SIM_SYNC tick once with one control step, a repeated tick with the very frames it sent for it (no new
+    step), and the presence probe by restarting.
+
+    ``receives``, ``sends``: the messages the TCU reads (SIM_SYNC among them) and sends; ``required``: the plant
+    messages a tick waits for (each due at its DBC cycle from tick 0). Callbacks: ``step(now, echo)`` runs one
+    control step at ``now`` and returns the answer's frames (TCU_STATUS when due, TCU_CMD with SyncEcho ``echo``
+    last), unsent; ``restart(now)``: a run starts (a fresh controller) whose next step comes after ``now``;
+    ``send(frame_id, data)``, ``recv(timeout)`` as :func:`frame_io` gives them; ``on_taken(frame_id, data,
+    stamp)``: each new plant frame but the probe (for a log).
+
+    Lock-step is decided by the plant: ``lockstep`` is set by the first tick or probe. In lock-step, time is the
+    plant's: frames arriving before a tick belong to it (their time the previous tick's + one cycle), so validity
+    and controller time never depend on the wall clock."""
+
+    def __init__(self, codec: Codec, receives: Iterable[str], sends: Iterable[str], required: Iterable[str], *,
+                 step: Callable[[float, int], Frames], restart: Callable[[float], None],
+                 send: Callable[[int, bytes], object], recv: Callable[[float], Received | None],
+                 on_taken: Callable[[int, bytes, float], None] | None = None) -> None:
+        self.codec = codec
+        self._receives, self._sends = list(receives), list(sends)
+        self._step, self._restart, self._send, self._recv, self._on_taken = step, restart, send, recv, on_taken
+        self.rx = RxMonitor(codec, self._receives)
+        self.tx = TxScheduler(codec, self._sends)
+        self.probe = probe_tick(codec)
+        self.cycle = codec.cycle_time(CMD)
+        self.lockstep = False
+        self.tick_time = 0.0  # the time of the last tick answered [s]
+        self.heard_at: float | None = None  # when the plant was first heard
+        self.answers_resent = 0
+        self.incomplete_answers = 0
+        self._answered: int | None = None  # the tick last answered (the probe's Tick: the probe) ...
+        self._answer: Frames = []  # ... the frames sent for it, re-sent if repeated ...
+        self._answer_sends = 0  # ... and how often they were sent
+        self._pending: int | None = None  # a tick not answered for want of plant frames ...
+        self._pending_sights = 0  # ... and how often it was seen
+        self._answered_early = False  # the tick answered came before its last plant frame (see handle_data)
+        self._due_every = {name: round(codec.cycle_time(name) / self.cycle) for name in required
+                           if abs(codec.cycle_time(name) / self.cycle - round(codec.cycle_time(name) / self.cycle))
+                           < 1e-9}  # message due at every n-th tick
+
+    def pump(self) -> None:
+        """Handle every frame already waiting (an in-process TCU, pumped by the plant)."""
+        recv = self._recv
+        while (item := recv(0.0)) is not None:
+            if isinstance(item, tuple):
+                self.handle_data(item[0], item[1], self.tick_time)
+            else:
+                self.handle(item, self.tick_time)
+
+    def handle(self, msg: can.Message, now: float) -> bool:
+        """Take one frame; a SIM_SYNC tick is answered at once. True if the frame was the plant's (even a duplicate
+        or a rejected one: the plant is alive), False for others (e.g. the TCU's own, looped back)."""
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id or msg.is_fd:
+            status, _ = self.rx.take(msg, now)  # not ours, or one of ours as a CAN FD frame: rejected
+            return status != IGNORED
+        return self.handle_data(msg.arbitration_id, bytes(msg.data), now)
+
+    def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
+        """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data."""
+        stamp = self.tick_time + self.cycle if self.lockstep else now
+        status, frame = self.rx.take_data(frame_id, data, stamp)
+        if status not in (NEW, DUPLICATE):
+            return status != IGNORED
+        assert frame is not None  # NEW and DUPLICATE come decoded
+        if self.heard_at is None:
+            self.heard_at = now
+        if frame.name != SYNC:
+            if status == NEW:
+                if self._on_taken is not None:
+                    self._on_taken(frame_id, data, stamp)
+                if self._pending is not None and not self._missing(self._pending):  # its tick came first
+                    self._answer_tick(self._pending)
+                    self._answered_early = True
+            return True
+        tick = int(frame.values[TICK])
+        if status == NEW and self._on_taken is not None and tick != self.probe:
+            self._on_taken(frame_id, data, stamp)
+        if tick == self.probe:
+            if self._answered != self.probe:
+                self._reset()
+            self.rx.states[SYNC].forget()  # the plant's ticks restart their counter after the handshake
+        if tick == self._answered:  # a repeated tick (its answer was lost or late): the same frames again
+            if self._answered_early:  # the tick of a re-sent period whose frame just completed it: answered
+                self._answered_early = False
+                return True
+            self.answers_resent += self._answer_sends > 0
+            self._answer_sends += 1
+            for frame_id, data in self._answer:
+                self._send(frame_id, data)
+            return True
+        if self._answered not in (None, self.probe) and tick < self._answered:
+            return True  # a repeat of an older tick: answered long ago
+        if status == DUPLICATE and tick != self._pending:
+            return True
+        if self._answered is not None and not self._complete(tick):
+            return True  # answered when the missing frames come (late, or with the plant's re-send)
+        self._answer_tick(tick)
+        return True
+
+    def _answer_tick(self, tick: int) -> None:
+        """Run the control step of ``tick`` and send its answer (kept for the tick's repeats)."""
+        self._pending, self._answered_early = None, False
+        self.tick_time = tick * self.cycle
+        if not self.lockstep:  # a tick with no probe before it: the plant's time base from now on
+            log.info("SIM_SYNC seen: lock-step, answering each tick")
+            self.lockstep = True
+            self._restart(self.tick_time)
+            self.tx.next_due = {name: self.tick_time for name in self.tx.next_due}
+            for state in self.rx.states.values():
+                if state.last_time is not None:
+                    state.last_time = self.tick_time
+        self._answer = self._step(self.tick_time, tick & 0xFF)
+        for frame_id, data in self._answer:
+            self._send(frame_id, data)
+        self._answered, self._answer_sends = tick, 1
+
+    def _missing(self, tick: int) -> list[str]:
+        """The plant messages due at ``tick`` (each on its DBC cycle from tick 0) not yet taken in its period."""
+        t = tick * self.cycle
+        return [name for name, every in self._due_every.items() if tick % every == 0
+                and ((last := self.rx.states[name].last_time) is None or abs(last - t) > 1e-9)]
+
+    def _complete(self, tick: int) -> bool:
+        """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen
+        ``SIGHTS_BEFORE_INCOMPLETE`` times (then it is answered anyway, and counted). An incomplete tick stays
+        pending: the frame that completes it (one delivered after the tick, or the plant's re-send) answers it."""
+        self._pending_sights = self._pending_sights + 1 if tick == self._pending else 1
+        self._pending = tick
+        missing = self._missing(tick)
+        if not missing:
+            self._pending = None
+            return True
+        if self._pending_sights < SIGHTS_BEFORE_INCOMPLETE:
+            log.info("tick %d: %s missing, waiting for it (late, or re-sent)", tick, ", ".join(missing))
+            return False
+        log.warning("tick %d seen %d times without %s: answered with the last values", tick, self._pending_sights,
+                    ", ".join(missing))
+        self.incomplete_answers += 1
+        self._pending = None
+        return True
+
+    def _reset(self) -> None:
+        """Prepare the answer to the plant's presence probe from a clean state, so every run starts alike.
+        Repeated probes (the plant probes until it hears the answer) get the same answer, byte for byte: the
+        counters restart once, and the tick-0 answer follows the probe answer's counter."""
+        log.info("lock-step presence probe: reset and answer")
+        self.lockstep = True
+        self.rx = RxMonitor(self.codec, self._receives)
+        self.tx = TxScheduler(self.codec, self._sends)
+        self.tick_time = -self.cycle  # the next tick is tick 0
+        self._restart(self.tick_time)
+        self._answer = [(self.tx.ids[CMD], self.tx.data(CMD, {ECHO: self.probe & 0xFF}))]
+        self._answered, self._answer_sends = self.probe, 0
+        self._pending, self._pending_sights, self._answered_early = None, 0, False

@@ -1,0 +1,252 @@
+"""The lockstep protocol's two ends against each other on the in-process bus, on a fake clock (no wall time
+waited): a clean run, a lost answer re-sent byte for byte without a new control step, a tick given up after its
+re-sends, the presence probe resetting the TCU (a second run gives the first run's frames), a silent TCU (peer
+lost, no TCU at all: peer timeout), a plant frame lost (the tick waits for the re-sent period)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pytest
+
+from dsg_hil.protocol import Codec, TxScheduler, load_dbc
+from dsg_hil.protocol.local import LocalBus, local_pair
+from dsg_hil.protocol.lockstep import (RETRY_FIRST_S, LockstepMaster, LockstepResponder, PeerLost, PeerTimeout,
+                                       probe_tick)
+
+USES = {"SIM_SYNC": ("Tick",), "PLANT_SPEEDS": ("ClutchInputSpeed",), "TCU_CMD": ("P_CL_Cmd", "SyncEcho"),
+        "TCU_STATUS": ("State",)}
+PLANT_DATA = "PLANT_SPEEDS"  # the one plant message of these tests, due every tick
+
+
+class FakeClock:
+    """Time that passes only while the master waits on an empty bus."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class Tcu:
+    """A TCU node behind a responder: each step commands the last ClutchInputSpeed / 1000 as P_CL_Cmd, and reports
+    its steps since the last restart as State (TCU_STATUS when due). ``drop(frame_id, data)``: frames it sends that
+    are lost."""
+
+    def __init__(self, codec: Codec, bus, drop: Callable[[int, bytes], bool] = lambda i, d: False) -> None:
+        self.steps: list[float] = []
+        self.restarts: list[float] = []
+        self.count = 0  # steps since the last restart (its controller's state)
+        self.sent: list[tuple[int, bytes]] = []  # every frame it put on the bus, lost ones included
+
+        def send(frame_id: int, data: bytes) -> None:
+            self.sent.append((frame_id, data))
+            if not drop(frame_id, data):
+                bus.send_data(frame_id, data)
+
+        self.link = LockstepResponder(codec, ["SIM_SYNC", PLANT_DATA], ["TCU_CMD", "TCU_STATUS"], [PLANT_DATA],
+                                      step=self.step, restart=self.restart, send=send, recv=bus.recv_data)
+
+    def restart(self, now: float) -> None:
+        self.restarts.append(now)
+        self.count = 0
+
+    def step(self, now: float, echo: int) -> list[tuple[int, bytes]]:
+        self.steps.append(now)
+        self.count += 1
+        speed = self.link.rx.values(PLANT_DATA).get("ClutchInputSpeed", 0.0)
+        tx, frames = self.link.tx, []
+        due = tx.due(now)
+        if "TCU_STATUS" in due:
+            frames.append((tx.ids["TCU_STATUS"], tx.data("TCU_STATUS", {"State": self.count % 16})))
+        frames.append((tx.ids["TCU_CMD"], tx.data("TCU_CMD", {"P_CL_Cmd": speed / 1000.0, "SyncEcho": echo})))
+        return frames
+
+
+class Plant:
+    """A plant node behind a master: each tick it sends PLANT_SPEEDS (ClutchInputSpeed = 10 x tick) and the tick.
+    ``used``: the TCU's frames the master handed over, (period time, name, values), in order."""
+
+    def __init__(self, codec: Codec, bus, clock: FakeClock, drop: Callable[[int, bytes], bool] = lambda i, d: False):
+        self.bus, self.clock, self.drop = bus, clock, drop
+        self.tx = TxScheduler(codec, [PLANT_DATA])
+        self.used: list[tuple[float, str, dict[str, float]]] = []
+        self.link = LockstepMaster(codec, ["TCU_CMD", "TCU_STATUS"], self.send, self.recv,
+                                   lambda frame, item, t: self.used.append((t, frame.name, frame.values)), clock)
+
+    def send(self, frame_id: int, data: bytes, stamp: float) -> None:
+        if not self.drop(frame_id, data):
+            self.bus.send_data(frame_id, data)
+
+    def recv(self, timeout: float):
+        item = self.bus.recv_data(0.0)
+        if item is None:  # nothing waiting: the wait runs its course on the fake clock
+            self.clock.t += timeout
+        return item
+
+    def run(self, ticks: int, pump: Callable[[], None], reply_timeout: float = 5.0) -> list[bool]:
+        link = self.link
+        link.handshake(60.0, pump)
+        answered = []
+        for tick in range(ticks):
+            t = tick * link.period
+            link.start(tick)
+            data = self.tx.data(PLANT_DATA, {"ClutchInputSpeed": 10.0 * tick})
+            self.send(self.tx.ids[PLANT_DATA], data, t)
+            link.keep(self.tx.ids[PLANT_DATA], data, t)
+            tick_data = link.tick_data()
+            self.send(link.sync_id, tick_data, t)
+            link.keep(link.sync_id, tick_data, t)
+            pump()
+            answered.append(link.answer(t, reply_timeout, pump))
+        return answered
+
+
+@pytest.fixture(scope="module")
+def codec() -> Codec:
+    return Codec(load_dbc(), USES)
+
+
+BUSES: list[LocalBus] = []  # shut down at the end of the module
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _shutdown():
+    yield
+    for bus in BUSES:
+        bus.shutdown()
+
+
+def pair(codec: Codec, plant_drop=lambda i, d: False, tcu_drop=lambda i, d: False) -> tuple[Plant, Tcu, FakeClock]:
+    plant_bus, tcu_bus = local_pair("lockstep-test")
+    BUSES.extend((plant_bus, tcu_bus))
+    clock = FakeClock()
+    return Plant(codec, plant_bus, clock, plant_drop), Tcu(codec, tcu_bus, tcu_drop), clock
+
+
+def nth(frame_id: int, wanted: set[int]) -> Callable[[int, bytes], bool]:
+    """Lose the n-th frames (from 1) of ``frame_id``."""
+    seen = [0]
+
+    def drop(i: int, data: bytes) -> bool:
+        if i != frame_id:
+            return False
+        seen[0] += 1
+        return seen[0] in wanted
+    return drop
+
+
+TICKS = 25
+
+
+@pytest.fixture(scope="module")
+def clean(codec):
+    plant, tcu, clock = pair(codec)
+    assert plant.run(TICKS, tcu.link.pump) == [True] * TICKS
+    return plant, tcu, clock
+
+
+def test_the_probe_is_the_dbcs_value(codec):
+    assert probe_tick(codec) == 0xFFFFFFFF
+
+
+def test_a_clean_run_answers_each_tick_once_with_no_wall_time(clean):
+    plant, tcu, clock = clean
+    link = plant.link
+    assert clock.t == 0.0 and link.probes == 1 and not link.retries and link.unanswered_ticks == 0
+    assert tcu.restarts == [-link.period] and tcu.link.lockstep  # reset by the probe: the next tick is tick 0
+    assert tcu.steps == [tick * link.period for tick in range(TICKS)] and tcu.link.answers_resent == 0
+    commands = [(t, values) for t, name, values in plant.used if name == "TCU_CMD"]
+    assert [values["SyncEcho"] for _, values in commands] == list(range(TICKS))
+    # the answer to tick k was computed from tick k's plant frame, and handed over at tick k's time
+    assert all(values["P_CL_Cmd"] == pytest.approx(0.01 * tick) and t == tick * link.period
+               for tick, (t, values) in enumerate(commands))
+    statuses = [t for t, name, _ in plant.used if name == "TCU_STATUS"]
+    assert statuses == [0.0, 0.1, 0.2]  # on its 100 ms cycle from tick 0, each before its tick's command
+    assert [name for _, name, _ in plant.used[:2]] == ["TCU_STATUS", "TCU_CMD"]
+
+
+def test_a_lost_answer_is_re_sent_byte_for_byte_without_a_new_step(codec, clean):
+    cmd_id = codec.frame_id("TCU_CMD")
+    plant, tcu, clock = pair(codec, tcu_drop=nth(cmd_id, {8}))  # the 8th TCU_CMD: the answer to tick 6
+    assert plant.run(TICKS, tcu.link.pump) == [True] * TICKS
+    link = plant.link
+    assert link.retries == {codec.frame_id(PLANT_DATA): 1, link.sync_id: 1}  # the whole period, once
+    assert clock.t == pytest.approx(RETRY_FIRST_S)  # after the first wait
+    commands = [data for i, data in tcu.sent if i == cmd_id]
+    assert commands[7] == commands[8] and tcu.link.answers_resent == 1  # the repeated tick: the same bytes
+    assert tcu.steps == clean[1].steps and plant.used == clean[0].used  # no new step; what the plant took: alike
+
+
+def test_a_tick_whose_answers_are_all_lost_is_given_up_after_its_re_sends(codec, clean):
+    cmd_id = codec.frame_id("TCU_CMD")
+    plant, tcu, clock = pair(codec, tcu_drop=nth(cmd_id, {8, 9, 10}))
+    plant.link.retries_per_tick = 2
+    answered = plant.run(TICKS, tcu.link.pump)
+    assert answered == [True] * 6 + [False] + [True] * (TICKS - 7) and plant.link.unanswered_ticks == 1
+    assert plant.link.retries[plant.link.sync_id] == 2 and tcu.link.answers_resent == 2
+    assert clock.t == pytest.approx(RETRY_FIRST_S + 2 * RETRY_FIRST_S + 4 * RETRY_FIRST_S)  # 0.1, 0.2, 0.4 s
+    assert len(tcu.steps) == TICKS  # tick 6 was stepped once; the next tick was answered as usual
+    assert [v["SyncEcho"] for _, name, v in plant.used if name == "TCU_CMD"] == [k for k in range(TICKS) if k != 6]
+
+
+def test_the_probe_resets_the_tcu_so_a_second_run_gives_the_first_runs_frames(codec, clean):
+    plant, tcu, _ = pair(codec)
+    plant.run(10, tcu.link.pump)
+    again = Plant(codec, plant.bus, FakeClock())  # a new run (the plant restarted) against the same TCU
+    again.run(TICKS, tcu.link.pump)
+    assert len(tcu.restarts) == 2 and tcu.steps[10:] == clean[1].steps
+    assert again.used == clean[0].used
+
+
+def test_a_lost_probe_answer_costs_a_probe_answered_with_the_same_bytes(codec, clean):
+    cmd_id = codec.frame_id("TCU_CMD")
+    plant, tcu, clock = pair(codec, tcu_drop=nth(cmd_id, {1}))
+    plant.run(TICKS, tcu.link.pump)
+    assert plant.link.probes == 2 and len(tcu.restarts) == 1 and tcu.link.answers_resent == 1
+    assert tcu.sent[0] == tcu.sent[1] and clock.t == pytest.approx(0.2)  # one probe interval
+    assert plant.used == clean[0].used
+
+
+def test_a_lost_plant_frame_makes_the_tick_wait_for_the_re_sent_period(codec, clean):
+    plant, tcu, _ = pair(codec, plant_drop=nth(codec.frame_id(PLANT_DATA), {5}))  # tick 4's
+    plant.run(TICKS, tcu.link.pump)
+    assert plant.link.retries[plant.link.sync_id] == 1 and tcu.link.answers_resent == 0
+    assert tcu.link.incomplete_answers == 0 and plant.used == clean[0].used
+
+
+def test_a_silent_tcu_is_a_lost_peer_after_the_reply_timeout(codec):
+    plant, tcu, clock = pair(codec)
+
+    def pump() -> None:  # the TCU dies after answering tick 3
+        if plant.link.tick <= 3:
+            tcu.link.pump()
+
+    with pytest.raises(PeerLost, match="TCU silent for 2 s at lock-step tick 4"):
+        plant.run(TICKS, pump, reply_timeout=2.0)
+    assert clock.t == pytest.approx(2.0) and plant.link.retries[plant.link.sync_id] == 4  # at 0.1, 0.3, 0.7, 1.5 s
+
+
+def test_no_tcu_is_a_peer_timeout(codec):
+    plant, _, clock = pair(codec)
+    with pytest.raises(PeerTimeout, match="no TCU answered the lock-step presence probe within 1 s"):
+        plant.link.handshake(1.0)
+    assert plant.link.probes == 5 and clock.t == pytest.approx(1.0)
+
+
+def test_a_command_answering_no_tick_waiting_is_rejected_as_echo(codec, clean):
+    """A TCU_CMD that passes CRC and counter but echoes tick 3 while tick 12 waits is not taken (cause "echo",
+    its counter not taken either): the run is that of a clean one."""
+    plant, tcu, _ = pair(codec)
+    cmd_id = codec.frame_id("TCU_CMD")
+
+    def pump() -> None:
+        if plant.link.tick == 12 and not plant.link.rx.rejected:
+            forged = codec.encode("TCU_CMD", {"P_CL_Cmd": 1.5, "SyncEcho": 3}, tcu.link.tx.counters["TCU_CMD"])
+            plant.bus.peer.send_data(cmd_id, forged)  # from the TCU's end of the bus
+        tcu.link.pump()
+
+    plant.run(TICKS, pump)
+    assert plant.link.rx.rejected == {"echo": 1} and plant.link.unanswered_ticks == 0
+    assert plant.used == clean[0].used
