@@ -5,6 +5,9 @@ Neither owns a bus: each is given ``send`` and ``recv`` callables (classic data 
 python-can messages; see :func:`frame_io`), the master also its clock (``time.monotonic``). What a node sends in a
 period and what its control step is stay the node's, passed in as callbacks. The messages and signals are the
 DBC's: SIM_SYNC.Tick (the presence probe is its value named ``PROBE``), TCU_CMD.SyncEcho, TCU_STATUS.
+
+Both ends count ticks (integers: which period a frame came in, which tick brought the last TCU_STATUS, a cycle
+in whole ticks from the DBC's milliseconds); seconds (tick x cycle time) are derived where frames are stamped.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import logging
 import time
 from collections import Counter as Tally
 from collections.abc import Callable, Iterable
+from typing import cast
 
 import can
 
@@ -66,6 +70,11 @@ def frame_io(bus: can.BusABC) -> tuple[Callable[[int, bytes], None], Callable[[f
     return send_data or send, recv_data or bus.recv
 
 
+def _cycle_ms(codec: Codec, name: str) -> int:
+    """The DBC cycle time of ``name`` [ms], an integer (the codec checked that it has one)."""
+    return cast(int, codec.message(name).cycle_time)
+
+
 class LockstepMaster:
     """The plant's end: the presence handshake (:meth:`handshake`), then per tick (:meth:`start`, the node's
     frames, the SIM_SYNC tick of :meth:`tick_data`) the wait for the answer with re-sends (:meth:`answer`).
@@ -90,13 +99,14 @@ class LockstepMaster:
         self.probe = probe_tick(codec)
         self.sync_id, self._cmd_id = codec.frame_id(SYNC), codec.frame_id(CMD)
         self.period = codec.cycle_time(CMD)
-        self._status_every = round(codec.cycle_time(STATUS) / self.period)  # in control periods
+        self._status_every = round(_cycle_ms(codec, STATUS) / _cycle_ms(codec, CMD))  # in control periods
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self.tick = 0
         self.probes = 0  # presence probes sent before tick 0 (not logged)
         self.unanswered_ticks = 0
         self.retries: Tally[int] = Tally()  # re-sends (not logged), by frame ID
         self._given_up = 0  # ticks given up in a row just before this one (their answers may come late)
+        self._status_tick: int | None = None  # the tick whose answer brought the last TCU_STATUS
         self._silent_s = 0.0  # wall time waited in vain on ticks given up since the TCU was last heard
         self._frames: list[tuple[int, bytes, float]] = []  # this period's frames, for re-sending
 
@@ -125,6 +135,7 @@ class LockstepMaster:
                     self.rx.prime(msg)
                     self.rx.require(CMD, "echo", self._answers_tick)
                     self.sync = TxScheduler(self.codec, [SYNC])
+                    self._status_tick = None
                     return
         raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
                           f"(ecu-stub) running on the same bus?")
@@ -186,11 +197,13 @@ class LockstepMaster:
                         taken.append((frame, item))
                         if frame.name == CMD and int(frame.values[ECHO]) == self.tick & 0xFF:
                             have_cmd = True
-                            if not self._status_expected(t):
+                            if not self._status_expected():
                                 return True
                             next_retry = clock()  # its TCU_STATUS was lost: ask again at once
-                        elif frame.name == STATUS and have_cmd:
-                            return True
+                        elif frame.name == STATUS:
+                            self._status_tick = self.tick
+                            if have_cmd:
+                                return True
                     continue
                 now = clock()
                 if now >= lost_at:
@@ -226,15 +239,13 @@ class LockstepMaster:
             return None
         return f"SyncEcho {echo} answers no tick waiting (tick {self.tick})"
 
-    def _status_expected(self, t: float) -> bool:
+    def _status_expected(self) -> bool:
         """Whether this tick's answer should hold a TCU_STATUS: due now on its DBC cycle from tick 0, as the last
         one due came (so a TCU sending it on a schedule of its own costs no retries after tick 0)."""
-        every = self._status_every
-        state = self.rx.states[STATUS]
-        if self.tick % every or (state.last_time is not None and abs(state.last_time - t) < 1e-9):
+        tick, every = self.tick, self._status_every
+        if tick % every or self._status_tick == tick:
             return False
-        previous = t - every * self.period
-        return self.tick == 0 or (state.last_time is not None and abs(state.last_time - previous) < 1e-9)
+        return tick == 0 or self._status_tick == tick - every
 
     def _resend(self) -> None:
         send = self.send
@@ -271,7 +282,7 @@ class LockstepResponder:
         self.probe = probe_tick(codec)
         self.cycle = codec.cycle_time(CMD)
         self.lockstep = False
-        self.tick_time = 0.0  # the time of the last tick answered [s]
+        self.tick = 0  # the last tick answered (-1 after the probe: the next is tick 0)
         self.heard_at: float | None = None  # when the plant was first heard
         self.answers_resent = 0
         self.incomplete_answers = 0
@@ -281,9 +292,17 @@ class LockstepResponder:
         self._pending: int | None = None  # a tick not answered for want of plant frames ...
         self._pending_sights = 0  # ... and how often it was seen
         self._answered_early = False  # the tick answered came before its last plant frame (see handle_data)
-        self._due_every = {name: round(codec.cycle_time(name) / self.cycle) for name in required
-                           if abs(codec.cycle_time(name) / self.cycle - round(codec.cycle_time(name) / self.cycle))
-                           < 1e-9}  # message due at every n-th tick
+        self._due_every: dict[str, int] = {}  # by plant message: due at every n-th tick (a whole n only)
+        for name in required:
+            every, rest = divmod(_cycle_ms(codec, name), _cycle_ms(codec, CMD))
+            if not rest:
+                self._due_every[name] = every
+        self._taken_in: dict[str, int] = {}  # by plant message: the tick whose period its last new frame was in
+
+    @property
+    def tick_time(self) -> float:
+        """The time of the last tick answered [s]: its frames' time, the next tick's frames one cycle later."""
+        return self.tick * self.cycle
 
     def pump(self) -> None:
         """Handle every frame already waiting (an in-process TCU, pumped by the plant)."""
@@ -313,6 +332,7 @@ class LockstepResponder:
             self.heard_at = now
         if frame.name != SYNC:
             if status == NEW:
+                self._taken_in[frame.name] = self.tick + 1
                 if self._on_taken is not None:
                     self._on_taken(frame_id, data, stamp)
                 if self._pending is not None and not self._missing(self._pending):  # its tick came first
@@ -347,7 +367,7 @@ class LockstepResponder:
     def _answer_tick(self, tick: int) -> None:
         """Run the control step of ``tick`` and send its answer (kept for the tick's repeats)."""
         self._pending, self._answered_early = None, False
-        self.tick_time = tick * self.cycle
+        self.tick = tick
         if not self.lockstep:  # a tick with no probe before it: the plant's time base from now on
             log.info("SIM_SYNC seen: lock-step, answering each tick")
             self.lockstep = True
@@ -356,6 +376,7 @@ class LockstepResponder:
             for state in self.rx.states.values():
                 if state.last_time is not None:
                     state.last_time = self.tick_time
+            self._taken_in = dict.fromkeys(self._taken_in, tick)
         self._answer = self._step(self.tick_time, tick & 0xFF)
         for frame_id, data in self._answer:
             self._send(frame_id, data)
@@ -363,9 +384,8 @@ class LockstepResponder:
 
     def _missing(self, tick: int) -> list[str]:
         """The plant messages due at ``tick`` (each on its DBC cycle from tick 0) not yet taken in its period."""
-        t = tick * self.cycle
-        return [name for name, every in self._due_every.items() if tick % every == 0
-                and ((last := self.rx.states[name].last_time) is None or abs(last - t) > 1e-9)]
+        taken_in = self._taken_in
+        return [name for name, every in self._due_every.items() if tick % every == 0 and taken_in.get(name) != tick]
 
     def _complete(self, tick: int) -> bool:
         """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen
@@ -394,7 +414,8 @@ class LockstepResponder:
         self.lockstep = True
         self.rx = RxMonitor(self.codec, self._receives)
         self.tx = TxScheduler(self.codec, self._sends)
-        self.tick_time = -self.cycle  # the next tick is tick 0
+        self.tick = -1  # the next tick is tick 0
+        self._taken_in = {}
         self._restart(self.tick_time)
         self._answer = [(self.tx.ids[CMD], self.tx.data(CMD, {ECHO: self.probe & 0xFF}))]
         self._answered, self._answer_sends = self.probe, 0
