@@ -303,10 +303,10 @@ class Run:
         """The TCU in this process, on its end of the bus, behind the TCU-side faults."""
         tcu = self.config.tcu
         factory = None if isinstance(tcu, str) or isinstance(tcu, TcuProcess) else tcu
-        self.tcu = attach_tcu(self.runner, tcu_bus, self.db, self.faults_by_side["tcu"], self.config.fault_seed,
-                              factory)
-        if self.tcu.bus is not tcu_bus:
-            self._stack.callback(self.tcu.bus.shutdown)
+        self.tcu, faulty = attach_tcu(self.runner, tcu_bus, self.db, self.faults_by_side["tcu"],
+                                      self.config.fault_seed, factory)
+        if faulty is not tcu_bus:
+            self._stack.callback(faulty.shutdown)
 
     def _progress(self, message: str) -> None:
         if self.config.progress is not None:
@@ -470,10 +470,11 @@ def at_each_tick(db: Database, call: Callable[[], object]) -> Callable[[can.Mess
 
 
 def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Iterable[FaultSpec], fault_seed: int,
-               tcu_factory: TcuFactory | None = None) -> Any:
+               tcu_factory: TcuFactory | None = None) -> tuple[Any, can.BusABC]:
     """A TCU in this process on ``bus``, its frames through the TCU-side ``faults`` (windows in the TCU's own time,
-    its ``now``); the injector is registered on ``runner`` for the summary. Default TCU: the bundled ecu-stub,
-    which knows the plant only by the DBC (with the plant's kind of codec)."""
+    its ``now``); the injector is registered on ``runner`` for the summary. Returns the TCU and its bus (``bus``
+    behind the injector). Default TCU: the bundled ecu-stub, which knows the plant only by the DBC (with the
+    plant's kind of codec)."""
     if tcu_factory is None:
         from ecu_stub.runner import TCU_USES, TcuRunner  # noqa: PLC0415 - the TCU when one is attached
 
@@ -484,7 +485,7 @@ def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Itera
     built: list[Any] = []  # the TCU, once built: the fault clock reads its time
     tcu_bus, runner.injectors["tcu"] = with_faults(bus, db, faults, fault_seed, lambda: built[0].now)
     built.append(tcu_factory(db, tcu_bus))
-    return built[0]
+    return built[0], tcu_bus
 
 
 def _output_tail(sink: IO[bytes]) -> str:
