@@ -125,3 +125,71 @@ def test_an_old_import_path_is_the_moved_module(old):
 def test_the_public_api_is_lazy_and_complete():
     for name in dsg_hil.__all__:
         assert getattr(dsg_hil, name) is not None, name
+
+
+# ---- no import cycle ---------------------------------------------------------------------------------------------
+# The graph: a module -> every dsg_hil / ecu_stub module it imports, anywhere in it (imports() above: functions and
+# TYPE_CHECKING blocks too), plus, for a package whose __init__ re-exports names lazily (common.lazy.lazy_names),
+# an edge to each submodule its table names: ``from dsg_hil.protocol import Codec`` runs protocol/codec.py, so a
+# module that imports its package's lazy names sits downstream of them. Not an edge: the parent package that
+# Python imports before a submodule (every module would otherwise be in a cycle with its package's __init__), and
+# the 0.1 paths of common/moved.py (nothing in the package imports them).
+
+
+def lazy_submodules(path: Path, root: Path) -> set[str]:
+    """The submodules named by the lazy_names table of the package ``path`` (an ``__init__.py``), if it has one."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    tables = [node.args[1].id for node in ast.walk(tree) if isinstance(node, ast.Call)
+              and getattr(node.func, "id", None) == "lazy_names" and isinstance(node.args[1], ast.Name)]
+    package = module_name(path, root)
+    return {f"{package}.{where}" for table in tables
+            for where in getattr(importlib.import_module(package), table).values()}
+
+
+def import_graph() -> dict[str, set[str]]:
+    graph = {}
+    for path, root in sources():
+        name = module_name(path, root)
+        lazy = lazy_submodules(path, root) if path.name == "__init__.py" else set()
+        graph[name] = (imports(path, root) | lazy) - {name}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """A cycle of ``graph`` as its path (first node repeated at the end), or None: depth first, iteratively."""
+    done: set[str] = set()
+    for start in sorted(graph):
+        if start in done:
+            continue
+        path, todo = [start], [iter(sorted(graph[start]))]
+        while path:
+            nxt = next(todo[-1], None)
+            if nxt is None:  # every import of path[-1] explored: no cycle through it
+                done.add(path.pop())
+                todo.pop()
+            elif nxt in path:
+                return path[path.index(nxt):] + [nxt]
+            elif nxt not in done:
+                path.append(nxt)
+                todo.append(iter(sorted(graph.get(nxt, ()))))
+    return None
+
+
+def test_the_cycle_finder_finds_a_cycle_and_only_a_cycle():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"d": {"b", "e"}, "b": {"c"}, "c": {"b"}, "e": set()}) == ["b", "c", "b"]
+    assert find_cycle({"a": {"a"}}) == ["a", "a"]
+    assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set(), "d": {"a", "x"}}) is None  # a diamond is no cycle
+
+
+def test_the_graph_holds_every_kind_of_import():
+    graph = import_graph()
+    assert "dsg_hil.protocol.codec" in graph["dsg_hil.protocol"]  # a lazy re-export of the package
+    assert "dsg_hil.results.creep_rows" in graph["dsg_hil.results.summary"]
+    assert "ecu_stub.controller" in graph["ecu_stub.runner"]
+    assert len(graph) == len(sources())
+
+
+def test_no_import_cycle():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, " -> ".join(cycle or ())

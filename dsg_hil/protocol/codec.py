@@ -20,11 +20,12 @@ from pathlib import Path
 from typing import NamedTuple, cast
 
 import cantools
-from cantools.database.can import Database, Message, Signal
+from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
 from ..common.errors import InputError
 from .generated import generate, unsupported
+from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
@@ -64,21 +65,6 @@ def load_dbc(path: str | Path | None = None) -> Database:
     if not isinstance(db, Database):  # a .cdd/.odx file is a diagnostics database
         raise ProtocolError(f"{path or DEFAULT_DBC}: not a CAN database")
     return db
-
-
-def raw_range(signal: Signal) -> tuple[float, float]:
-    """The physical values the signal's bits can carry (scale and offset applied), low to high."""
-    lo, hi = (-(1 << (signal.length - 1)), (1 << (signal.length - 1)) - 1) if signal.is_signed \
-        else (0, (1 << signal.length) - 1)
-    a, b = lo * signal.scale + signal.offset, hi * signal.scale + signal.offset
-    return min(a, b), max(a, b)
-
-
-def signal_range(signal: Signal) -> tuple[float, float]:
-    """The signal's DBC range [minimum, maximum]; a bound the DBC leaves open (the common "no range" [0|0],
-    which cantools reads as None) is the one its bits can carry."""
-    lo, hi = raw_range(signal)
-    return (lo if signal.minimum is None else signal.minimum, hi if signal.maximum is None else signal.maximum)
 
 
 class Codec:

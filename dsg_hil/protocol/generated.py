@@ -26,6 +26,7 @@ from cantools.database.can import Message, Signal
 from cantools.database.conversion import BaseConversion, IdentityConversion, LinearIntegerConversion
 
 from .e2e import COUNTER, CRC, Protection
+from .ranges import raw_range, signal_range
 
 Encoder = Callable[[Mapping[str, float], int], bytes]
 Decoder = Callable[[bytes], Any]  # a DecodedFrame of .codec
@@ -107,7 +108,6 @@ def unsupported(message: Message, protection: Protection) -> str | None:
                                                                        and signal.maximum < top):
                 return f"{signal.name}'s DBC range does not hold 0..{top}"
             continue
-        from .codec import signal_range  # noqa: PLC0415 - the codec imports this module
         lo, hi = signal_range(signal)
         if signal.initial is not None and type(signal.initial) not in (int, float):
             return f"{signal.name}'s initial value is not a number"
@@ -120,8 +120,6 @@ def unsupported(message: Message, protection: Protection) -> str | None:
 def generate(message: Message, protection: Protection, frame_error: type, decoded_frame: type) -> GeneratedMessage:
     """The encode and decode functions of ``message`` (check :func:`unsupported` first); decode raises
     ``frame_error`` and returns a ``decoded_frame``, a NamedTuple of (name, values, counter)."""
-    from .codec import raw_range, signal_range  # noqa: PLC0415 - the codec imports this module
-
     name, length, k = message.name, message.length, protection.crc_byte
     crc, crc_tables = _crc_expression(protection)
     enc = ["def encode(values, counter):", "    get = values.get", "    F = G = 0"]

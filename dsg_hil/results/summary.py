@@ -32,12 +32,13 @@ import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from operator import itemgetter
 from typing import Protocol
 
 import numpy as np
 
-
-from .thresholds import (  # noqa: F401 - re-exported: the metrics' definitions
+from .creep_rows import ACC, Col, Run, Slot, columns, kernel
+from .thresholds import (
     CLUTCHES,
     ESTABLISHED,
     MIN_PHASE_S,
@@ -50,6 +51,12 @@ from .thresholds import (  # noqa: F401 - re-exported: the metrics' definitions
     TORQUE_MIN,
     V_MOVING,
 )
+
+__all__ = ["CLUTCHES", "ESTABLISHED", "MIN_PHASE_S", "P_ENGAGED", "SAFETY_TEMPERATURE_C", "SETTLE_S", "SLIP_MIN",
+           "STATES", "STOP_MIN_S", "TORQUE_MIN", "V_MOVING",  # re-exported: the metrics' definitions
+           "CreepMetrics", "RunSummary", "Sample", "driving_clutch", "phases"]
+
+_IN_ACC_ORDER = itemgetter(*ACC)  # values by accumulator name -> the tuple in the order of creep_rows' acc
 
 
 class Sample(Protocol):
@@ -154,7 +161,7 @@ def _in_order(total: float, terms: np.ndarray) -> float:
 @dataclass
 class _Rows:
     """The state of :meth:`CreepMetrics.add_rows` (see :mod:`dsg_hil.results.creep_rows`): the columns it reads, how a
-    row becomes a sample, the open run (RUN, SLOTS) and its window of rows (a ring)."""
+    row becomes a sample, the open run (Run, Slot) and its window of rows (a ring)."""
 
     fields: tuple[str, ...]
     cols: np.ndarray
@@ -285,8 +292,6 @@ class CreepMetrics:
     def prepare() -> None:
         """Load :meth:`add_rows`' compiled code now (numba's cache; seconds under emulation) rather than at its
         first call, in the middle of a run."""
-        from .creep_rows import kernel
-
         kernel()
 
     def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
@@ -303,48 +308,55 @@ class CreepMetrics:
         rows = np.ascontiguousarray(rows, dtype=np.float64)
         st = self._rows
         if st is None or st.fields != tuple(fields) or st.dt != dt:
-            from .creep_rows import RUN, SLOTS, columns, kernel  # here, not per call: an import costs ~1 us
-
             self._materialise()
             cap = int(SETTLE_S / dt) + 8  # the window: the samples of the last SETTLE_S and the new one
-            st = self._rows = _Rows(tuple(fields), columns(tuple(fields)), sample, dt, np.zeros(len(RUN)),
-                                    np.zeros((len(SLOTS), rows.shape[1])), np.zeros((cap, rows.shape[1])),
+            st = self._rows = _Rows(tuple(fields), columns(tuple(fields)), sample, dt, np.zeros(len(Run)),
+                                    np.zeros((len(Slot), rows.shape[1])), np.zeros((cap, rows.shape[1])),
                                     np.zeros(cap), kernel())
-            st.run[0] = -1.0  # no run open
-        nan = math.nan
-        acc = np.array([self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap,
-                        nan if self.max_T["CL"] is None else self.max_T["CL"],
-                        nan if self.max_T["CH"] is None else self.max_T["CH"],
-                        self.above_limit["CL"], self.above_limit["CH"], self.energy["CL"], self.energy["CH"],
-                        self.rollback_speed, self.rollback_distance, self.creep_time, self.standstill_time,
-                        float(self._moved), self._sq_speed_error, self._driven_time,
-                        nan if self.speed_min_creeping is None else self.speed_min_creeping, self._t_last,
-                        float(self._rest is not None), -1.0])
+            st.run[Run.code] = -1.0  # no run open
+        acc = self._accumulators()
         step, k, creep = st.step, 0, 1.0 if creep_request else 0.0
         while (k := step(rows, k, st.cols, dt, creep, desired_speed, acc, st.run, st.slots, st.ring,
                          st.ring_t)) < n:
             self._materialise()  # the driving clutch changes at row k: its run starts there
-            st.run[1:] = 0.0
-            t = float(rows[k, st.cols[0]])
-            self.runs.append(_Run(CLUTCHES.get(int(st.run[0])), t, t))
+            st.run[Run.end:] = 0.0
+            t = float(rows[k, st.cols[Col.t]])
+            self.runs.append(_Run(CLUTCHES.get(int(st.run[Run.code])), t, t))
             st.open = True
-        (self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap, max_T_CL, max_T_CH, self.above_limit["CL"],
-         self.above_limit["CH"], self.energy["CL"], self.energy["CH"], self.rollback_speed, self.rollback_distance,
-         creep_time, standstill_time, moved, sq_speed_error, driven_time, speed_min, t_last, resting,
-         rest_row) = acc.tolist()
-        self.max_T["CL"] = None if max_T_CL != max_T_CL else max_T_CL
-        self.max_T["CH"] = None if max_T_CH != max_T_CH else max_T_CH
+        a = dict(zip(ACC, acc.tolist()))
+        self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap = a["slip_CL"], a["slip_CH"], a["overlap"]
+        self.max_T["CL"] = None if a["max_T_CL"] != a["max_T_CL"] else a["max_T_CL"]
+        self.max_T["CH"] = None if a["max_T_CH"] != a["max_T_CH"] else a["max_T_CH"]
+        self.above_limit["CL"], self.above_limit["CH"] = a["above_CL"], a["above_CH"]
+        self.energy["CL"], self.energy["CH"] = a["energy_CL"], a["energy_CH"]
+        self.rollback_speed, self.rollback_distance = a["rollback_speed"], a["rollback_distance"]
         if not creep_request:
             self._end_rest()
             return
-        self.creep_time, self.standstill_time, self._moved = creep_time, standstill_time, moved != 0.0
-        self._sq_speed_error, self._driven_time, self._t_last = sq_speed_error, driven_time, t_last
-        self.speed_min_creeping = None if speed_min != speed_min else speed_min
-        if resting == 0.0:
+        self.creep_time, self.standstill_time, self._moved = a["creep"], a["standstill"], a["moved"] != 0.0
+        self._sq_speed_error, self._driven_time, self._t_last = a["sq_speed_error"], a["driven_time"], a["t_last"]
+        self.speed_min_creeping = None if a["speed_min"] != a["speed_min"] else a["speed_min"]
+        if a["resting"] == 0.0:
             self._rest = None
-        elif rest_row >= 0.0:
-            row = rows[int(rest_row)]
-            self._rest = (float(row[st.cols[0]]), sample(row))
+        elif a["rest_row"] >= 0.0:
+            row = rows[int(a["rest_row"])]
+            self._rest = (float(row[st.cols[Col.t]]), sample(row))
+
+    def _accumulators(self) -> np.ndarray:
+        """The state the compiled code accumulates into, as its ``acc``: by the names of
+        :class:`dsg_hil.results.creep_rows.Acc` (None as NaN)."""
+        nan = math.nan
+        state = {"slip_CL": self.slip_time["CL"], "slip_CH": self.slip_time["CH"], "overlap": self.slip_overlap,
+                 "max_T_CL": nan if self.max_T["CL"] is None else self.max_T["CL"],
+                 "max_T_CH": nan if self.max_T["CH"] is None else self.max_T["CH"],
+                 "above_CL": self.above_limit["CL"], "above_CH": self.above_limit["CH"],
+                 "energy_CL": self.energy["CL"], "energy_CH": self.energy["CH"],
+                 "rollback_speed": self.rollback_speed, "rollback_distance": self.rollback_distance,
+                 "creep": self.creep_time, "standstill": self.standstill_time, "moved": float(self._moved),
+                 "sq_speed_error": self._sq_speed_error, "driven_time": self._driven_time,
+                 "speed_min": nan if self.speed_min_creeping is None else self.speed_min_creeping,
+                 "t_last": self._t_last, "resting": float(self._rest is not None), "rest_row": -1.0}
+        return np.array(_IN_ACC_ORDER(state))
 
     def _materialise(self) -> None:
         """The open run of :meth:`add_rows` (kept as rows by the compiled code) as samples on its _Run."""
@@ -352,11 +364,11 @@ class CreepMetrics:
         if st is None or not st.open:
             return
         run, state, make = self.runs[-1], st.run.tolist(), st.sample
-        run.end, run.tail = state[1], make(st.slots[4])
-        run.first = make(st.slots[0]) if state[3] else None
-        run.settled = make(st.slots[1]) if state[4] else None
-        run.lagged = make(st.slots[2]) if state[5] else None
-        run.last = make(st.slots[3]) if state[6] else None
+        run.end, run.tail = state[Run.end], make(st.slots[Slot.tail])
+        run.first = make(st.slots[Slot.first]) if state[Run.has_first] else None
+        run.settled = make(st.slots[Slot.settled]) if state[Run.has_settled] else None
+        run.lagged = make(st.slots[Slot.lagged]) if state[Run.has_lagged] else None
+        run.last = make(st.slots[Slot.last]) if state[Run.has_last] else None
 
     def _end_rest(self) -> None:
         if self._rest is not None and self.stop is None and self._t_last - self._rest[0] >= STOP_MIN_S:
