@@ -75,6 +75,7 @@ class TcuRunner:
         self._send_frame, recv = frame_io(bus)  # the in-process bus: frames as (ID, data), no can.Message
         self.controller = controller or CreepController()
         self.cycle = codec.cycle_time("TCU_CMD")
+        self.cycle_ms = codec.cycle_time_ms("TCU_CMD")
         self.states = choices(codec, "TCU_STATUS", "State")
         self.clutches = choices(codec, "TCU_STATUS", "ActiveClutch")
         missing = {"IDLE", "ENGAGE", "CREEP", "HANDOVER", "STOPPED_OVERHEAT", "FAULT"} - set(self.states)
@@ -139,7 +140,7 @@ class TcuRunner:
         out = self.controller.update(self.inputs(now), now)
         self.last = out
         tx, frames = self.tx, []
-        due = tx.due(now)
+        due = tx.due_ms(self.link.tick * self.cycle_ms) if self.lockstep else tx.due(now)  # lock-step: whole ms
         if "TCU_STATUS" in due:
             frames.append((tx.ids["TCU_STATUS"], tx.data("TCU_STATUS", {
                 "State": self.states[out.state], "ActiveClutch": self.clutches[out.active_clutch],
@@ -207,6 +208,7 @@ class TcuRunner:
         """Serve the bus until ``duration`` [s] has passed (None: forever), ``should_stop()`` is true, or the plant
         has been silent for ``idle_timeout`` seconds after having been heard."""
         start = clock()
+        origin, cycles = start, 0  # free-running: control cycle n is due at origin + n cycle times (n an integer)
         next_cycle = start
         last_heard = start
         while (duration is None or clock() - start < duration) and not should_stop():
@@ -220,7 +222,7 @@ class TcuRunner:
                 log.info("plant silent for %.1f s: stopping", idle_timeout)
                 return
             if not self.free_running(now - start):
-                next_cycle = now
+                origin, cycles, next_cycle = now, 0, now
             elif now >= next_cycle:
                 for _ in range(DRAIN_MAX):  # what waits first: a starved TCU controls on the newest frames
                     if (queued := self.bus.recv(timeout=0.0)) is None:
@@ -228,8 +230,9 @@ class TcuRunner:
                     if self.handle(queued, (now := clock()) - start):
                         last_heard = now
                 self.control(now - start)
-                next_cycle += self.cycle
-                if next_cycle <= now:  # fell behind: skip, keep the grid
-                    next_cycle += ((now - next_cycle) // self.cycle + 1) * self.cycle
-                    if next_cycle <= now:  # the division rounded a whole cycle down: the next is strictly later
-                        next_cycle += self.cycle
+                cycles += 1
+                if origin + cycles * self.cycle <= now:  # fell behind: skip, keep the grid
+                    cycles = int((now - origin) // self.cycle) + 1
+                    if origin + cycles * self.cycle <= now:  # the division rounded a cycle down: strictly later
+                        cycles += 1
+                next_cycle = origin + cycles * self.cycle

@@ -56,9 +56,11 @@ from .thermal import discretize as discretize_network
 I_CL, I_CH = NODES.index("CL"), NODES.index("CH")
 N_T = len(NODES)
 
-# The state as one float64 array: t, x = [omega (7), phi (5)], T (thermal nodes, degC, order of NODES), P_CL,
-# P_CH [Pa], governor integral [N m], contact torques M_CL, M_CH, M_R [N m], slip memory of CL, CH [rad/s].
-S_T, S_X, S_TEMP = 0, 1, 1 + N_STATE
+# The state as one float64 array: t [s], the step count k (a whole number, exact in a float64 up to 2**53), x =
+# [omega (7), phi (5)], T (thermal nodes, degC, order of NODES), P_CL, P_CH [Pa], governor integral [N m], contact
+# torques M_CL, M_CH, M_R [N m], slip memory of CL, CH [rad/s]. t is derived from k (see Plant), never summed.
+S_T, S_K, S_X = 0, 1, 2
+S_TEMP = S_X + N_STATE
 S_P = S_TEMP + N_T
 S_GOV = S_P + 2
 S_F = S_GOV + 1
@@ -105,8 +107,12 @@ class PlantState:
         self.array = s
 
     @property
-    def t(self) -> float:
+    def t(self) -> float:  # s, k dt_ns / 1e9 (Plant)
         return float(self.array[S_T])
+
+    @property
+    def k(self) -> int:  # steps taken
+        return int(self.array[S_K])
 
     @property
     def x(self) -> np.ndarray:
@@ -173,14 +179,23 @@ class PlantOutputs(NamedTuple):
 
 class Plant:
     """Fixed-step plant. ``advance(inputs, n)`` takes n steps of ``dt`` in one compiled call, ``step(inputs)`` one;
-    both return the outputs at the new time."""
+    both return the outputs at the new time.
+
+    Time is counted, not summed: the plant counts its steps ``k`` and its time is ``t = k dt_ns / 1e9`` [s], the
+    exact time (an integer number of nanoseconds) rounded once to a float. So t does not drift from k dt (a float
+    sum of dt does), and a whole number of milliseconds (the DBC's cycle times) or of nanoseconds is the very float
+    its decimal literal gives (a time from a scenario file compares exactly)."""
 
     def __init__(self, params: Params, dt: float = 1e-3, T_init: float | dict[str, float] = 25.0,
                  v_init: float = 0.0) -> None:
         if not dt > 0.0:
             raise ValueError(f"dt must be positive, got {dt}")
+        dt_ns = round(dt * 1e9)
+        if dt_ns < 1 or abs(dt * 1e9 - dt_ns) > 1e-3:  # the caller's float dt: a whole number of ns, to 1 ps
+            raise ValueError(f"dt must be a whole number of nanoseconds, got {dt}")
         self.params = params
         self.dt = dt
+        self.dt_ns = dt_ns
         self.model: Model = build_model(params.powertrain, params.vehicle)
         self.disc: Discrete = discretize_powertrain(self.model, dt)
         self.network = gearbox_network(params)
@@ -203,7 +218,8 @@ class Plant:
             "VG": np.vstack([d.V @ d.Gamma[:, 0], d.V @ d.Gamma[:, 3]]), "W": d.W,
             "PhiT_T": _blocked(self.thermal.Phi), "T_const": self._T_const, "T_srcT": _blocked(self._T_src),
             "k_CL": torque_per_mu(params.clutch.CL, 1.0), "k_CH": torque_per_mu(params.clutch.CH, 1.0),  # N m/Pa (5)
-            "C_CL": C[I_CL], "C_CH": C[I_CH], "dt": dt, "i_b": params.powertrain.i_b,  # plate capacities [J/K]
+            "C_CL": C[I_CL], "C_CH": C[I_CH], "i_b": params.powertrain.i_b,  # plate capacities [J/K]
+            "dt": dt, "dt_ns": float(dt_ns),  # step [s], and in whole ns (the time: k dt_ns / 1e9)
         }, params.friction, params.engine, params.hydraulics, params.vehicle)
         # the plant's array: state (N_S), outputs of the last step, the period's peaks and sums, working arrays
         self._b = np.zeros(_N_B)
@@ -365,7 +381,7 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
     long chain of additions, each waiting for the last. The step allocates nothing and takes no array views."""
     k = K[0]
     Mx_T, Mu_T, VG, W, PhiT_T, T_const, T_srcT = k.MxT, k.MuT, k.VG, k.W, k.PhiT_T, k.T_const, k.T_srcT
-    dt, i_b = k.dt, k.i_b
+    dt, dt_ns, i_b = k.dt, k.dt_ns, k.i_b
     free = b[_B_FREE:_B_FREE + _N_ROWS_4]
     free_by_4 = free.reshape((_N_ROWS_4 // 4, 4))  # the same numbers as add_products keeps them
     T_new = b[_B_T_NEW:_B_T_NEW + _N_T_4]
@@ -425,7 +441,8 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
         b[S_GOV] += d_integral * dt
         b[S_P] = pressure_relax(P_CL, P_CL_cmd, decay_P, k)
         b[S_P + 1] = pressure_relax(P_CH, P_CH_cmd, decay_P, k)
-        b[S_T] += dt
+        b[S_K] += 1.0
+        b[S_T] = b[S_K] * dt_ns / 1e9  # the exact time in ns (an integer below 2**53), rounded once
         stuck_CL = 1.0 if abs(f[0]) < cap[0] * (1.0 - 1e-9) else 0.0
         stuck_CH = 1.0 if abs(f[1]) < cap[1] * (1.0 - 1e-9) else 0.0
         held = 1.0 if abs(f[2]) < cap[2] * (1.0 - 1e-9) else 0.0

@@ -120,7 +120,11 @@ class Codec:
 
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
-        return cast(int, self._by_name[name].cycle_time) / 1000.0  # checked in __init__
+        return self.cycle_time_ms(name) / 1000.0
+
+    def cycle_time_ms(self, name: str) -> int:
+        """The message's GenMsgCycleTime [ms], a whole number (for schedules counted in integers)."""
+        return cast(int, self._by_name[name].cycle_time)  # checked in __init__
 
     # ---- encode / decode -------------------------------------------------------------------------------------
     def encode(self, name: str, values: Mapping[str, float], counter: int) -> bytes:

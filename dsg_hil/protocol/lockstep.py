@@ -372,7 +372,7 @@ class LockstepResponder:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
             self.lockstep = True
             self._restart(self.tick_time)
-            self.tx.next_due = {name: self.tick_time for name in self.tx.next_due}
+            self.tx.next_due_ms = dict.fromkeys(self.tx.next_due_ms, self.tick * _cycle_ms(self.codec, CMD))
             for state in self.rx.states.values():
                 if state.last_time is not None:
                     state.last_time = self.tick_time

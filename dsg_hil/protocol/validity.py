@@ -1,6 +1,9 @@
 """Per-message receive validity (deadline from the DBC cycle time, counter checks) and transmit scheduling.
 
-Time is always passed in (seconds, any monotonic origin); nothing here reads a clock.
+Time is always passed in (seconds, any monotonic origin); nothing here reads a clock. Inside, time is counted in
+integers: the schedule in whole milliseconds (the DBC's cycle times are whole ms; :meth:`TxScheduler.due_ms`
+takes a time in ms, as a lock-step tick gives it), the receive deadlines in whole nanoseconds (:func:`to_ns`, at
+the edge where a time comes in as seconds).
 """
 
 from __future__ import annotations
@@ -16,9 +19,19 @@ from .codec import Codec, DecodedFrame, FrameError
 from .e2e import MAX_DELTA
 from .frame import data_frame
 
+__all__ = ["DUPLICATE", "IGNORED", "NEW", "NS_PER_MS", "NS_PER_S", "REJECTED", "TIMEOUT_CYCLES", "RxMonitor", "RxState",
+           "TxScheduler", "to_ns"]
+
 log = logging.getLogger(__name__)
 
 TIMEOUT_CYCLES = 3.0
+NS_PER_MS, NS_PER_S = 1_000_000, 1_000_000_000
+
+
+def to_ns(t: float) -> int:
+    """A time in seconds as whole nanoseconds (the nearest): where a float time comes in."""
+    return round(t * NS_PER_S)
+
 NEW, DUPLICATE, REJECTED, IGNORED = "new", "duplicate", "rejected", "ignored"
 
 
@@ -40,9 +53,11 @@ class RxState:
     rejected: Tally[str] = field(default_factory=Tally)  # by cause: dlc, crc, range, malformed, counter
     last_data: bytes | None = None
     deadline: float = field(init=False)  # TIMEOUT_CYCLES cycle times [s]
+    deadline_ns: int = field(init=False)  # the same in whole ns
 
     def __post_init__(self) -> None:
         self.deadline = TIMEOUT_CYCLES * self.cycle_time
+        self.deadline_ns = to_ns(self.deadline)
 
     def update(self, now: float, frame: DecodedFrame, data: bytes = b"") -> str | None:
         """Take a decoded frame; returns why it was not taken (repeated or out-of-order counter), else None."""
@@ -70,7 +85,8 @@ class RxState:
         self.last_counter = self.last_data = None
 
     def valid(self, now: float) -> bool:
-        return self.last_time is not None and now - self.last_time <= self.deadline + 1e-9
+        """Whether the last frame taken is at most ``deadline`` old at ``now`` (both times counted in whole ns)."""
+        return self.last_time is not None and to_ns(now) - to_ns(self.last_time) <= self.deadline_ns
 
 
 class RxMonitor:
@@ -181,28 +197,40 @@ class RxMonitor:
 
 
 class TxScheduler:
-    """Absolute-deadline transmit schedule: each message due every DBC cycle time from ``start``."""
+    """Absolute-deadline transmit schedule: each message due every DBC cycle time from ``start``, counted in whole
+    milliseconds (``next_due_ms``)."""
 
     def __init__(self, codec: Codec, names: list[str], start: float = 0.0) -> None:
         self.codec = codec
-        self.next_due = {name: start for name in names}
+        start_ms = to_ns(start) // NS_PER_MS
+        self.next_due_ms = {name: start_ms for name in names}
         self.counters = {name: 0 for name in names}
         self.sent = 0
-        self._periods = {name: codec.cycle_time(name) for name in names}
+        self._periods_ms = {name: codec.cycle_time_ms(name) for name in names}
         self.ids = {name: codec.frame_id(name) for name in names}
         self._moduli = {name: codec.protection(name).counter_modulus for name in names}
         self._encoders = {name: codec.encoder(name) for name in names}  # frame: one per frame
 
-    def due(self, now: float, eps: float = 1e-9) -> list[str]:
-        """Messages due at ``now``, in DBC order; their next deadlines advance by whole cycle times."""
+    @property
+    def next_due(self) -> dict[str, float]:
+        """The next deadlines in seconds."""
+        return {name: due / 1000 for name, due in self.next_due_ms.items()}
+
+    def due(self, now: float) -> list[str]:
+        """:meth:`due_ms` at ``now`` [s], a float time (a clock's, or a caller's) counted to the whole ns: a message
+        due at d ms is due from d ms on, to the ns (as the float d / 1000 it was once compared with, plus 1 ns)."""
+        return self.due_ms(to_ns(now) // NS_PER_MS)
+
+    def due_ms(self, now_ms: int) -> list[str]:
+        """Messages due at ``now_ms`` [ms], in DBC order; their next deadlines advance by whole cycle times (a late
+        message is sent once and keeps its grid)."""
         names = []
-        late = now + eps
-        next_due, periods = self.next_due, self._periods
+        next_due, periods = self.next_due_ms, self._periods_ms
         for name, due in next_due.items():
-            if late >= due:
+            if now_ms >= due:
                 names.append(name)
                 period = periods[name]
-                next_due[name] = due + (int((late - due) // period) + 1) * period
+                next_due[name] = due + ((now_ms - due) // period + 1) * period
         return names
 
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:

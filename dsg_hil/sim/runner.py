@@ -33,7 +33,7 @@ from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import data_frame
 from ..protocol.lockstep import LockstepMaster, PeerLost, PeerTimeout, Received
-from ..protocol.validity import NEW
+from ..protocol.validity import NEW, NS_PER_MS
 from .scenario import DriverInput, Scenario
 from ..results.summary import RunSummary
 
@@ -53,7 +53,8 @@ class PlantRunner:
         self.listeners = listeners
         self.progress = progress
         self.period = codec.cycle_time("TCU_CMD")
-        self.steps_per_period = max(1, round(self.period / plant.dt))
+        self.period_ms = codec.cycle_time_ms("TCU_CMD")
+        self.steps_per_period = max(1, round(self.period_ms * NS_PER_MS / plant.dt_ns))
         self.tx = TxScheduler(codec, list(PLANT_TX))
         self.summary = RunSummary(plant.dt)
         self.out: PlantOutputs = plant.outputs()
@@ -128,8 +129,9 @@ class PlantRunner:
 
     def clock(self) -> float:
         """The plant's time for the frames it sends (fault windows): simulated time, which is run time in real
-        time; -1 before the run starts, so the lock-step handshake is never faulted."""
-        return round(self.plant.state.t, 9) if self._running else -1.0
+        time (its step count in seconds, the exact float of a whole number of ns: a window's start_s from a
+        scenario compares exactly); -1 before the run starts, so the lock-step handshake is never faulted."""
+        return self.plant.state.t if self._running else -1.0
 
     def inject(self, specs: Iterable[FaultSpec], seed: int = 0) -> None:
         """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock."""
@@ -172,11 +174,12 @@ class PlantRunner:
         for listener in self.listeners:
             listener(msg)
 
-    def _publish_due(self, t: float, stamp: float) -> None:
-        names = self.tx.due(t)
+    def _publish_due(self, now_ms: int, stamp: float) -> None:
+        """Send the plant's frames due at ``now_ms`` (the plant's time in whole ms), stamped ``stamp``."""
+        names = self.tx.due_ms(now_ms)
         if not names:  # real time: most 1-ms steps send nothing, so build no signal values for them
             return
-        values = plant_signals(self.out, self.scenario.driver_at(t))
+        values = plant_signals(self.out, self.scenario.driver_at(self.plant.state.t))
         data, ids = self.tx.data, self.tx.ids
         for name in names:
             self._emit(ids[name], data(name, values[name]), stamp)
@@ -279,9 +282,9 @@ class PlantRunner:
         t0 = time.monotonic()
         try:
             for tick in range(self.n_periods):
-                t = tick * self.period
+                t = tick * self.period  # the frames' stamp [s]; the schedule counts whole ms
                 link.start(tick)
-                self._publish_due(t, stamp=t)
+                self._publish_due(tick * self.period_ms, stamp=t)
                 self._emit(link.sync_id, link.tick_data(), t)
                 if pump is not None:
                     pump()
@@ -308,11 +311,11 @@ class PlantRunner:
         up makes the run late, which is counted and reported as ``realtime_factor``."""
         start = clock()
         self._running = True
-        dt = self.plant.dt
+        dt, dt_ns = self.plant.dt, self.plant.dt_ns
         n_steps = int(round(self.scenario.duration_s / dt))
-        for k in range(n_steps):
+        for k in range(n_steps):  # the step count is an integer; the clock's time a float (monotonic seconds)
             t = k * dt
-            self._publish_due(t, stamp=start + t)
+            self._publish_due(k * dt_ns // NS_PER_MS, stamp=start + t)
             deadline = start + (k + 1) * dt
             while (msg := self.bus.recv(timeout=max(deadline - clock(), 0.0))) is not None:
                 on_bus = msg.timestamp  # until this step's deadline: take what arrives

@@ -70,10 +70,11 @@ class Scenario:
         return {n: self.T_oil_c for n in nodes} | {"CL": self.T_CL_c, "CH": self.T_CH_c}
 
     def driver_at(self, t: float) -> DriverInput:
-        """The driver's inputs in force at time t [s] (the last event at or before t)."""
+        """The driver's inputs in force at time t [s] (the last event at or before t; compared exactly: the
+        plant's time is the float of a whole number of ns, as a decimal t_s of the scenario file is)."""
         current = self.driver[0]
         for event in self.driver:
-            if event.t_s <= t + 1e-9:
+            if event.t_s <= t:
                 current = event
             else:
                 break

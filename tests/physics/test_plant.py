@@ -169,6 +169,31 @@ def test_advance_is_steps_in_one_call(params):
         advanced.advance(inputs, 3, np.zeros((2, N_OUT)))
 
 
+def test_the_plant_counts_steps_and_its_time_does_not_drift(params):
+    """Time is counted: after 10**6 steps of 1 ms the plant is at k = 10**6 and t = 1000 s to the last bit, where
+    a float sum of dt has drifted; every step's t is the float of its decimal (k ms), which k * dt is not always."""
+    from dsg_hil.physics.plant import N_OUT
+
+    plant, inputs = Plant(params), PlantInputs()
+    trace = np.zeros((1000, N_OUT))
+    plant.advance(inputs, 1000, trace)
+    assert trace[:, 0].tolist() == [k / 1000 for k in range(1, 1001)]
+    assert any(k * plant.dt != k / 1000 for k in range(1, 1001))  # the product alone would not be exact
+    for _ in range(999):
+        out = plant.advance(inputs, 1000)
+    summed = 0.0
+    for _ in range(10**6):
+        summed += plant.dt
+    assert summed != 1000.0  # the drift the step count avoids
+    assert plant.state.k == 10**6 and plant.state.t == out.t == 1000.0
+
+
+@pytest.mark.parametrize("dt", [1.5e-10, 1.0000005e-3])
+def test_a_step_that_is_no_whole_number_of_nanoseconds_is_refused(params, dt):
+    with pytest.raises(ValueError, match="whole number of nanoseconds"):
+        Plant(params, dt=dt)
+
+
 def test_numba_is_imported_only_when_a_plant_is_built():
     """Commands that never build a plant (dsg-hil --help, dbc, params) do not pay numba's import."""
     import subprocess

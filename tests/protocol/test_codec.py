@@ -103,6 +103,25 @@ def test_tx_scheduler_absolute_deadlines_and_counter_wrap(codec):
     assert counters == list(range(16)) + [0, 1]
 
 
+def test_schedule_and_deadlines_count_in_integers(codec):
+    """No drift: over 2 * 10**5 ticks of 10 ms TCU_CMD is due at every tick and PLANT_OIL_TEMP at every n-th,
+    whether the time comes in whole ms or as the float stamp tick x period (not always the decimal); a
+    command stays valid exactly 3 cycle times after it came, not 1 us longer."""
+    period, period_ms = codec.cycle_time("TCU_CMD"), codec.cycle_time_ms("TCU_CMD")
+    every = codec.cycle_time_ms("PLANT_OIL_TEMP") // period_ms
+    names = ["TCU_CMD", "PLANT_OIL_TEMP"]
+    by_ms, by_float = TxScheduler(codec, names), TxScheduler(codec, names)
+    ticks = range(200_000)
+    assert any(tick * period != tick * period_ms / 1000 for tick in ticks)  # the float stamp is not the decimal
+    for tick in ticks:
+        expected = names if tick % every == 0 else ["TCU_CMD"]
+        assert by_ms.due_ms(tick * period_ms) == expected and by_float.due(tick * period) == expected, tick
+    state = RxMonitor(codec, ["TCU_CMD"]).states["TCU_CMD"]
+    for tick in ticks:
+        state.last_time = tick * period
+        assert state.valid((tick + 3) * period) and not state.valid((tick + 3) * period + 1e-6), tick
+
+
 def test_start_value_of_a_signal_with_value_names_is_its_default(tmp_path):
     """A GenSigStartValue on a signal with VAL_ names: cantools gives its initial value as a NamedSignalValue;
     encoding without the signal (or with NaN) takes that start value instead of failing."""

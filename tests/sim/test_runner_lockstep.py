@@ -93,6 +93,24 @@ def test_clean_run_needs_no_retries(clean):
     assert clean.tcu.answers_resent == 0 and clean.tcu.frame_counts()["duplicates"] == 0 and f["probes"] == 1
 
 
+def test_the_fault_clock_is_the_plants_counted_time():
+    """The clock of the plant's fault windows is its step count in seconds: at every frame of a period, sent or
+    taken, the decimal time of the period's start (as a window's start_s from a scenario reads), which a float sum
+    of dt is not always."""
+    pair = LockstepPair(duration=0.5)
+    runner, seen = pair.runner, []
+    runner.listeners = (*runner.listeners, lambda m: seen.append((runner.clock(), runner.plant.state.k)))
+    pair.run()
+    assert len({k for _, k in seen}) == runner.n_periods == 50
+    assert all(k % runner.steps_per_period == 0 for _, k in seen)
+    assert all(clock == k / 1000 for clock, k in seen)
+    sums = [0.0]
+    for _ in range(500):
+        sums.append(sums[-1] + runner.plant.dt)
+    assert any(sums[k] != k / 1000 for _, k in seen)  # a summed clock would miss some windows' edges
+    assert runner.plant.state.t == 0.5
+
+
 def test_a_lost_probe_answer_costs_a_probe(clean):
     pair = LockstepPair()
     faulty_send(pair.tcu_bus, pair.id("TCU_CMD"), {1})
@@ -128,7 +146,7 @@ def test_lost_frames_cost_retries_not_the_run_and_leave_the_log_unchanged(clean,
         assert f["by_message"]["SIM_SYNC"]["retries"] == 1
         counts = pair.tcu.frame_counts()
         assert counts["lost"] == 0 and counts["incomplete_answers"] == 0 and pair.tcu.answers_resent == 0
-    assert pair.runner.plant.state.t == pytest.approx(DURATION)
+    assert pair.runner.plant.state.t == DURATION  # counted: exact
 
 
 def test_a_command_corrupted_in_flight_is_rejected_then_re_sent(clean):

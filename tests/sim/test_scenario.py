@@ -12,6 +12,21 @@ def test_default_scenario_ships_and_plays_driver_events():
     assert s.driver_at(1.0).creep_request and s.driver_at(100.0).desired_speed_mps > 0.0
 
 
+def test_driver_events_apply_at_the_plants_time_exactly():
+    """An event at t_s (a decimal in the file) applies from the step whose time it is: the plant's time k dt_ns / 1e9
+    is that decimal's float, compared with no tolerance (a float sum of dt, below it for some k, would apply it a
+    step late)."""
+    summed, late = 0.0, []
+    for k in range(1, 2000):
+        summed += 1e-3
+        if summed < k / 1000:
+            late.append(k)
+    assert late
+    for k in late[:20]:
+        s = parse_scenario(f"duration_s = 10\n[[driver]]\nt_s = 0\n[[driver]]\nt_s = {k / 1000!r}\nbrake = 1\n")
+        assert s.driver_at(k * 1_000_000 / 1e9).brake == 1.0 and s.driver_at((k - 1) * 1_000_000 / 1e9).brake == 0.0
+
+
 @pytest.mark.parametrize("text, key", [
     ("duration_s = 10\n", "driver"),
     ("duration_s = -1\n[[driver]]\nt_s = 0\n", "duration_s"),
