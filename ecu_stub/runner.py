@@ -81,7 +81,9 @@ class TcuRunner:
         missing = {"IDLE", "ENGAGE", "CREEP", "HANDOVER", "STOPPED_OVERHEAT", "FAULT"} - set(self.states)
         if missing or {"NONE", "CL", "CH"} - set(self.clutches):
             raise ProtocolError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
-        self.now = -1.0  # the TCU's time of the frames it sends (fault windows): tick time, or run time; < 0 before
+        # the TCU's time of the frames it sends (fault windows): the tick's time (the float of its decimal, from whole
+        # ms, as the plant's clock), or run time; < 0 before
+        self.now = -1.0
         self.last: TcuOutputs | None = None
         self.sent = 0
         self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
@@ -136,7 +138,7 @@ class TcuRunner:
     def _step(self, now: float, echo: int) -> Frames:
         """One controller cycle at ``now``: compute, then TCU_STATUS when due and TCU_CMD, last (in lock-step it
         completes the answer to the tick), recorded for the listeners; returns the frames, unsent."""
-        self.now = now
+        self.now = self.link.tick * self.cycle_ms / 1000 if self.lockstep else now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
         tx, frames = self.tx, []

@@ -16,7 +16,6 @@ import logging
 import time
 from collections import Counter as Tally
 from collections.abc import Callable, Iterable
-from typing import cast
 
 import can
 
@@ -70,11 +69,6 @@ def frame_io(bus: can.BusABC) -> tuple[Callable[[int, bytes], None], Callable[[f
     return send_data or send, recv_data or bus.recv
 
 
-def _cycle_ms(codec: Codec, name: str) -> int:
-    """The DBC cycle time of ``name`` [ms], an integer (the codec checked that it has one)."""
-    return cast(int, codec.message(name).cycle_time)
-
-
 class LockstepMaster:
     """The plant's end: the presence handshake (:meth:`handshake`), then per tick (:meth:`start`, the node's
     frames, the SIM_SYNC tick of :meth:`tick_data`) the wait for the answer with re-sends (:meth:`answer`).
@@ -99,7 +93,7 @@ class LockstepMaster:
         self.probe = probe_tick(codec)
         self.sync_id, self._cmd_id = codec.frame_id(SYNC), codec.frame_id(CMD)
         self.period = codec.cycle_time(CMD)
-        self._status_every = round(_cycle_ms(codec, STATUS) / _cycle_ms(codec, CMD))  # in control periods
+        self._status_every = round(codec.cycle_time_ms(STATUS) / codec.cycle_time_ms(CMD))  # in control periods
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self.tick = 0
         self.probes = 0  # presence probes sent before tick 0 (not logged)
@@ -294,7 +288,7 @@ class LockstepResponder:
         self._answered_early = False  # the tick answered came before its last plant frame (see handle_data)
         self._due_every: dict[str, int] = {}  # by plant message: due at every n-th tick (a whole n only)
         for name in required:
-            every, rest = divmod(_cycle_ms(codec, name), _cycle_ms(codec, CMD))
+            every, rest = divmod(codec.cycle_time_ms(name), codec.cycle_time_ms(CMD))
             if not rest:
                 self._due_every[name] = every
         self._taken_in: dict[str, int] = {}  # by plant message: the tick whose period its last new frame was in
@@ -372,7 +366,7 @@ class LockstepResponder:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
             self.lockstep = True
             self._restart(self.tick_time)
-            self.tx.next_due_ms = dict.fromkeys(self.tx.next_due_ms, self.tick * _cycle_ms(self.codec, CMD))
+            self.tx.next_due_ms = dict.fromkeys(self.tx.next_due_ms, self.tick * self.codec.cycle_time_ms(CMD))
             for state in self.rx.states.values():
                 if state.last_time is not None:
                     state.last_time = self.tick_time

@@ -54,6 +54,12 @@ def counting(tcu: TcuRunner, steps: list) -> None:
     tcu.controller.update = counted
 
 
+def probed(plant_codec: Codec, tcu: TcuRunner) -> TxScheduler:
+    """Probe the TCU (lock-step from here on); returns the plant's schedule from tick 0 (its counters restart)."""
+    tcu.handle(TxScheduler(plant_codec, ["SIM_SYNC"]).frame("SIM_SYNC", {"Tick": SYNC_PROBE}), 0.0)
+    return TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
+
+
 def test_repeated_probe_and_tick_get_the_same_frames_without_a_new_step(setup):
     plant_codec, bus, tcu, steps = setup
     plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
@@ -106,9 +112,7 @@ def test_a_tick_delivered_before_its_last_frame_is_answered_when_that_frame_come
     completes it answers it, with no re-send needed. The tick of a re-sent period that such a frame completed is
     not answered twice; a further repeat gets the same frames again."""
     plant_codec, bus, tcu, steps = setup
-    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
-    tcu.handle(plant.frame("SIM_SYNC", {"Tick": SYNC_PROBE}), 0.0)
-    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
+    plant = probed(plant_codec, tcu)
     counting(tcu, steps)
     late = None
     for name in PLANT_DATA:
@@ -230,9 +234,7 @@ def test_a_tick_with_plant_frames_missing_waits_for_the_re_sent_period(setup):
     """Lock-step: PLANT_SPEEDS of tick 1 lost; the TCU does not answer tick 1 until the re-sent period brings it,
     and answers a tick seen three times anyway, with the last values, counted."""
     plant_codec, bus, tcu, steps = setup
-    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
-    tcu.handle(plant.frame("SIM_SYNC", {"Tick": SYNC_PROBE}), 0.0)
-    plant = TxScheduler(plant_codec, [*PLANT_DATA, "SIM_SYNC"])
+    plant = probed(plant_codec, tcu)
     counting(tcu, steps)
     period = []
 
@@ -258,3 +260,18 @@ def test_a_tick_with_plant_frames_missing_waits_for_the_re_sent_period(setup):
     assert len(steps) == 2  # seen twice, still waiting
     resend(lose={"PLANT_SPEEDS"})
     assert len(steps) == 3 and tcu.incomplete_answers == 1  # the third sight is answered
+
+
+def test_the_tcu_fault_clock_is_the_ticks_decimal_time(setup):
+    """Lock-step: the TCU's fault clock (``now``) at each tick is the tick's time from whole ms, the float of its
+    decimal, as the plant's clock; the controller keeps the frames' time, tick x cycle time (not always that)."""
+    plant_codec, bus, tcu, steps = setup
+    plant = probed(plant_codec, tcu)
+    counting(tcu, steps)
+    clocks = []
+    for tick in range(300):
+        for name in plant.due_ms(tick * tcu.cycle_ms):
+            tcu.handle(plant.frame(name, {"Tick": tick}), 0.0)
+        clocks.append(tcu.now)
+    assert clocks == [tick * tcu.cycle_ms / 1000 for tick in range(300)] == [tick / 100 for tick in range(300)]
+    assert steps == [tick * tcu.cycle for tick in range(300)] and steps != clocks
