@@ -43,6 +43,10 @@ from dsg_hil.protocol import Codec, FrameError, load_dbc
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
 from .clutch_model import RPM_TO_RAD_S, friction_heat, plate_step
 
+__all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "HEADER", "P_GRID", "Record", "SLIP_GRID", "SMOOTHING", "T_GRID", "USES",
+           "fit_cooling", "fit_friction_map", "fit_k_geom", "fit_speed_ratio", "fit_thermal", "identify", "main",
+           "read_log", "replay", "write_calibration"]
+
 USES = {
     "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
     "PLANT_VEHICLE": ("VehicleSpeed",),

@@ -33,6 +33,10 @@ from .reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_
 from ..physics.rig import RigCase, run_rig
 from ..sim.scenario import Scenario, load_scenario
 
+__all__ = ["Check", "StribeckFit", "TAKEOVER_MARGIN_C", "VEHICLE_THERMAL_KEYS", "calibrate_h_plate_oil",
+           "calibrate_stribeck", "calibrate_vehicle_thermal", "friction_checks", "reduced_creep", "rise_residuals",
+           "timeline_checks", "vehicle_thermal", "with_h_plate_oil", "with_vehicle_thermal"]
+
 
 @dataclass(frozen=True)
 class StribeckFit:

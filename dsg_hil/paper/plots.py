@@ -15,6 +15,8 @@ if TYPE_CHECKING:
     from .reference import RigReference
     from .validation import CaseResult
 
+__all__ = ["COLORS", "friction_map_figure", "require_matplotlib", "validation_figures"]
+
 COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 
 

@@ -16,6 +16,8 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+__all__ = ["COLOR", "DARK", "SHADE", "creep_figures"]
+
 COLOR = {"CL": "tab:blue", "CH": "tab:orange"}
 DARK = {"CL": "navy", "CH": "saddlebrown"}
 SHADE = {"CL": "#dbe8f6", "CH": "#fde6cf"}

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+__all__ = ["write_page"]
+
 
 def _fmt(x: float | None, unit: str) -> str:
     if x is None:
