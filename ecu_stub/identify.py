@@ -38,10 +38,11 @@ import numpy as np
 from dsg_hil.common.cli import run_main
 from dsg_hil.common.errors import LogError
 from dsg_hil.common.files import check_output_path
+from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec, FrameError, load_dbc
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
-from .clutch_model import RPM_TO_RAD_S, friction_heat, plate_step
+from .clutch_model import friction_heat, plate_step
 
 __all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "HEADER", "P_GRID", "Record", "SLIP_GRID", "SMOOTHING", "T_GRID", "USES",
            "fit_cooling", "fit_friction_map", "fit_k_geom", "fit_speed_ratio", "fit_thermal", "identify", "main",
@@ -119,7 +120,7 @@ def _clutch_columns(r: Record, c: str) -> dict[str, np.ndarray]:
 
 def fit_speed_ratio(cols: list[dict]) -> float:
     v = np.concatenate([d["v"] for d in cols])
-    w = np.concatenate([d["out"] for d in cols]) * RPM_TO_RAD_S
+    w = np.concatenate([d["out"] for d in cols]) * CV.RPM_TO_RAD_S
     ok = np.isfinite(v) & (v > 0.03) & (w > 0.5)
     if ok.sum() < 10:
         raise LogError("speed ratio: the runs never moved (vehicle speed > 0.03 m/s)")
@@ -132,7 +133,7 @@ def _slipping(d: dict, P_min: float = 0.1) -> np.ndarray:
 
 
 def fit_k_geom(cols: list[dict]) -> float:
-    k = [d["M"][m] / (d["mu"][m] * d["P"][m] * 1e6) for d in cols if (m := _slipping(d)).any()]
+    k = [d["M"][m] / (d["mu"][m] * d["P"][m] * CV.MPA_TO_PA) for d in cols if (m := _slipping(d)).any()]
     if not k:
         raise LogError("k_geom: the clutch never slipped under pressure (P > 0.1 MPa) in these runs")
     return float(np.median(np.abs(np.concatenate(k))))

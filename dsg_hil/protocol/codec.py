@@ -24,6 +24,7 @@ from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
 from ..common.errors import InputError
+from ..common.units import CV
 from .generated import generate, unsupported
 from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
 
@@ -120,7 +121,7 @@ class Codec:
 
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
-        return cast(int, self._by_name[name].cycle_time) / 1000.0  # checked in __init__
+        return cast(int, self._by_name[name].cycle_time) / CV.S_TO_MS  # [ms] in the DBC; checked in __init__
 
     # ---- encode / decode -------------------------------------------------------------------------------------
     def encode(self, name: str, values: Mapping[str, float], counter: int) -> bytes:

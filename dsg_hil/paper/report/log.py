@@ -18,10 +18,12 @@ import can
 import numpy as np
 from cantools.database.can import Database
 
-from ...physics.friction import RAD_S_TO_RPM
 from ...protocol import Codec, FrameError
 from ...common.errors import LogError
 from ...results.summary import CreepMetrics
+from ...sim.plant_io import SIGNALS as PLANT_SIGNALS
+
+__all__ = ["GRID_MESSAGE", "SIGNALS", "STATUS", "CreepRecord", "LogError", "LogSample", "read_log"]
 
 NAN = float("nan")
 
@@ -52,38 +54,16 @@ class LogSample(NamedTuple):
     T_CL_pred: float
     T_CH_pred: float
     creep_request: float
-    desired_speed: float
+    desired_speed_mps: float
 
 
-RPM, MPA = 1.0 / RAD_S_TO_RPM, 1e6
-# (message, signal) -> (LogSample field, factor to SI)
-SIGNALS: dict[tuple[str, str], tuple[str, float]] = {
-    ("PLANT_VEHICLE", "VehicleSpeed"): ("v", 1.0),
-    ("PLANT_SPEEDS", "ClutchInputSpeed"): ("omega_in", RPM),
-    ("PLANT_SPEEDS", "CLOutputSpeed"): ("omega_CL", RPM),
-    ("PLANT_SPEEDS", "CHOutputSpeed"): ("omega_CH", RPM),
-    ("PLANT_PRESSURE", "P_CL"): ("P_CL", MPA),
-    ("PLANT_PRESSURE", "P_CH"): ("P_CH", MPA),
-    ("TCU_CMD", "P_CL_Cmd"): ("P_CL_cmd", MPA),
-    ("TCU_CMD", "P_CH_Cmd"): ("P_CH_cmd", MPA),
-    ("SIM_TRUTH_CL", "T_Plate"): ("T_CL", 1.0),
-    ("SIM_TRUTH_CH", "T_Plate"): ("T_CH", 1.0),
-    ("SIM_TRUTH_CL", "Mu"): ("mu_CL", 1.0),
-    ("SIM_TRUTH_CH", "Mu"): ("mu_CH", 1.0),
-    ("SIM_TRUTH_CL", "Torque"): ("M_CL", 1.0),
-    ("SIM_TRUTH_CH", "Torque"): ("M_CH", 1.0),
-    ("SIM_TRUTH_CL", "HeatFlux"): ("Q_CL", 1.0),
-    ("SIM_TRUTH_CH", "HeatFlux"): ("Q_CH", 1.0),
-    ("SIM_HEAT", "HeatDissCL"): ("Q_diss_CL", 1.0),
-    ("SIM_HEAT", "HeatDissCH"): ("Q_diss_CH", 1.0),
-    ("TCU_STATUS", "T_CL_Pred"): ("T_CL_pred", 1.0),
-    ("TCU_STATUS", "T_CH_Pred"): ("T_CH_pred", 1.0),
-    ("DRIVER", "CreepRequest"): ("creep_request", 1.0),
-    ("DRIVER", "DesiredCreepSpeed"): ("desired_speed", 1.0),
-}
+INDEX = {name: i for i, name in enumerate(LogSample._fields)}
+# (message, signal) -> (index in LogSample, factor to SI): the plant's table (dsg_hil.sim.plant_io.SIGNALS) for the
+# signals whose quantity is a LogSample field
+SIGNALS: dict[tuple[str, str], tuple[int, float]] = {key: (INDEX[name], factor) for key, (name, factor)
+                                                     in PLANT_SIGNALS.items() if name in INDEX}
 STATUS = "TCU_STATUS"
 GRID_MESSAGE = "TCU_CMD"  # the sampling period: the control period of the DBC
-INDEX = {name: i for i, name in enumerate(LogSample._fields)}
 
 
 @dataclass(frozen=True)
@@ -132,7 +112,7 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
         row[0] = t
         s = LogSample(*row)
         samples.append(s)
-        metrics.add(s, period, s.creep_request >= 0.5, 0.0 if math.isnan(s.desired_speed) else s.desired_speed)
+        metrics.add(s, period, s.creep_request >= 0.5, 0.0 if math.isnan(s.desired_speed_mps) else s.desired_speed_mps)
 
     for msg in _messages(path):
         if msg.is_error_frame or msg.is_remote_frame:
@@ -150,8 +130,8 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
         counts["decoded"] += 1
         for signal, value in frame.values.items():
             if (frame.name, signal) in SIGNALS:
-                field, factor = SIGNALS[frame.name, signal]
-                row[INDEX[field]] = value * factor
+                index, factor = SIGNALS[frame.name, signal]
+                row[index] = value * factor
         if frame.name == STATUS:
             v = frame.values
             metrics.status(msg.timestamp - t0, v["State"], v["ActiveClutch"], v["T_CL_Pred"], v["T_CH_Pred"],
