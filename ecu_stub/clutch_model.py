@@ -20,6 +20,8 @@ from dsg_hil.common.units import CV
 
 from .calibration import Clutch, FrictionMap
 
+__all__ = ["friction_coefficient", "friction_heat", "plate_step", "torque_per_mpa"]
+
 
 def _locate(grid: tuple[float, ...], x: float) -> tuple[int, float]:
     """Index i and weight w of x between grid[i] and grid[i+1], clamped to the grid."""

@@ -26,6 +26,9 @@ from ..physics.thermal import NODES, discretize, gearbox_network, heat_sources
 from ..physics.plant import Plant, PlantInputs
 from ..sim.scenario import Scenario
 
+__all__ = ["CLUTCHES", "CreepResult", "OperatingPoint", "Phase", "creep_speed_for_slip", "operating_point",
+           "pressure_for_torque", "run_plant_creep", "simulate_creep"]
+
 CLUTCHES = ("CL", "CH")
 
 

@@ -19,6 +19,8 @@ from .jit import compiled
 from .params import Params
 from .thermal import NODES, discretize, gearbox_network, heat_sources
 
+__all__ = ["I_CL", "RigCase", "RigTrace", "rig_configuration", "rig_steps", "run_rig"]
+
 I_CL = NODES.index("CL")
 
 

@@ -28,6 +28,8 @@ from ..common.units import CV
 from .generated import generate, unsupported
 from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
 
+__all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "load_dbc"]
+
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
 
