@@ -43,7 +43,7 @@ from plant_speed import CREEP_BREAKPOINTS, PERIOD, creep_inputs, errors, run_pla
 
 from dsg_hil.physics.continuous import rhs, solve_hybrid
 from dsg_hil.physics.engine import governor, net_torque
-from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, slip_memory_step, torque_per_mu
+from dsg_hil.physics.friction import friction_coefficient, slip_memory_step, torque_per_mu
 from dsg_hil.physics.hydraulics import clamp_command, pressure_step
 from dsg_hil.physics.params import Params, load_params
 from dsg_hil.physics.powertrain import CONTACT_INPUTS, IDX, N_DOF, N_STATE, road_load, solve_contacts, vehicle_speed
@@ -82,8 +82,8 @@ class Stepper:
     def capacities(self, memory: np.ndarray, P: np.ndarray, M_resist: float) -> np.ndarray:
         p = self.p
         k = (torque_per_mu(p.clutch.CL, 1.0), torque_per_mu(p.clutch.CH, 1.0))  # N m per Pa (5)
-        mu_CL = friction_coefficient(memory[0] * RAD_S_TO_RPM, self.T[I_CL], P[0] / 1e6, p.friction)
-        mu_CH = friction_coefficient(memory[1] * RAD_S_TO_RPM, self.T[I_CH], P[1] / 1e6, p.friction)
+        mu_CL = friction_coefficient(memory[0], self.T[I_CL], P[0], p.friction)
+        mu_CH = friction_coefficient(memory[1], self.T[I_CH], P[1], p.friction)
         return np.array([mu_CL * k[0] * P[0], mu_CH * k[1] * P[1], M_resist])
 
     def step(self, inputs: PlantInputs) -> None:

@@ -47,7 +47,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from dsg_hil.physics.continuous import pack, rhs, solve_hybrid
-from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from dsg_hil.common.units import CV
+from dsg_hil.physics.friction import friction_coefficient, torque_per_mu
 from dsg_hil.physics.params import Params, load_params
 from dsg_hil.physics.powertrain import N_DOF, N_STATE
 from dsg_hil.physics.thermal import NODES, gearbox_network, heat_sources
@@ -62,7 +63,7 @@ I_CL = NODES.index("CL")
 
 def vehicle_case(params: Params) -> tuple[Plant, PlantInputs]:
     return (Plant(params, T_init=40.0, v_init=0.5),
-            PlantInputs(P_CH_cmd=0.4e6, grade=0.0, brake=0.0, engine_speed_request=2000.0 / RAD_S_TO_RPM))
+            PlantInputs(P_CH_cmd=0.4e6, grade=0.0, brake=0.0, engine_speed_request=2000.0 / CV.RAD_S_TO_RPM))
 
 
 def errors(speeds: np.ndarray, T_plate: np.ndarray, ref_speeds: np.ndarray,
@@ -72,7 +73,7 @@ def errors(speeds: np.ndarray, T_plate: np.ndarray, ref_speeds: np.ndarray,
     speed_error = np.abs(speeds - ref_speeds)
     full_scale = np.abs(ref_speeds).max(axis=0)
     return (float(np.abs(T_plate - ref_T).max()), float((speed_error.max(axis=0) / full_scale).max()),
-            float(speed_error.max() * RAD_S_TO_RPM))
+            float(speed_error.max() * CV.RAD_S_TO_RPM))
 
 
 def run_plant(plant: Plant, inputs_at, seconds: float,
@@ -131,12 +132,12 @@ def rig(params: Params, ref_case) -> dict:
     trace = run_rig(params, case, 100.0, 1e-3, 40.0, every=1000)
     wall = time.perf_counter() - t0
     net = gearbox_network(rig_configuration(params, 40.0))
-    P, omega = case.pressure_mpa * 1e6, case.speed_rpm / RAD_S_TO_RPM
+    P, omega = case.pressure_mpa * CV.MPA_TO_PA, case.speed_rpm / CV.RAD_S_TO_RPM
     k = torque_per_mu(params.clutch.test, P)
     rig_params = rig_configuration(params, 40.0)
 
     def f(t, T):
-        mu = friction_coefficient(case.speed_rpm, T[I_CL], case.pressure_mpa, params.friction)
+        mu = friction_coefficient(omega, T[I_CL], P, params.friction)
         return net.derivative(T, heat_sources(rig_params, mu * k * omega, 0.0, P, 0.0))
 
     sol = solve_ivp(f, (0.0, 100.0), np.full(len(NODES), 40.0), method="Radau", rtol=1e-10, atol=1e-10,

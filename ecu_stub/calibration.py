@@ -24,6 +24,10 @@ from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import read_input_file
 from dsg_hil.common.quantities import finite, quantity
 
+__all__ = ["CalibrationError", "Clutch", "DEFAULT_CALIBRATION", "FrictionMap", "Launch", "SECTIONS", "SOURCES",
+           "SpeedControl", "Strategy", "TcuCalibration", "Vehicle", "c", "dump_calibration", "load_calibration",
+           "parse_calibration", "raw_sections"]
+
 DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
 SOURCES = ("identified", "derived", "chosen")
 

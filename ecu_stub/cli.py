@@ -21,6 +21,8 @@ from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import check_output_path
 from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
 
+__all__ = ["by_cause", "main"]
+
 
 def _version() -> str:
     """The version of the dsg-hil distribution that ships ecu-stub (dsg_hil.__version__, through its metadata)."""

@@ -16,9 +16,11 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 
+from dsg_hil.common.units import CV
+
 from .calibration import Clutch, FrictionMap
 
-RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+__all__ = ["friction_coefficient", "friction_heat", "plate_step", "torque_per_mpa"]
 
 
 def _locate(grid: tuple[float, ...], x: float) -> tuple[int, float]:
@@ -49,13 +51,13 @@ def friction_coefficient(m: FrictionMap, T_c: float, slip_rpm: float, P_mpa: flo
 
 def torque_per_mpa(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
     """Clutch torque per MPa of piston pressure [N m/MPa], equation (5), at the given state."""
-    return friction_coefficient(m, T_c, slip_rpm, P_mpa) * c.k_geom_m3 * 1e6
+    return friction_coefficient(m, T_c, slip_rpm, P_mpa) * c.k_geom_m3 * CV.MPA_TO_PA
 
 
 def friction_heat(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
     """Friction power into the plates [W], equation (4): torque (5) times slip speed."""
     P = max(P_mpa, 0.0)
-    return torque_per_mpa(m, c, T_c, slip_rpm, P) * P * abs(slip_rpm) * RPM_TO_RAD_S
+    return torque_per_mpa(m, c, T_c, slip_rpm, P) * P * abs(slip_rpm) * CV.RPM_TO_RAD_S
 
 
 def plate_step(c: Clutch, T_c: float, heat_w: float, T_oil_c: float, dt: float) -> float:

@@ -40,6 +40,8 @@ from .calibration import TcuCalibration, load_calibration
 from .clutch_model import friction_heat, plate_step, torque_per_mpa
 from .pid import PID
 
+__all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "TcuInputs", "TcuOutputs"]
+
 OTHER = {"CL": "CH", "CH": "CL"}
 FAULT_PLANT_MISSING = 0x01
 BRAKE_PRESSED_PCT = 5.0

@@ -28,20 +28,24 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-import can
 import numpy as np
 
 from dsg_hil.common.cli import run_main
 from dsg_hil.common.errors import LogError
 from dsg_hil.common.files import check_output_path
-from dsg_hil.protocol import Codec, FrameError, load_dbc
+from dsg_hil.common.units import CV
+from dsg_hil.protocol import Codec, load_dbc
+from dsg_hil.protocol.logs import decoded_frames
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
-from .clutch_model import RPM_TO_RAD_S, friction_heat, plate_step
+from .clutch_model import friction_heat, plate_step
+
+__all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "HEADER", "P_GRID", "Record", "SLIP_GRID", "SMOOTHING", "T_GRID", "USES",
+           "fit_cooling", "fit_friction_map", "fit_k_geom", "fit_speed_ratio", "fit_thermal", "identify", "main",
+           "read_log", "replay", "write_calibration"]
 
 USES = {
     "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
@@ -68,15 +72,6 @@ class Record:
     signals: dict[str, np.ndarray]
 
 
-def _messages(path: str | Path) -> Iterator[can.Message]:
-    """The log's frames; whatever python-can's reader raises on a missing or garbled file becomes a LogError."""
-    try:
-        with can.LogReader(str(path)) as reader:
-            yield from reader
-    except Exception as exc:  # noqa: BLE001 - each of python-can's readers raises its own types on garbage
-        raise LogError(f"{path}: cannot read the log ({type(exc).__name__}: {exc})") from exc
-
-
 def read_log(path: str | Path, codec: Codec) -> Record:
     """Decode a log; rows at each PLANT_SPEEDS frame, every other signal its last value (NaN before the first).
     ``SIM_TRUTH_CL.fresh`` / ``SIM_TRUTH_CH.fresh`` mark the rows where a truth frame came since the previous row:
@@ -84,17 +79,15 @@ def read_log(path: str | Path, codec: Codec) -> Record:
     pressure), so only those rows are used where torque, mu and pressure are combined."""
     latest: dict[str, float] = {}
     rows: list[tuple[float, dict[str, float]]] = []
-    for msg in _messages(path):
-        try:
-            frame = codec.decode(msg.arbitration_id, bytes(msg.data))
-        except FrameError:
+    for timestamp, frame in decoded_frames(path, codec):
+        if frame is None:
             continue
         for signal in USES[frame.name]:
             latest[f"{frame.name}.{signal}"] = frame.values[signal]
         if frame.name.startswith("SIM_TRUTH"):
             latest[f"{frame.name}.fresh"] = 1.0
         if frame.name == "PLANT_SPEEDS":
-            rows.append((msg.timestamp, dict(latest)))
+            rows.append((timestamp, dict(latest)))
             latest["SIM_TRUTH_CL.fresh"] = latest["SIM_TRUTH_CH.fresh"] = 0.0
     if len(rows) < 100:
         raise LogError(f"{path}: only {len(rows)} PLANT_SPEEDS frames: not a recorded run of this DBC")
@@ -115,7 +108,7 @@ def _clutch_columns(r: Record, c: str) -> dict[str, np.ndarray]:
 
 def fit_speed_ratio(cols: list[dict]) -> float:
     v = np.concatenate([d["v"] for d in cols])
-    w = np.concatenate([d["out"] for d in cols]) * RPM_TO_RAD_S
+    w = np.concatenate([d["out"] for d in cols]) * CV.RPM_TO_RAD_S
     ok = np.isfinite(v) & (v > 0.03) & (w > 0.5)
     if ok.sum() < 10:
         raise LogError("speed ratio: the runs never moved (vehicle speed > 0.03 m/s)")
@@ -128,7 +121,7 @@ def _slipping(d: dict, P_min: float = 0.1) -> np.ndarray:
 
 
 def fit_k_geom(cols: list[dict]) -> float:
-    k = [d["M"][m] / (d["mu"][m] * d["P"][m] * 1e6) for d in cols if (m := _slipping(d)).any()]
+    k = [d["M"][m] / (d["mu"][m] * d["P"][m] * CV.MPA_TO_PA) for d in cols if (m := _slipping(d)).any()]
     if not k:
         raise LogError("k_geom: the clutch never slipped under pressure (P > 0.1 MPa) in these runs")
     return float(np.median(np.abs(np.concatenate(k))))

@@ -18,6 +18,8 @@ if TYPE_CHECKING:
 
     from ..protocol.faults import FaultInjector
 
+__all__ = ["add_subparser", "bridge"]
+
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(

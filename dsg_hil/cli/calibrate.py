@@ -12,6 +12,8 @@ from .common import add_params_option, params_from, progress
 if TYPE_CHECKING:
     from ..paper.calibration import Check
 
+__all__ = ["add_subparser"]
+
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(

@@ -8,6 +8,8 @@ from ..common.errors import ResultError
 from . import command_help
 from .common import positive_number
 
+__all__ = ["LOAD_LIMIT", "add_subparser"]
+
 LOAD_LIMIT = 0.30
 
 

@@ -13,6 +13,8 @@ from .common import add_params_option, params_from
 if TYPE_CHECKING:
     from ..physics.params import Params
 
+__all__ = ["add_subparser"]
+
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(

@@ -10,6 +10,8 @@ from . import command_help
 from .busopts import add_bus_options, frames_line, run_config
 from .common import add_params_option, progress
 
+__all__ = ["add_subparser"]
+
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(

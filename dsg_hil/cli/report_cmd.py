@@ -16,6 +16,8 @@ from .common import add_params_option, params_from, progress
 if TYPE_CHECKING:
     from ..sim.run import RunConfig
 
+__all__ = ["CREEP_LOG", "add_subparser", "run_validation"]
+
 CREEP_LOG = "creep.log"
 
 

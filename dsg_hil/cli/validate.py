@@ -12,6 +12,8 @@ from ..common.errors import ResultError
 from ..common.files import check_output_path
 from .common import add_params_option, params_from, positive_number, progress
 
+__all__ = ["add_subparser"]
+
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(

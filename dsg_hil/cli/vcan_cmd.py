@@ -14,6 +14,8 @@ from ..e2e import vcan
 from . import command_help
 from .common import non_negative_int, positive_number, progress
 
+__all__ = ["DEFAULT_TESTS", "add_subparser"]
+
 # The end-to-end tests ship inside the package (dsg_hil/e2e), so this runs from a checkout and from a wheel alike.
 DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "--pyargs", "dsg_hil.e2e"]
 

@@ -23,7 +23,8 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from .creep_model import CreepResult, creep_speed_for_slip, operating_point, simulate_creep
-from ..physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from ..common.units import CV
+from ..physics.friction import friction_coefficient, torque_per_mu
 from ..physics.params import Params
 from .reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C,
                         CREEP_T_ONCOMING_AT_STOP_C, CREEP_T_START_C, CREEP_TIME_S, RIG_CASES, RIG_DURATION_S,
@@ -32,6 +33,10 @@ from .reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_
                         TOL_SLIP_TIME_REL)
 from ..physics.rig import RigCase, run_rig
 from ..sim.scenario import Scenario, load_scenario
+
+__all__ = ["Check", "StribeckFit", "TAKEOVER_MARGIN_C", "VEHICLE_THERMAL_KEYS", "calibrate_h_plate_oil",
+           "calibrate_stribeck", "calibrate_vehicle_thermal", "friction_checks", "reduced_creep", "rise_residuals",
+           "timeline_checks", "vehicle_thermal", "with_h_plate_oil", "with_vehicle_thermal"]
 
 
 @dataclass(frozen=True)
@@ -51,21 +56,21 @@ def calibrate_stribeck(params: Params) -> StribeckFit:
     k = torque_per_mu(params.clutch.CH, 1.0)
     points = ((CREEP_T_START_C, CREEP_MU_CH[0]), (SAFETY_TEMPERATURE_C, CREEP_MU_CH[1]))
 
-    def pressures(n_rpm: float) -> list[float]:
-        v = creep_speed_for_slip(params, omega_e, "CH", n_rpm / RAD_S_TO_RPM)
+    def pressures(slip: float) -> list[float]:
+        v = creep_speed_for_slip(params, omega_e, "CH", slip)
         M = operating_point(params, omega_e, v).torque["CH"]
-        return [M / (mu * k) / 1e6 for _, mu in points]
+        return [M / (mu * k) for _, mu in points]  # Pa
 
-    def residual(x):
-        f = replace(params.friction, A_stribeck=x[0])
-        return [friction_coefficient(x[1], T, P, f) - mu for (T, mu), P in zip(points, pressures(x[1]))]
+    def residual(x):  # x: A, n [r/min]
+        f, slip = replace(params.friction, A_stribeck=x[0]), x[1] / CV.RAD_S_TO_RPM
+        return [friction_coefficient(slip, T, P, f) - mu for (T, mu), P in zip(points, pressures(slip))]
 
     sol = least_squares(residual, x0=[0.03, 120.0], bounds=([0.0, 1.0], [1.0, 140.0]), xtol=1e-12, ftol=1e-12)
     A, n = float(sol.x[0]), float(sol.x[1])
     f = replace(params.friction, A_stribeck=A)
-    P = pressures(n)
-    mus = [friction_coefficient(n, T, P_i, f) for (T, _), P_i in zip(points, P)]
-    return StribeckFit(A, n, mus[0], mus[1], P[0], P[1])
+    P = pressures(n / CV.RAD_S_TO_RPM)
+    mus = [friction_coefficient(n / CV.RAD_S_TO_RPM, T, P_i, f) for (T, _), P_i in zip(points, P)]
+    return StribeckFit(A, n, mus[0], mus[1], P[0] / CV.MPA_TO_PA, P[1] / CV.MPA_TO_PA)
 
 
 def with_h_plate_oil(params: Params, h: float) -> Params:
@@ -112,7 +117,7 @@ def reduced_creep(params: Params, scenario: Scenario | None = None, T_handover: 
     """The reduced model of the scenario's creep (default: the shipped scenario): engine at its setpoint, the
     vehicle at the desired creep speed on the scenario's grade, plates and oil from the scenario's temperatures."""
     s = scenario or load_scenario()
-    omega_e = params.engine.omega_idle if s.engine_speed_rpm is None else s.engine_speed_rpm / RAD_S_TO_RPM
+    omega_e = params.engine.omega_idle if s.engine_speed_rpm is None else s.engine_speed_rpm / CV.RAD_S_TO_RPM
     v = max(d.desired_speed_mps for d in s.driver if d.creep_request)
     op = operating_point(params, omega_e, v, s.grade_rad)
     return simulate_creep(params, op, {"CL": s.T_CL_c, "CH": s.T_CH_c}, s.T_oil_c, T_handover, T_takeover, dt=dt)
@@ -152,8 +157,8 @@ def friction_checks(r: CreepResult) -> list[Check]:
     return [
         Check("mu_CH_start", r.mu_CH_first[0], CREEP_MU_CH[0], TOL_CREEP_MU),
         Check("mu_CH_end", r.mu_CH_first[1], CREEP_MU_CH[1], TOL_CREEP_MU),
-        Check("P_CH_start_mpa", r.P_CH_first[0] / 1e6, CREEP_P_CH_MPA[0], TOL_CREEP_P_MPA),
-        Check("P_CH_end_mpa", r.P_CH_first[1] / 1e6, CREEP_P_CH_MPA[1], TOL_CREEP_P_MPA),
+        Check("P_CH_start_mpa", r.P_CH_first[0] / CV.MPA_TO_PA, CREEP_P_CH_MPA[0], TOL_CREEP_P_MPA),
+        Check("P_CH_end_mpa", r.P_CH_first[1] / CV.MPA_TO_PA, CREEP_P_CH_MPA[1], TOL_CREEP_P_MPA),
     ]
 
 

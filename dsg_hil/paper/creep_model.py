@@ -18,12 +18,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from ..common.units import CV
+from ..physics.friction import friction_coefficient, torque_per_mu
 from ..physics.params import Params
 from ..physics.powertrain import road_load
 from ..physics.thermal import NODES, discretize, gearbox_network, heat_sources
 from ..physics.plant import Plant, PlantInputs
 from ..sim.scenario import Scenario
+
+__all__ = ["CLUTCHES", "CreepResult", "OperatingPoint", "Phase", "creep_speed_for_slip", "operating_point",
+           "pressure_for_torque", "run_plant_creep", "simulate_creep"]
 
 CLUTCHES = ("CL", "CH")
 
@@ -63,12 +67,12 @@ def creep_speed_for_slip(params: Params, omega_e: float, clutch: str, slip: floa
     return (omega_e / pt.i_a - slip) / i_k / (pt.i_1 * pt.i_b) * veh.r_w
 
 
-def pressure_for_torque(params: Params, clutch: str, torque: float, slip_rpm: float, T_c: float) -> tuple[float, float]:
-    """(P [Pa], mu) with mu(slip, T, P) k_geom P = torque: (5)-(6) solved by fixed-point iteration."""
+def pressure_for_torque(params: Params, clutch: str, torque: float, slip: float, T_c: float) -> tuple[float, float]:
+    """(P [Pa], mu) with mu(slip, T, P) k_geom P = torque (slip [rad/s]): (5)-(6) solved by fixed-point iteration."""
     k = torque_per_mu(getattr(params.clutch, clutch), 1.0)
     P = torque / (0.065 * k)
     for _ in range(50):
-        mu = friction_coefficient(slip_rpm, T_c, P / 1e6, params.friction)
+        mu = friction_coefficient(slip, T_c, P, params.friction)
         P_new = torque / (mu * k)
         if abs(P_new - P) < 1e-3:
             break
@@ -125,8 +129,7 @@ def simulate_creep(params: Params, op: OperatingPoint, T_clutch: dict[str, float
     ts, T_CL, T_CH = [0.0], [T[idx["CL"]]], [T[idx["CH"]]]
     t, stopped = 0.0, False
     while t < horizon - 1e-9:
-        slip_rpm = op.slip[active] * RAD_S_TO_RPM
-        P, mu = pressure_for_torque(params, active, op.torque[active], slip_rpm, T[idx[active]])
+        P, mu = pressure_for_torque(params, active, op.torque[active], op.slip[active], T[idx[active]])
         if active == "CH" and sum(p.clutch == "CH" for p in phases) == 1:
             mu_CH.append(mu)
             P_CH.append(P)
@@ -173,11 +176,11 @@ def run_plant_creep(params: Params, scenario: Scenario, T_handover: float = 250.
     mu_CH and P_CH of the first CH slip are taken from ``settle_s`` after the takeover (the handover transient
     over) to its end. A cross-check of the reduced model, not a TCU."""
     s = scenario
-    omega_e = params.engine.omega_idle if s.engine_speed_rpm is None else s.engine_speed_rpm / RAD_S_TO_RPM
+    omega_e = params.engine.omega_idle if s.engine_speed_rpm is None else s.engine_speed_rpm / CV.RAD_S_TO_RPM
     v_des = max(d.desired_speed_mps for d in s.driver if d.creep_request)
     t_start = min(d.t_s for d in s.driver if d.creep_request)
     op = operating_point(params, omega_e, v_des, s.grade_rad)
-    feed_forward = {k: pressure_for_torque(params, k, op.torque[k], op.slip[k] * RAD_S_TO_RPM, 150.0)[0]
+    feed_forward = {k: pressure_for_torque(params, k, op.torque[k], op.slip[k], 150.0)[0]
                     for k in CLUTCHES}
     plant = Plant(params, dt, T_init=s.initial_temperatures(NODES), v_init=s.v_mps)
     inputs = PlantInputs(brake=1.0, grade=s.grade_rad, engine_speed_request=omega_e)

@@ -8,12 +8,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..common.errors import RunError
+from ..common.units import CV
 from .reference import RIG_DURATION_S, RIG_T_START_C
 
 if TYPE_CHECKING:
     from ..physics.params import Friction
     from .reference import RigReference
     from .validation import CaseResult
+
+__all__ = ["COLORS", "friction_map_figure", "require_matplotlib", "validation_figures"]
 
 COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 
@@ -75,11 +78,12 @@ def friction_map_figure(friction: Friction, outpath: Path) -> Path:
     """mu over slip speed for several temperatures and pressures: the reading of formula (6) in use."""
     from ..physics.friction import friction_coefficient_grid
     plt = require_matplotlib()
-    n = np.linspace(0.0, 400.0, 401)
+    n = np.linspace(0.0, 400.0, 401)  # the paper's units: r/min, MPa
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), dpi=120, sharey=True)
     for ax, P in zip(axes, (0.3, 0.75)):
         for T in (20, 40, 80, 114, 160, 250, 300):
-            ax.plot(n, friction_coefficient_grid(n, T, P, friction), label=f"{T} °C")
+            mu = friction_coefficient_grid(n * CV.RPM_TO_RAD_S, T, P * CV.MPA_TO_PA, friction)
+            ax.plot(n, mu, label=f"{T} °C")
         ax.set_title(f"μ(n, T) at {P} MPa")
         ax.set_xlabel("slip speed [r/min]")
         ax.grid(alpha=0.3)

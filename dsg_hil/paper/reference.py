@@ -7,6 +7,11 @@ from dataclasses import dataclass
 
 from ..results.thresholds import SAFETY_TEMPERATURE_C  # noqa: F401 - the paper's limit (Section IV), the metrics' too
 
+__all__ = ["CREEP_MU_CH", "CREEP_P_CH_MPA", "CREEP_SLIP_TIME_S", "CREEP_TIME_S", "CREEP_T_CL_AT_FIRST_CH_LIMIT_C",
+           "CREEP_T_ONCOMING_AT_STOP_C", "CREEP_T_START_C", "RIG_CASES", "RIG_DURATION_S", "RIG_T_START_C",
+           "RigReference", "SAFETY_TEMPERATURE_C", "TOL_CREEP_MU", "TOL_CREEP_P_MPA", "TOL_CREEP_TIME_REL",
+           "TOL_CREEP_T_C", "TOL_MU", "TOL_RISE_C", "TOL_SLIP_TIME_REL", "TOL_TORQUE_REL"]
+
 
 @dataclass(frozen=True)
 class RigReference:

@@ -10,6 +10,8 @@ from .reference import (RIG_CASES, RIG_DURATION_S, RIG_T_START_C, TOL_MU, TOL_RI
                         RigReference)
 from ..physics.rig import RigCase, RigTrace, run_rig
 
+__all__ = ["CaseResult", "run_validation", "validation_json"]
+
 
 @dataclass(frozen=True)
 class CaseResult:

@@ -18,7 +18,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from . import engine
-from .friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from .friction import friction_coefficient, torque_per_mu
 from .hydraulics import clamp_command
 from .powertrain import IDX, N_DOF, N_STATE, contact_velocities, road_load, vehicle_speed
 from .thermal import NODES, heat_sources
@@ -54,8 +54,8 @@ def torques(plant: Plant, inputs: PlantInputs) -> Torques:
           direction: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         x, T = y[:N_STATE], y[N_STATE:N_STATE + N_T]
         P_CL, P_CH, integral, mem_CL, mem_CH = y[N_STATE + N_T:]
-        mu_CL = friction_coefficient(mem_CL * RAD_S_TO_RPM, T[i_CL], P_CL / 1e6, p.friction)
-        mu_CH = friction_coefficient(mem_CH * RAD_S_TO_RPM, T[i_CH], P_CH / 1e6, p.friction)
+        mu_CL = friction_coefficient(mem_CL, T[i_CL], P_CL, p.friction)
+        mu_CH = friction_coefficient(mem_CH, T[i_CH], P_CH, p.friction)
         v = vehicle_speed(x[IDX["5"]], p.powertrain.i_b, p.vehicle.r_w)
         M_fixed, M_resist = road_load(v, grade, inputs.brake, p.vehicle)
         cap = np.array([mu_CL * k_CL * P_CL, mu_CH * k_CH * P_CH, M_resist])

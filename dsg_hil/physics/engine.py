@@ -9,6 +9,8 @@ from __future__ import annotations
 from .jit import compiled
 from .params import Engine
 
+__all__ = ["full_load_torque", "governor", "net_torque"]
+
 
 @compiled
 def full_load_torque(omega_e: float, e: Engine) -> float:

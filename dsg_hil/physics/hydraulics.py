@@ -11,6 +11,8 @@ import math
 from .jit import compiled
 from .params import Hydraulics
 
+__all__ = ["clamp_command", "pressure_relax", "pressure_step"]
+
 
 @compiled
 def clamp_command(P_cmd: float, h: Hydraulics) -> float:

@@ -24,6 +24,8 @@ import numpy as np
 
 from . import params as _params
 
+__all__ = ["Compiled", "compiled", "constants", "record"]
+
 _RECORDS: dict[type, type] = {}
 _OF_GROUP: dict[int, tuple] = {}  # id(group) -> record, while the group lives
 

@@ -23,6 +23,11 @@ from ..common.errors import InputError
 from ..common.files import read_input_file
 from ..common.quantities import finite, quantity
 
+__all__ = ["Circuit", "ClutchGeometry", "ClutchThermal", "ClutchThermals", "Clutches", "DEFAULT_PARAMS_PATH",
+           "Element", "Engine", "Friction", "Hydraulics", "Oil", "ParameterError", "Params", "Powertrain", "SOURCES",
+           "Thermal", "Vehicle", "load_params", "nonneg", "p", "parameters", "parse_params", "positive", "ratio",
+           "with_overrides"]
+
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
 SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}
 

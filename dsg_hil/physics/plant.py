@@ -28,7 +28,6 @@ import numpy as np
 
 from .engine import governor, net_torque
 from .friction import (
-    RAD_S_TO_RPM,
     friction_coefficient_at,
     pressure_factors,
     slip_memory_relax,
@@ -404,13 +403,13 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
         M_e = net_torque(fuel, k)
         # clutch capacities (5)-(6), mu at the remembered slip (static mu once stuck long enough)
         if P_CL != P_CL_at:  # (a settled or open clutch's pressure stays the same, bit for bit)
-            factor_CL, log_CL = pressure_factors(P_CL / 1e6, k)
+            factor_CL, log_CL = pressure_factors(P_CL, k)
             P_CL_at = P_CL
         if P_CH != P_CH_at:
-            factor_CH, log_CH = pressure_factors(P_CH / 1e6, k)
+            factor_CH, log_CH = pressure_factors(P_CH, k)
             P_CH_at = P_CH
-        mu_CL = friction_coefficient_at(b[S_MEM] * RAD_S_TO_RPM, T_plate_CL, factor_CL, log_CL, k)
-        mu_CH = friction_coefficient_at(b[S_MEM + 1] * RAD_S_TO_RPM, T_plate_CH, factor_CH, log_CH, k)
+        mu_CL = friction_coefficient_at(b[S_MEM], T_plate_CL, factor_CL, log_CL, k)
+        mu_CH = friction_coefficient_at(b[S_MEM + 1], T_plate_CH, factor_CH, log_CH, k)
         cap[0], cap[1], cap[2] = mu_CL * k.k_CL * P_CL, mu_CH * k.k_CH * P_CH, M_resist
         # free motion, then the friction torques of the three contacts, implicitly (stick/slip)
         free[:] = 0.0

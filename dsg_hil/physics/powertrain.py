@@ -31,6 +31,10 @@ from .jit import compiled
 from .params import Powertrain, Vehicle
 from .thermal import zoh
 
+__all__ = ["CONTACTS", "CONTACT_INPUTS", "DOFS", "Discrete", "IDX", "INPUTS", "Model", "N_DOF", "N_SPRING", "N_STATE",
+           "SPRINGS", "build_model", "contact_velocities", "discretize", "road_load", "solve_contacts",
+           "solve_contacts_into", "vehicle_speed"]
+
 DOFS = ("e", "in", "1", "2", "3", "4", "5")
 SPRINGS = ("in", "a1", "a2L", "a2H", "a3")
 INPUTS = ("M_e", "M_CL", "M_CH", "M_R")

@@ -13,10 +13,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from ..common.units import CV
+from .friction import friction_coefficient, torque_per_mu
 from .jit import compiled
 from .params import Params
 from .thermal import NODES, discretize, gearbox_network, heat_sources
+
+__all__ = ["I_CL", "RigCase", "RigTrace", "rig_configuration", "rig_steps", "run_rig"]
 
 I_CL = NODES.index("CL")
 
@@ -67,8 +70,8 @@ def run_rig(params: Params, case: RigCase, duration: float = 100.0, dt: float = 
     disc = discretize(net, dt)
     T = np.full(len(NODES), float(T_start))
     T0 = T.copy()
-    P = case.pressure_mpa * 1e6
-    omega = case.speed_rpm / RAD_S_TO_RPM
+    P = case.pressure_mpa * CV.MPA_TO_PA
+    omega = case.speed_rpm / CV.RAD_S_TO_RPM
     k_mu = torque_per_mu(geometry, P)
     q_base = heat_sources(params, 0.0, 0.0, P, 0.0)
     q = q_base.copy()
@@ -77,24 +80,23 @@ def run_rig(params: Params, case: RigCase, duration: float = 100.0, dt: float = 
     n_steps = int(round(duration / dt))
     rows = list(range(0, n_steps, every)) + [n_steps]
     samples = np.empty((len(rows), 3))  # T_CL, torque, mu at the sampled steps
-    work, to_env = rig_steps(T, n_steps, every, case.speed_rpm, case.pressure_mpa, k_mu, omega, disc.Phi, drive,
-                             gamma_CL, net.g_E, net.T_E, dt, params.friction, samples)
+    work, to_env = rig_steps(T, n_steps, every, omega, P, k_mu, disc.Phi, drive, gamma_CL, net.g_E, net.T_E, dt,
+                             params.friction, samples)
     return RigTrace(case, np.array(rows) * dt, samples[:, 0], samples[:, 1], samples[:, 2], T,
                     work, to_env, float(net.C @ (T - T0)), float(q.sum()) * n_steps * dt)
 
 
 @compiled
-def rig_steps(T, n_steps, every, speed_rpm, pressure_mpa, k_mu, omega, Phi, drive, gamma_CL, g_E, T_E, dt, fr,
-              samples):
+def rig_steps(T, n_steps, every, omega, P, k_mu, Phi, drive, gamma_CL, g_E, T_E, dt, fr, samples):
     """The rig's n_steps exact thermal steps on T in place, friction (5)-(6) at each step's start temperature;
-    T_CL, torque and mu every ``every`` steps and at the end into ``samples``. Returns (friction work, heat to E)
-    [J], the latter by the trapezoid rule."""
+    T_CL, torque and mu every ``every`` steps and at the end into ``samples``; slip speed ``omega`` [rad/s] and
+    pressure ``P`` [Pa] held. Returns (friction work, heat to E) [J], the latter by the trapezoid rule."""
     n = T.shape[0]
     T_next = np.empty(n)
     work = to_env = 0.0
     row = 0
     for k in range(n_steps + 1):
-        mu = friction_coefficient(speed_rpm, T[I_CL], pressure_mpa, fr)
+        mu = friction_coefficient(omega, T[I_CL], P, fr)
         M = mu * k_mu
         if k % every == 0 or k == n_steps:
             samples[row, 0], samples[row, 1], samples[row, 2] = T[I_CL], M, mu

@@ -21,6 +21,9 @@ from scipy.linalg import expm
 
 from .params import ClutchGeometry, ClutchThermal, Element, Params
 
+__all__ = ["DiscreteNetwork", "ELEMENTS", "NODES", "Network", "NetworkBuilder", "clutch_element", "discretize",
+           "gearbox_network", "heat_sources", "zoh"]
+
 ELEMENTS = ("F", "P", "RV", "V", "CL", "CH", "R")
 NODES = tuple(n for e in ELEMENTS for n in (e, e + "o"))
 _I = {name: i for i, name in enumerate(NODES)}

@@ -32,6 +32,10 @@ from ..common.errors import InputError, RunError
 if TYPE_CHECKING:
     from cantools.database.can import Message
 
+__all__ = ["DEFAULT_CHANNELS", "FrameLog", "LOG_CHANNEL", "UDP_MULTICAST", "VIRTUAL_CHANNEL", "add_bus_arguments",
+           "bus_args", "bus_config", "bus_name", "fresh_udp_group", "log_channel", "open_bus", "per_process_warning",
+           "receive_filters", "resolve_bus_config", "vcan0_present"]
+
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
 DEFAULT_CHANNELS = {"virtual": VIRTUAL_CHANNEL, "socketcan": "vcan0"}  # a channel given by no option

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from cantools.database.can import Database
 
+__all__ = ["bus_load", "frame_bits"]
+
 
 def frame_bits(dlc: int, extended: bool = False) -> int:
     """Worst-case length of a classic CAN data frame [bits], stuff bits and 3-bit interframe space included."""

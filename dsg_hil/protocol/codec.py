@@ -24,8 +24,11 @@ from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
 from ..common.errors import InputError
+from ..common.units import CV
 from .generated import generate, unsupported
 from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
+
+__all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "load_dbc"]
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
@@ -120,7 +123,7 @@ class Codec:
 
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
-        return self.cycle_time_ms(name) / 1000.0
+        return self.cycle_time_ms(name) / CV.S_TO_MS
 
     def cycle_time_ms(self, name: str) -> int:
         """The message's GenMsgCycleTime [ms], a whole number (for schedules counted in integers)."""

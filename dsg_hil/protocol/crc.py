@@ -3,6 +3,8 @@ of AUTOSAR's Crc_CalculateCRC8; how this contract applies it is in :mod:`.e2e`).
 
 from __future__ import annotations
 
+__all__ = ["crc8_j1850"]
+
 
 def _table() -> tuple[int, ...]:
     table = []

@@ -26,6 +26,8 @@ from cantools.database.can import Message
 from .crc import crc8_j1850
 from ..common.errors import InputError
 
+__all__ = ["COUNTER", "CRC", "MAX_DELTA", "Protection", "ProtectionError"]
+
 COUNTER, CRC = "Counter", "CRC"
 MAX_DELTA = 7  # largest counter step accepted (half the 4-bit range): 6 frames lost in a row
 

@@ -8,6 +8,8 @@ from cantools.database.can import Database
 
 from .codec import Codec
 
+__all__ = ["EXAMPLE_COUNTER", "EXAMPLE_VALUES", "example_frames"]
+
 EXAMPLE_COUNTER = 3
 EXAMPLE_VALUES: dict[str, dict[str, float]] = {
     "PLANT_ENGINE": {"EngineSpeed": 800.0, "EngineTorque": 171.3},

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import can
 
+__all__ = ["data_frame"]
+
 _Message = can.Message
 _new = _Message.__new__
 

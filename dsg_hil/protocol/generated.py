@@ -28,6 +28,8 @@ from cantools.database.conversion import BaseConversion, IdentityConversion, Lin
 from .e2e import COUNTER, CRC, Protection
 from .ranges import raw_range, signal_range
 
+__all__ = ["Decoder", "Encoder", "GeneratedMessage", "generate", "unsupported"]
+
 Encoder = Callable[[Mapping[str, float], int], bytes]
 Decoder = Callable[[bytes], Any]  # a DecodedFrame of .codec
 

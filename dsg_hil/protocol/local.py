@@ -24,6 +24,8 @@ import can
 
 from .frame import data_frame
 
+__all__ = ["LocalBus", "local_pair"]
+
 _FIELDS = ("arbitration_id", "is_extended_id", "is_remote_frame", "is_error_frame", "dlc", "data", "is_fd",
            "bitrate_switch", "error_state_indicator")
 

@@ -37,6 +37,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ..common.units import CV
 from .creep_rows import ACC, Col, Run, Slot, columns, kernel
 from .thresholds import (
     CLUTCHES,
@@ -186,7 +187,8 @@ def _phase_json(run: _Run) -> dict:
             "duration_s": round(run.end - run.start, 3),
             "T_CL_end_c": _r(last.T_CL, 2), "T_CH_end_c": _r(last.T_CH, 2),
             "mu": {"start": _r(getattr(a, f"mu_{c}"), 4), "end": _r(getattr(b, f"mu_{c}"), 4)},
-            "P_mpa": {"start": _r(getattr(a, f"P_{c}") / 1e6, 3), "end": _r(getattr(b, f"P_{c}") / 1e6, 3)}}
+            "P_mpa": {"start": _r(getattr(a, f"P_{c}") / CV.MPA_TO_PA, 3),
+                      "end": _r(getattr(b, f"P_{c}") / CV.MPA_TO_PA, 3)}}
 
 
 def phases(runs: list[_Run]) -> list[_Run]:
@@ -415,7 +417,7 @@ class CreepMetrics:
             "phases": [_phase_json(p) for p in ph],
             "max_plate_temp_c": both(self.max_T, 2),
             "time_above_limit_s": both(self.above_limit, 3),
-            "friction_energy_kj": {k: round(v / 1e3, 1) for k, v in self.energy.items()},
+            "friction_energy_kj": {k: round(v / CV.KJ_TO_J, 1) for k, v in self.energy.items()},
             "speed_min_creeping_mps": _r(self.speed_min_creeping, 4),
             "rollback_mps": round(self.rollback_speed, 4),
             "rollback_m": round(self.rollback_distance, 4),
@@ -493,5 +495,5 @@ def _percentiles(samples: list[float]) -> dict | None:
         return None
     s = sorted(samples)
     pick = lambda q: s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))]  # noqa: E731
-    return {"n": len(s), "p50": round(1000 * pick(0.5), 3), "p99": round(1000 * pick(0.99), 3),
-            "max": round(1000 * s[-1], 3)}
+    ms = CV.S_TO_MS
+    return {"n": len(s), "p50": round(ms * pick(0.5), 3), "p99": round(ms * pick(0.99), 3), "max": round(ms * s[-1], 3)}

@@ -1,11 +1,19 @@
-"""The plant's side of the CAN contract: which DBC messages it sends and reads, and the conversion between the
-plant's SI outputs and the DBC's signals (r/min, MPa, degC at this edge only)."""
+"""The plant's side of the CAN contract: which DBC messages it sends and reads, and one table, :data:`SIGNALS`, of
+what each of their signals is in the plant's SI units. The table drives the encoding of the plant's frames
+(:func:`plant_signals`), the runner's reading of TCU_CMD (:func:`commanded_pressures`) and the bus-log reader
+(:mod:`dsg_hil.paper.report.log`): r/min, MPa and % exist at this edge only (:class:`dsg_hil.common.units.CV`)."""
 
 from __future__ import annotations
 
-from ..physics.friction import RAD_S_TO_RPM
+from collections.abc import Callable, Mapping
+from typing import get_type_hints
+
+from ..common.units import CV
 from ..physics.plant import PlantOutputs
 from .scenario import DriverInput
+
+__all__ = ["LOCKSTEP", "PLANT_RX", "PLANT_TX", "PLANT_USES", "SIGNALS", "SYNC", "commanded_pressures",
+           "encoder_source", "plant_signals"]
 
 PLANT_TX = {
     "PLANT_ENGINE": ("EngineSpeed", "EngineTorque"),
@@ -24,21 +32,90 @@ PLANT_RX = {
     "TCU_STATUS": ("State", "ActiveClutch", "BrakeRequest", "T_CL_Pred", "T_CH_Pred", "FaultBits"),
 }
 PLANT_USES = {**PLANT_TX, SYNC: ("Tick",), **PLANT_RX}
+LOCKSTEP = {(SYNC, "Tick"), ("TCU_CMD", "SyncEcho")}  # the lockstep handshake's signals: no quantity of the plant
+
+_RPM, _MPA, _PERCENT = CV.RPM_TO_RAD_S, CV.MPA_TO_PA, CV.PERCENT_TO_FRACTION
+# (message, signal) -> (quantity, factor): the signal's DBC value times ``factor`` is the quantity in SI (rad/s, Pa,
+# m/s, N m, W, a fraction; degC as the plant has it). A quantity the plant sends is the attribute of that name of
+# PlantOutputs (of DriverInput for DRIVER); one it reads is named here (LogSample's field in the log reader).
+SIGNALS: dict[tuple[str, str], tuple[str, float]] = {
+    ("PLANT_ENGINE", "EngineSpeed"): ("omega_e", _RPM),
+    ("PLANT_ENGINE", "EngineTorque"): ("M_e", 1.0),
+    ("PLANT_SPEEDS", "ClutchInputSpeed"): ("omega_in", _RPM),
+    ("PLANT_SPEEDS", "CLOutputSpeed"): ("omega_CL", _RPM),
+    ("PLANT_SPEEDS", "CHOutputSpeed"): ("omega_CH", _RPM),
+    ("PLANT_VEHICLE", "TransOutputSpeed"): ("omega_out", _RPM),
+    ("PLANT_VEHICLE", "VehicleSpeed"): ("v", 1.0),
+    ("PLANT_PRESSURE", "P_CL"): ("P_CL", _MPA),
+    ("PLANT_PRESSURE", "P_CH"): ("P_CH", _MPA),
+    ("PLANT_OIL_TEMP", "T_OilCL"): ("T_oil_CL", 1.0),
+    ("PLANT_OIL_TEMP", "T_OilCH"): ("T_oil_CH", 1.0),
+    ("PLANT_OIL_TEMP", "T_Sump"): ("T_sump", 1.0),
+    ("PLANT_OIL_TEMP", "T_RadiatorOut"): ("T_radiator_out", 1.0),
+    ("DRIVER", "CreepRequest"): ("creep_request", 1.0),
+    ("DRIVER", "BrakePedal"): ("brake", _PERCENT),
+    ("DRIVER", "DesiredCreepSpeed"): ("desired_speed_mps", 1.0),
+    ("SIM_TRUTH_CL", "T_Plate"): ("T_CL", 1.0),
+    ("SIM_TRUTH_CL", "Mu"): ("mu_CL", 1.0),
+    ("SIM_TRUTH_CL", "Torque"): ("M_CL", 1.0),
+    ("SIM_TRUTH_CL", "HeatFlux"): ("Q_CL", 1.0),
+    ("SIM_TRUTH_CH", "T_Plate"): ("T_CH", 1.0),
+    ("SIM_TRUTH_CH", "Mu"): ("mu_CH", 1.0),
+    ("SIM_TRUTH_CH", "Torque"): ("M_CH", 1.0),
+    ("SIM_TRUTH_CH", "HeatFlux"): ("Q_CH", 1.0),
+    ("SIM_HEAT", "HeatDissCL"): ("Q_diss_CL", 1.0),
+    ("SIM_HEAT", "HeatDissCH"): ("Q_diss_CH", 1.0),
+    ("TCU_CMD", "P_CL_Cmd"): ("P_CL_cmd", _MPA),
+    ("TCU_CMD", "P_CH_Cmd"): ("P_CH_cmd", _MPA),
+    ("TCU_STATUS", "State"): ("tcu_state", 1.0),
+    ("TCU_STATUS", "ActiveClutch"): ("active_clutch", 1.0),
+    ("TCU_STATUS", "BrakeRequest"): ("brake_request", 1.0),
+    ("TCU_STATUS", "T_CL_Pred"): ("T_CL_pred", 1.0),
+    ("TCU_STATUS", "T_CH_Pred"): ("T_CH_pred", 1.0),
+    ("TCU_STATUS", "FaultBits"): ("fault_bits", 1.0),
+}
+
+_FLOATS = {source: {name for name, kind in get_type_hints(cls).items() if kind is float}  # the rest: float(...)
+           for source, cls in (("out", PlantOutputs), ("driver", DriverInput))}
 
 
-def plant_signals(out: PlantOutputs, driver: DriverInput) -> dict[str, dict[str, float]]:
-    """Signal values of every message the plant sends, in DBC units."""
-    return {
-        "PLANT_ENGINE": {"EngineSpeed": out.omega_e * RAD_S_TO_RPM, "EngineTorque": out.M_e},
-        "PLANT_SPEEDS": {"ClutchInputSpeed": out.omega_in * RAD_S_TO_RPM, "CLOutputSpeed": out.omega_CL * RAD_S_TO_RPM,
-                         "CHOutputSpeed": out.omega_CH * RAD_S_TO_RPM},
-        "PLANT_VEHICLE": {"TransOutputSpeed": out.omega_out * RAD_S_TO_RPM, "VehicleSpeed": out.v},
-        "PLANT_PRESSURE": {"P_CL": out.P_CL / 1e6, "P_CH": out.P_CH / 1e6},
-        "PLANT_OIL_TEMP": {"T_OilCL": out.T_oil_CL, "T_OilCH": out.T_oil_CH, "T_Sump": out.T_sump,
-                           "T_RadiatorOut": out.T_radiator_out},
-        "DRIVER": {"CreepRequest": float(driver.creep_request), "BrakePedal": driver.brake * 100.0,
-                   "DesiredCreepSpeed": driver.desired_speed_mps},
-        "SIM_TRUTH_CL": {"T_Plate": out.T_CL, "Mu": out.mu_CL, "Torque": out.M_CL, "HeatFlux": out.Q_CL},
-        "SIM_TRUTH_CH": {"T_Plate": out.T_CH, "Mu": out.mu_CH, "Torque": out.M_CH, "HeatFlux": out.Q_CH},
-        "SIM_HEAT": {"HeatDissCL": out.Q_diss_CL, "HeatDissCH": out.Q_diss_CH},
-    }
+def _to_dbc(source: str, quantity: str, factor: float) -> str:
+    """Source of a quantity of ``source`` (``out`` or ``driver``) in the DBC's unit: divided by the factor, written as
+    a product with its reciprocal where the factor is below 1 (x 60/2pi for r/min, x 100 for %) and as a division
+    where it is not (/ 1e6 for MPa): the constant that is exact where one is (the operations the plant always used,
+    so its frames stay the same bit for bit)."""
+    value = f"{source}.{quantity}"
+    if factor == 1.0:
+        return value if quantity in _FLOATS[source] else f"float({value})"
+    return f"{value} * {1.0 / factor!r}" if factor < 1.0 else f"{value} / {factor!r}"
+
+
+def encoder_source() -> str:
+    """The source of :func:`plant_signals`, written out from :data:`SIGNALS`: a dict display per message with its
+    constants inlined, as fast as one written by hand (it runs every control period)."""
+    lines = ["def plant_signals(out, driver):", "    return {"]
+    for message, signals in PLANT_TX.items():
+        source = "driver" if message == "DRIVER" else "out"
+        items = ", ".join(f"{signal!r}: {_to_dbc(source, *SIGNALS[message, signal])}" for signal in signals)
+        lines.append(f"        {message!r}: {{{items}}},")
+    return "\n".join([*lines, "    }", ""])
+
+
+def _encoder() -> Callable[[PlantOutputs, DriverInput], dict[str, dict[str, float]]]:
+    namespace: dict = {}
+    exec(compile(encoder_source(), "<dsg_hil plant_signals>", "exec"), namespace)  # noqa: S102 - our own source
+    return namespace["plant_signals"]
+
+
+plant_signals = _encoder()
+plant_signals.__doc__ = """Signal values of every message the plant sends (``{message: {signal: value}}``), in DBC
+units, from the plant's outputs ``out`` and the driver's input (:data:`SIGNALS`; its source: :func:`encoder_source`)."""
+
+(_CL, _CL_TO_PA), (_CH, _CH_TO_PA) = (
+    next((signal, factor) for (message, signal), (name, factor) in SIGNALS.items() if (message, name) == key)
+    for key in (("TCU_CMD", "P_CL_cmd"), ("TCU_CMD", "P_CH_cmd")))
+
+
+def commanded_pressures(values: Mapping[str, float]) -> tuple[float, float]:
+    """(P_CL_cmd, P_CH_cmd) [Pa] of a decoded TCU_CMD's values (:data:`SIGNALS`)."""
+    return values[_CL] * _CL_TO_PA, values[_CH] * _CH_TO_PA

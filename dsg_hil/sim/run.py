@@ -51,7 +51,7 @@ from .runner import PeerLost, PeerTimeout, PlantRunner
 from .scenario import Scenario, load_scenario
 
 __all__ = ["ECU_STUB", "EcuStubProcess", "Run", "RunConfig", "TcuFactory", "TcuProcess", "answer_at_once",
-           "at_each_tick", "attach_tcu", "open_run", "plant_for", "private_channel"]
+           "at_each_tick", "attach_tcu", "open_run", "plant_for", "private_channel", "stop_process"]
 
 ECU_STUB = "ecu-stub"  # RunConfig.tcu: the bundled TCU, in this process where the bus allows, else as a process
 Mode = Literal["lockstep", "realtime"]
@@ -95,13 +95,18 @@ class EcuStubProcess:
         return subprocess.Popen(self.command(config), stdout=sink, stderr=None if sink is None else subprocess.STDOUT)
 
     def stop(self, proc: subprocess.Popen[bytes]) -> None:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=self.stop_timeout)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        stop_process(proc, self.stop_timeout)
+
+
+def stop_process(proc: subprocess.Popen[bytes], timeout: float) -> None:
+    """End a TCU process: SIGTERM, then SIGKILL after ``timeout`` seconds."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 @dataclass(frozen=True)

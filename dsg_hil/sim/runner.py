@@ -26,9 +26,9 @@ from collections.abc import Callable, Iterable
 import can
 import numpy as np
 
-from ..physics.friction import RAD_S_TO_RPM
+from ..common.units import CV
 from ..physics.plant import N_OUT, Plant, PlantInputs, PlantOutputs
-from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, plant_signals
+from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, commanded_pressures, plant_signals
 from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import data_frame
@@ -210,7 +210,7 @@ class PlantRunner:
         if msg is not None and self.listeners:
             self._log(msg)
         if frame.name == "TCU_CMD":
-            self.P_cmd = (frame.values["P_CL_Cmd"] * 1e6, frame.values["P_CH_Cmd"] * 1e6)
+            self.P_cmd = commanded_pressures(frame.values)
         elif frame.name == "TCU_STATUS":
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
 
@@ -219,7 +219,7 @@ class PlantRunner:
         if self.command_valid and not valid:
             self.summary.fallback_events += 1
             log.warning("t=%.3f s: TCU_CMD missing for %.0f ms: hydraulics unpowered (pressures decay to 0)",
-                        self.plant.state.t, 1000 * self.rx.states["TCU_CMD"].deadline)
+                        self.plant.state.t, CV.S_TO_MS * self.rx.states["TCU_CMD"].deadline)
         elif valid and not self.command_valid and self.summary.fallback_events:
             log.warning("t=%.3f s: valid TCU_CMD again: control resumes", self.plant.state.t)
         self.command_valid = valid
@@ -230,7 +230,7 @@ class PlantRunner:
         status = self.rx.states["TCU_STATUS"]
         brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
-        engine = None if self.scenario.engine_speed_rpm is None else self.scenario.engine_speed_rpm / RAD_S_TO_RPM
+        engine = None if self.scenario.engine_speed_rpm is None else self.scenario.engine_speed_rpm / CV.RAD_S_TO_RPM
         return PlantInputs(P_CL_cmd=P_CL, P_CH_cmd=P_CH, brake=max(driver.brake, brake_request),
                            grade=self.scenario.grade_rad, engine_speed_request=engine)
 
@@ -253,9 +253,9 @@ class PlantRunner:
     def _report(self, every_s: float = 10.0) -> None:
         t = self.plant.state.t
         if self.progress and int(t / every_s) != int((t - self.period) / every_s):
-            o, s = self.out, self.summary
+            o, s, mpa = self.out, self.summary, CV.MPA_TO_PA
             self.progress(f"t={t:7.1f}/{self.scenario.duration_s:g} s  v={o.v:5.2f} m/s  T_CL={o.T_CL:6.1f}  "
-                          f"T_CH={o.T_CH:6.1f} degC  P_CL={o.P_CL / 1e6:4.2f}  P_CH={o.P_CH / 1e6:4.2f} MPa  "
+                          f"T_CH={o.T_CH:6.1f} degC  P_CL={o.P_CL / mpa:4.2f}  P_CH={o.P_CH / mpa:4.2f} MPa  "
                           f"TCU {s.tcu_state}/{s.active_clutch}")
 
     @property

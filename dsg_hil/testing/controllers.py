@@ -20,6 +20,7 @@ from ecu_stub.runner import REQUIRED, TCU_RX, TCU_TX
 from ..common.errors import RunError
 from ..protocol import Codec
 from ..protocol.bus import bus_args
+from ..sim.run import stop_process
 from ..protocol.lockstep import Frames, LockstepResponder, frame_io
 
 __all__ = ["BUS_ARGS", "Controller", "ControllerProcess", "PythonControllerTcu"]
@@ -112,10 +113,4 @@ class ControllerProcess:
             raise RunError(f"cannot start the controller {list(self.argv)}: {exc}") from exc
 
     def stop(self, proc: subprocess.Popen[bytes]) -> None:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=self.stop_timeout)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        stop_process(proc, self.stop_timeout)

@@ -16,6 +16,8 @@ import pytest
 if TYPE_CHECKING:
     from . import PlantRun
 
+__all__ = ["dsg_hil_run"]
+
 
 @pytest.fixture(scope="session")
 def dsg_hil_run(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., PlantRun]:

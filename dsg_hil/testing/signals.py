@@ -9,6 +9,8 @@ import can
 import numpy as np
 from cantools.database.can import Database
 
+__all__ = ["Signals", "decode_frames"]
+
 
 class Signals(dict[str, np.ndarray]):
     """Decoded frames as numpy arrays: ``s["PLANT_VEHICLE.VehicleSpeed"]`` holds the signal's value in every frame

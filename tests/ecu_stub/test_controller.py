@@ -9,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from ecu_stub.calibration import FrictionMap, load_calibration
-from ecu_stub.clutch_model import RPM_TO_RAD_S, friction_coefficient, friction_heat, plate_step
+from ecu_stub.clutch_model import friction_coefficient, friction_heat, plate_step
 from ecu_stub.controller import CreepController, TcuInputs
 from ecu_stub.pid import PID
 
@@ -93,7 +93,7 @@ def test_limit_is_t_safe_minus_prediction_error_minus_crossover_rise():
     inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
     ctrl.update(inp, clock.tick())
     s = FLAT.strategy
-    Q = 0.07 * FLAT.CL.k_geom_m3 * 0.6e6 * 100.0 * RPM_TO_RAD_S  # mu k P slip
+    Q = 0.07 * FLAT.CL.k_geom_m3 * 0.6e6 * 100.0 * 2 * math.pi / 60  # mu k P slip (100 r/min)
     assert ctrl.heat["CL"] == pytest.approx(Q, rel=1e-3)
     rise = Q * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT) / FLAT.CL.C_plate_j_k
     assert ctrl.limit("CL") == pytest.approx(s.T_safe_c - s.prediction_error_k - rise, rel=1e-9)

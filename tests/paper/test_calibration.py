@@ -8,7 +8,7 @@ import pytest
 from dsg_hil.paper.calibration import (calibrate_h_plate_oil, calibrate_stribeck, calibrate_vehicle_thermal,
                                  friction_checks, reduced_creep, timeline_checks, vehicle_thermal)
 from dsg_hil.paper.creep_model import creep_speed_for_slip
-from dsg_hil.physics.friction import RAD_S_TO_RPM
+from dsg_hil.common.units import CV
 from dsg_hil.sim.scenario import load_scenario
 
 
@@ -23,8 +23,8 @@ def test_default_scenario_creeps_at_the_fitted_ch_slip(params):
     """The shipped scenario's creep speed is the one where CH slips the speed fitted with A_stribeck."""
     fit, s = calibrate_stribeck(params), load_scenario()
     v = max(d.desired_speed_mps for d in s.driver if d.creep_request)
-    omega_e = s.engine_speed_rpm / RAD_S_TO_RPM
-    assert v == pytest.approx(creep_speed_for_slip(params, omega_e, "CH", fit.slip_rpm / RAD_S_TO_RPM), abs=0.001)
+    omega_e = s.engine_speed_rpm * CV.RPM_TO_RAD_S
+    assert v == pytest.approx(creep_speed_for_slip(params, omega_e, "CH", fit.slip_rpm * CV.RPM_TO_RAD_S), abs=0.001)
 
 
 def test_reduced_model_meets_section_vb(params):

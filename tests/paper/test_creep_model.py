@@ -9,7 +9,8 @@ import pytest
 
 from dsg_hil.paper.calibration import friction_checks, reduced_creep, timeline_checks
 from dsg_hil.paper.creep_model import creep_speed_for_slip, operating_point, pressure_for_torque, run_plant_creep
-from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from dsg_hil.common.units import CV
+from dsg_hil.physics.friction import friction_coefficient, torque_per_mu
 from dsg_hil.sim.scenario import load_scenario
 
 
@@ -17,7 +18,7 @@ def test_operating_point_by_hand(params):
     """800 r/min engine, 0.2 m/s on 0.174 rad: speeds through the ratios, torques through the ratios and
     efficiencies of (10)-(12) at rest, heat = torque x slip."""
     pt, veh = params.powertrain, params.vehicle
-    omega_e, v = 800.0 / RAD_S_TO_RPM, 0.2
+    omega_e, v = 800.0 * CV.RPM_TO_RAD_S, 0.2
     op = operating_point(params, omega_e, v, 0.174)
     omega_1 = omega_e / 5.3585
     omega_4 = v / 0.1935 * 3.818 * 0.925
@@ -31,15 +32,16 @@ def test_operating_point_by_hand(params):
 
 
 def test_creep_speed_inverts_the_slip(params):
-    omega_e = 800.0 / RAD_S_TO_RPM
+    omega_e = 800.0 * CV.RPM_TO_RAD_S
     for clutch in ("CL", "CH"):
         v = creep_speed_for_slip(params, omega_e, clutch, 10.0)
         assert operating_point(params, omega_e, v).slip[clutch] == pytest.approx(10.0, rel=1e-12)
 
 
 def test_pressure_for_torque_solves_5_and_6(params):
-    P, mu = pressure_for_torque(params, "CH", 1300.0, 116.0, 180.0)
-    assert mu == pytest.approx(friction_coefficient(116.0, 180.0, P / 1e6, params.friction), rel=1e-6)
+    slip = 116.0 * CV.RPM_TO_RAD_S
+    P, mu = pressure_for_torque(params, "CH", 1300.0, slip, 180.0)
+    assert mu == pytest.approx(friction_coefficient(slip, 180.0, P, params.friction), rel=1e-6)
     assert mu * torque_per_mu(params.clutch.CH, P) == pytest.approx(1300.0, rel=1e-5)
 
 

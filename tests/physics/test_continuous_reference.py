@@ -9,7 +9,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from dsg_hil.physics.continuous import pack, rhs
-from dsg_hil.physics.friction import RAD_S_TO_RPM, friction_coefficient, torque_per_mu
+from dsg_hil.common.units import CV
+from dsg_hil.physics.friction import friction_coefficient, torque_per_mu
 from dsg_hil.physics.powertrain import IDX, N_STATE
 from dsg_hil.physics.thermal import NODES, gearbox_network, heat_sources
 from dsg_hil.physics.plant import Plant, PlantInputs
@@ -25,7 +26,7 @@ def slipping_vehicle_case(params):
     vehicle's CL is light and barely cooled (Section V.B), so any CL case that keeps slipping 100 s on the
     level overheats it far beyond the range of (6)."""
     plant = Plant(params, T_init=40.0, v_init=0.5)
-    inputs = PlantInputs(P_CH_cmd=0.4e6, grade=0.0, brake=0.0, engine_speed_request=2000.0 / RAD_S_TO_RPM)
+    inputs = PlantInputs(P_CH_cmd=0.4e6, grade=0.0, brake=0.0, engine_speed_request=2000.0 * CV.RPM_TO_RAD_S)
     return plant, inputs
 
 
@@ -60,12 +61,12 @@ def test_rig_matches_solve_ivp(params, ref):
     trace = run_rig(params, RigCase(ref.pressure_mpa, ref.speed_rpm), 100.0, 1e-3, 40.0, every=1000)
     rig = rig_configuration(params, 40.0)
     net = gearbox_network(rig)
-    P, omega = ref.pressure_mpa * 1e6, ref.speed_rpm / RAD_S_TO_RPM
+    P, omega = ref.pressure_mpa * CV.MPA_TO_PA, ref.speed_rpm * CV.RPM_TO_RAD_S
     k = torque_per_mu(params.clutch.test, P)
     i_CL = NODES.index("CL")
 
     def f(t, T):
-        mu = friction_coefficient(ref.speed_rpm, T[i_CL], ref.pressure_mpa, params.friction)
+        mu = friction_coefficient(omega, T[i_CL], P, params.friction)
         return net.derivative(T, heat_sources(rig, mu * k * omega, 0.0, P, 0.0))
 
     sol = solve_ivp(f, (0.0, 100.0), np.full(len(NODES), 40.0), method="Radau", rtol=1e-10, atol=1e-10,

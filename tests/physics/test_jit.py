@@ -35,7 +35,7 @@ def test_record_holds_the_groups_values(params):
 
 def test_compiled_equals_its_source_interpreted(params):
     """One implementation: the machine code and the same function run by Python agree (to rounding)."""
-    for n, T, P in ((0.0, 80.0, 0.3), (5.0, 150.0, 0.7), (300.0, 40.0, 0.0), (2000.0, 250.0, 1.5)):
+    for n, T, P in ((0.0, 80.0, 0.3e6), (0.5, 150.0, 0.7e6), (31.4, 40.0, 0.0), (209.4, 250.0, 1.5e6)):  # rad/s, Pa
         mu = friction_coefficient(n, T, P, params.friction)
         assert abs(mu - friction_coefficient.py_func(n, T, P, params.friction)) <= 1e-15
     e = params.engine

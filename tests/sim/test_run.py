@@ -5,8 +5,10 @@ anything runs or is written."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -118,3 +120,15 @@ def test_bad_input_fails_before_anything_runs_or_is_written(tmp_path, config, er
 
 def test_default_tcu_is_the_bundled_ecu_stub():
     assert RunConfig().tcu == ECU_STUB
+
+
+def test_the_readme_example_runs(tmp_path):
+    readme = Path(__file__).resolve().parents[2] / "README.md"
+    section = readme.read_text(encoding="utf-8").split("### A run from Python: `open_run`", 1)[1]
+    block = re.search(r"```python\n(.*?)```", section, re.S)
+    assert block, "README: no python block under 'A run from Python'"
+    proc = subprocess.run([sys.executable, "-c", block.group(1)], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((tmp_path / "summary.json").read_text())["faults"]["injected"]
+    assert (tmp_path / "run.asc").stat().st_size > 0

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ...common.units import CV
 from ..plots import require_matplotlib
 from ..reference import SAFETY_TEMPERATURE_C
 from ...results.summary import TORQUE_MIN
@@ -15,6 +16,8 @@ from .log import CreepRecord
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+__all__ = ["COLOR", "DARK", "SHADE", "creep_figures"]
 
 COLOR = {"CL": "tab:blue", "CH": "tab:orange"}
 DARK = {"CL": "navy", "CH": "saddlebrown"}
@@ -63,8 +66,8 @@ def creep_figures(record: CreepRecord, outdir: Path) -> list[Path]:
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), dpi=110, sharex=True)
     for ax, c in zip(axes, ("CL", "CH")):
         _frame(ax, record, "heat flux [kW]")
-        ax.plot(t, col(f"Q_{c}") / 1e3, color=COLOR[c], lw=1.3, label=f"generated (friction), {c}")
-        ax.plot(t, col(f"Q_diss_{c}") / 1e3, color="k", lw=1.0, label=f"dissipated (leaving the plates), {c}")
+        ax.plot(t, col(f"Q_{c}") / CV.KW_TO_W, color=COLOR[c], lw=1.3, label=f"generated (friction), {c}")
+        ax.plot(t, col(f"Q_diss_{c}") / CV.KW_TO_W, color="k", lw=1.0, label=f"dissipated (leaving the plates), {c}")
         ax.set_title(f"clutch {c}", fontsize=10)
         ax.set_ylim(top=ax.get_ylim()[1] * 1.45)  # room for the legend above the curves
         ax.legend(handles=ax.get_legend_handles_labels()[0] + _phase_legend(record), fontsize=8,
@@ -115,15 +118,15 @@ def _mu(ax: Axes, record: CreepRecord) -> None:
 def _pressures(ax: Axes, record: CreepRecord) -> None:
     col = record.column
     for c in ("CL", "CH"):
-        ax.plot(col("t"), col(f"P_{c}") / 1e6, color=COLOR[c], lw=3.0, alpha=0.55, label=f"P_{c} measured")
-        ax.plot(col("t"), col(f"P_{c}_cmd") / 1e6, color=DARK[c], lw=0.9, ls="--",
+        ax.plot(col("t"), col(f"P_{c}") / CV.MPA_TO_PA, color=COLOR[c], lw=3.0, alpha=0.55, label=f"P_{c} measured")
+        ax.plot(col("t"), col(f"P_{c}_cmd") / CV.MPA_TO_PA, color=DARK[c], lw=0.9, ls="--",
                 label=f"P_{c} commanded (TCU_CMD)")
     ax.set_ylim(top=ax.get_ylim()[1] * 1.3)  # room for the legend above the curves
 
 
 def _speed(ax: Axes, record: CreepRecord) -> None:
     col = record.column
-    target = np.where(col("creep_request") >= 0.5, col("desired_speed"), np.nan)
+    target = np.where(col("creep_request") >= 0.5, col("desired_speed_mps"), np.nan)
     ax.plot(col("t"), target, color="k", lw=1.2, ls="--", label="desired creep speed (DRIVER)")
     ax.plot(col("t"), col("v"), color="tab:green", lw=1.5, label="vehicle speed")
     ax.axhline(0.0, color="0.3", lw=0.6)

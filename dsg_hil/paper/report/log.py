@@ -9,19 +9,19 @@ the TCU's handovers are absent). The simulation-only truth frames (SIM_*) are us
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
-import can
 import numpy as np
 from cantools.database.can import Database
 
-from ...physics.friction import RAD_S_TO_RPM
-from ...protocol import Codec, FrameError
+from ...protocol.logs import decoded_frames, log_codec
 from ...common.errors import LogError
 from ...results.summary import CreepMetrics
+from ...sim.plant_io import SIGNALS as PLANT_SIGNALS
+
+__all__ = ["GRID_MESSAGE", "SIGNALS", "STATUS", "CreepRecord", "LogError", "LogSample", "read_log"]
 
 NAN = float("nan")
 
@@ -52,38 +52,16 @@ class LogSample(NamedTuple):
     T_CL_pred: float
     T_CH_pred: float
     creep_request: float
-    desired_speed: float
+    desired_speed_mps: float
 
 
-RPM, MPA = 1.0 / RAD_S_TO_RPM, 1e6
-# (message, signal) -> (LogSample field, factor to SI)
-SIGNALS: dict[tuple[str, str], tuple[str, float]] = {
-    ("PLANT_VEHICLE", "VehicleSpeed"): ("v", 1.0),
-    ("PLANT_SPEEDS", "ClutchInputSpeed"): ("omega_in", RPM),
-    ("PLANT_SPEEDS", "CLOutputSpeed"): ("omega_CL", RPM),
-    ("PLANT_SPEEDS", "CHOutputSpeed"): ("omega_CH", RPM),
-    ("PLANT_PRESSURE", "P_CL"): ("P_CL", MPA),
-    ("PLANT_PRESSURE", "P_CH"): ("P_CH", MPA),
-    ("TCU_CMD", "P_CL_Cmd"): ("P_CL_cmd", MPA),
-    ("TCU_CMD", "P_CH_Cmd"): ("P_CH_cmd", MPA),
-    ("SIM_TRUTH_CL", "T_Plate"): ("T_CL", 1.0),
-    ("SIM_TRUTH_CH", "T_Plate"): ("T_CH", 1.0),
-    ("SIM_TRUTH_CL", "Mu"): ("mu_CL", 1.0),
-    ("SIM_TRUTH_CH", "Mu"): ("mu_CH", 1.0),
-    ("SIM_TRUTH_CL", "Torque"): ("M_CL", 1.0),
-    ("SIM_TRUTH_CH", "Torque"): ("M_CH", 1.0),
-    ("SIM_TRUTH_CL", "HeatFlux"): ("Q_CL", 1.0),
-    ("SIM_TRUTH_CH", "HeatFlux"): ("Q_CH", 1.0),
-    ("SIM_HEAT", "HeatDissCL"): ("Q_diss_CL", 1.0),
-    ("SIM_HEAT", "HeatDissCH"): ("Q_diss_CH", 1.0),
-    ("TCU_STATUS", "T_CL_Pred"): ("T_CL_pred", 1.0),
-    ("TCU_STATUS", "T_CH_Pred"): ("T_CH_pred", 1.0),
-    ("DRIVER", "CreepRequest"): ("creep_request", 1.0),
-    ("DRIVER", "DesiredCreepSpeed"): ("desired_speed", 1.0),
-}
+INDEX = {name: i for i, name in enumerate(LogSample._fields)}
+# (message, signal) -> (index in LogSample, factor to SI): the plant's table (dsg_hil.sim.plant_io.SIGNALS) for the
+# signals whose quantity is a LogSample field
+SIGNALS: dict[tuple[str, str], tuple[int, float]] = {key: (INDEX[name], factor) for key, (name, factor)
+                                                     in PLANT_SIGNALS.items() if name in INDEX}
 STATUS = "TCU_STATUS"
 GRID_MESSAGE = "TCU_CMD"  # the sampling period: the control period of the DBC
-INDEX = {name: i for i, name in enumerate(LogSample._fields)}
 
 
 @dataclass(frozen=True)
@@ -100,31 +78,15 @@ class CreepRecord:
         return self.columns[name]
 
 
-def _codec(db: Database) -> Codec:
-    return Codec(db, {m.name: [s.name for s in m.signals if s.name not in ("Counter", "CRC")] for m in db.messages
-                      if {"Counter", "CRC"} <= {s.name for s in m.signals} and m.cycle_time})
-
-
-def _messages(path: Path) -> Iterator[can.Message]:
-    """The log's frames; whatever python-can's reader raises on a garbled file becomes one :class:`LogError`."""
-    try:
-        with can.LogReader(str(path)) as reader:
-            yield from reader
-    except Exception as exc:  # noqa: BLE001 - each reader raises its own types on garbage
-        raise LogError(f"{path}: cannot read the log ({type(exc).__name__}: {exc})") from None
-
-
 def read_log(path: str | Path, db: Database) -> CreepRecord:
     """Decode the log at ``path`` with ``db`` and compute its creep numbers (one pass, in time order)."""
     path = Path(path)
-    if not path.is_file():
-        raise LogError(f"{path}: log file not found")
-    codec = _codec(db)
+    codec = log_codec(db)
     period = codec.cycle_time(GRID_MESSAGE)
     row = [NAN] * len(LogSample._fields)
     metrics = CreepMetrics()
     samples: list[LogSample] = []
-    counts = {"decoded": 0, "rejected": 0, "unknown": 0}
+    counts: dict[str, int] = {}
     t0 = None
     k = 0  # grid instant t0 + k * period
 
@@ -132,29 +94,23 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
         row[0] = t
         s = LogSample(*row)
         samples.append(s)
-        metrics.add(s, period, s.creep_request >= 0.5, 0.0 if math.isnan(s.desired_speed) else s.desired_speed)
+        metrics.add(s, period, s.creep_request >= 0.5, 0.0 if math.isnan(s.desired_speed_mps) else s.desired_speed_mps)
 
-    for msg in _messages(path):
-        if msg.is_error_frame or msg.is_remote_frame:
-            continue
+    for timestamp, frame in decoded_frames(path, codec, counts):
         if t0 is None:
-            t0 = msg.timestamp
-        while msg.timestamp - t0 > k * period + 1e-6:  # the frames of grid instant k are all in
+            t0 = timestamp
+        while timestamp - t0 > k * period + 1e-6:  # the frames of grid instant k are all in
             emit(k * period)
             k += 1
-        try:
-            frame = codec.decode(msg.arbitration_id, bytes(msg.data))
-        except FrameError as exc:
-            counts["unknown" if exc.reason == "unknown" else "rejected"] += 1
+        if frame is None:
             continue
-        counts["decoded"] += 1
         for signal, value in frame.values.items():
             if (frame.name, signal) in SIGNALS:
-                field, factor = SIGNALS[frame.name, signal]
-                row[INDEX[field]] = value * factor
+                index, factor = SIGNALS[frame.name, signal]
+                row[index] = value * factor
         if frame.name == STATUS:
             v = frame.values
-            metrics.status(msg.timestamp - t0, v["State"], v["ActiveClutch"], v["T_CL_Pred"], v["T_CH_Pred"],
+            metrics.status(timestamp - t0, v["State"], v["ActiveClutch"], v["T_CL_Pred"], v["T_CH_Pred"],
                            LogSample(*row))
     if counts["decoded"] == 0:
         raise LogError(f"{path}: no frame of the DBC in the log ({counts['rejected']} rejected, "

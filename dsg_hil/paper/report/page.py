@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+__all__ = ["write_page"]
+
 
 def _fmt(x: float | None, unit: str) -> str:
     if x is None:
@@ -19,7 +21,7 @@ def write_page(path: Path, report: dict, figures: list[Path]) -> Path:
              f"Creep log: `{m['log']['path']}` ({m['log']['frames']['decoded']} frames decoded, "
              f"{m['log']['frames']['rejected']} rejected, {m['log']['frames']['unknown']} unknown IDs; "
              f"TCU_STATUS {'present' if m['log']['tcu_status'] else 'absent'}). Definitions of the creep numbers: "
-             "`dsg_hil/summary.py`; bands and paper numbers: `dsg_hil/report/paper.py`.", "",
+             "`dsg_hil/results/summary.py`; bands and paper numbers: `dsg_hil/paper/report/paper.py`.", "",
              "| quantity | paper | dsg-hil | band | result | where | reason for a gap |",
              "|---|---:|---:|---|---|---|---|"]
     for r in m["paper_vs_dsg_hil"]:

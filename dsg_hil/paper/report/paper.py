@@ -15,6 +15,8 @@ from ..reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T
                          TOL_CREEP_P_MPA, TOL_CREEP_T_C, TOL_CREEP_TIME_REL, TOL_MU, TOL_RISE_C, TOL_SLIP_TIME_REL,
                          TOL_TORQUE_REL)
 
+__all__ = ["Band", "MU_BAND", "PAPER", "P_BAND", "PaperNumber", "REASONS", "T_BAND", "compare", "lookup"]
+
 
 @dataclass(frozen=True)
 class Band:

@@ -15,6 +15,8 @@ if TYPE_CHECKING:
 
     from .injector import FaultInjector
 
+__all__ = ["add_fault_arguments", "fault_counts", "faults_from_args", "with_faults"]
+
 
 def add_fault_arguments(parser: argparse.ArgumentParser, whose: str) -> None:
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",

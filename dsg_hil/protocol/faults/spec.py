@@ -32,6 +32,9 @@ if TYPE_CHECKING:
 
 from ...common.errors import InputError
 
+__all__ = ["FaultError", "FaultSpec", "KINDS", "SIDES", "SIGNAL_KINDS", "check_against_dbc", "check_faults",
+           "fault_from_mapping", "fault_side", "parse_fault"]
+
 KINDS = {
     "drop": "the frame is not sent",
     "delay": "the frame is held for delay_s, then sent",
