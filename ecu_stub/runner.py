@@ -29,6 +29,7 @@ from collections.abc import Callable
 
 import can
 
+from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec, ProtocolError, RxMonitor, TxScheduler
 from dsg_hil.protocol.frame import data_frame
 from dsg_hil.protocol.lockstep import Frames, LockstepResponder, choices, frame_io
@@ -138,7 +139,7 @@ class TcuRunner:
     def _step(self, now: float, echo: int) -> Frames:
         """One controller cycle at ``now``: compute, then TCU_STATUS when due and TCU_CMD, last (in lock-step it
         completes the answer to the tick), recorded for the listeners; returns the frames, unsent."""
-        self.now = self.link.tick * self.cycle_ms / 1000 if self.lockstep else now
+        self.now = self.link.tick * self.cycle_ms / CV.S_TO_MS if self.lockstep else now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
         tx, frames = self.tx, []

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import can
 
+from ..common.units import CV
 from .codec import Codec, DecodedFrame, FrameError
 from .e2e import MAX_DELTA
 from .frame import data_frame
@@ -214,11 +215,11 @@ class TxScheduler:
     @property
     def next_due(self) -> dict[str, float]:
         """The next deadlines in seconds."""
-        return {name: due / 1000 for name, due in self.next_due_ms.items()}
+        return {name: due / CV.S_TO_MS for name, due in self.next_due_ms.items()}
 
     def due(self, now: float) -> list[str]:
-        """:meth:`due_ms` at ``now`` [s], a float time (a clock's, or a caller's) counted to the whole ns: a message
-        due at d ms is due from d ms on, to the ns (as the float d / 1000 it was once compared with, plus 1 ns)."""
+        """:meth:`due_ms` at ``now`` [s], a float time (a clock's, or a caller's, e.g. a stamp tick x cycle time a few
+        ulp off its decimal) taken to the nearest whole ns: a message due at d ms is due from d ms on."""
         return self.due_ms(to_ns(now) // NS_PER_MS)
 
     def due_ms(self, now_ms: int) -> list[str]:
