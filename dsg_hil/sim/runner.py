@@ -33,7 +33,7 @@ from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import data_frame
 from ..protocol.lockstep import LockstepMaster, PeerLost, PeerTimeout, Received
-from ..protocol.validity import NEW, NS_PER_MS
+from ..protocol.validity import NEW, NS_PER_MS, NS_PER_S
 from .scenario import DriverInput, Scenario
 from ..results.summary import RunSummary
 
@@ -251,8 +251,10 @@ class PlantRunner:
         self.summary.on_period(trace, PlantOutputs._fields, Plant.sample, creeping, fallback, desired)
 
     def _report(self, every_s: float = 10.0) -> None:
-        t = self.plant.state.t
-        if self.progress and int(t / every_s) != int((t - self.period) / every_s):
+        """A progress line when the last control period crossed a multiple of ``every_s`` (counted in steps)."""
+        k, every = self.plant.state.k, round(every_s * NS_PER_S / self.plant.dt_ns)
+        if self.progress and k // every != (k - self.steps_per_period) // every:
+            t = self.plant.state.t
             o, s, mpa = self.out, self.summary, CV.MPA_TO_PA
             self.progress(f"t={t:7.1f}/{self.scenario.duration_s:g} s  v={o.v:5.2f} m/s  T_CL={o.T_CL:6.1f}  "
                           f"T_CH={o.T_CH:6.1f} degC  P_CL={o.P_CL / mpa:4.2f}  P_CH={o.P_CH / mpa:4.2f} MPa  "
