@@ -193,3 +193,19 @@ def test_the_graph_holds_every_kind_of_import():
 def test_no_import_cycle():
     cycle = find_cycle(import_graph())
     assert cycle is None, " -> ".join(cycle or ())
+
+
+def test_every_module_declares_its_public_api():
+    """``__all__`` in every module but the packages' and the test suites': each name in it defined there."""
+    missing, unknown = [], []
+    for path, root in sources():
+        if path.name in ("__init__.py", "__main__.py", "conftest.py") or path.name.startswith("test_"):
+            continue
+        name = module_name(path, root)
+        module = importlib.import_module(name)
+        if not hasattr(module, "__all__"):
+            missing.append(name)
+        else:
+            unknown += [f"{name}.{n}" for n in module.__all__ if not hasattr(module, n)]
+    assert not missing, f"no __all__: {missing}"
+    assert not unknown, f"in __all__ but not defined: {unknown}"

@@ -52,6 +52,10 @@ from .powertrain import discretize as discretize_powertrain
 from .thermal import NODES, gearbox_network, heat_sources
 from .thermal import discretize as discretize_network
 
+__all__ = ["I_CH", "I_CL", "N_OUT", "N_S", "N_T", "PERIOD", "Plant", "PlantInputs", "PlantOutputs", "PlantState",
+           "S_F", "S_GOV", "S_K", "S_MEM", "S_P", "S_T", "S_TEMP", "S_X", "add_products", "advance_steps",
+           "outputs_of", "write_outputs"]
+
 I_CL, I_CH = NODES.index("CL"), NODES.index("CH")
 N_T = len(NODES)
 

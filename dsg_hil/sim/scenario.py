@@ -36,6 +36,8 @@ from ..common.errors import InputError
 from ..common.files import read_input_file
 from ..protocol.faults import FaultError, FaultSpec, fault_from_mapping
 
+__all__ = ["DEFAULT_SCENARIO", "DriverInput", "Scenario", "ScenarioError", "load_scenario", "parse_scenario"]
+
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[1] / "data" / "creep.toml"
 
 

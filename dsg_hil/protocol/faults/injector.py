@@ -25,6 +25,8 @@ from ..codec import raw_range, signal_range
 from ..e2e import COUNTER, CRC, Protection
 from .spec import FaultError, FaultSpec, check_against_dbc
 
+__all__ = ["FaultInjector", "FaultyBus", "bridge_step", "outside_range"]
+
 
 def outside_range(signal: Signal) -> float:
     """A value the signal's bits can carry that lies just outside its DBC range [minimum, maximum]."""
