@@ -21,7 +21,9 @@ from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import check_output_path
 from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
 
-__all__ = ["by_cause", "main"]
+__all__ = ["EXAMPLE_FAULTS", "by_cause", "main"]
+
+EXAMPLE_FAULTS = ("drop:TCU_CMD@10-12", "stuck:TCU_STATUS.T_CL_Pred@5-8,value=20")  # --help: the TCU's own frames
 
 
 def _version() -> str:
@@ -42,12 +44,12 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                     "the DBC. Answers SIM_SYNC ticks when the plant runs in lockstep, else runs on its own clock at "
                     "the TCU_CMD cycle time.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    add_bus_arguments(parser)
+    add_bus_arguments(parser, fresh_udp=False)
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
     parser.add_argument("--calibration", metavar="FILE",
                         help="TCU calibration TOML (default: ecu_stub/data/calibration.toml)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: never)")
-    add_fault_arguments(parser, "the frames the TCU sends")
+    add_fault_arguments(parser, "the frames the TCU sends", EXAMPLE_FAULTS)
     parser.add_argument("--log", metavar="FILE",
                         help="record the frames the TCU took and sent (first transmissions; lockstep: stamped "
                              "with simulated time), in python-can's format for the extension: .log (candump -L), "

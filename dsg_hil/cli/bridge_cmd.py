@@ -24,8 +24,8 @@ __all__ = ["add_subparser", "bridge"]
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "bridge", help=command_help("bridge"),
-        description="Forward every frame from the --from bus to the --to bus through the faults given (times: "
-                    "seconds since the bridge started), and every frame from --to back to --from unchanged. "
+        description="Forward every frame from the --from bus to the --to bus through the faults given, and every "
+                    "frame from --to back to --from unchanged. "
                     "For a node whose software cannot be changed: put it alone on --from (e.g. a real ECU on "
                     "can0) and the plant on --to (e.g. vcan0, dsg-hil plant in real time).")
     for end in ("from", "to"):
@@ -36,7 +36,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
     parser.add_argument("--duration", type=positive_number, metavar="S", help="stop after S seconds (default: "
                         "never; Ctrl-C)")
-    add_fault_arguments(parser, "the frames going from --from to --to (side is not used: every fault applies)")
+    add_fault_arguments(parser, "the frames going from --from to --to (side is not used: every fault applies)",
+                        times="seconds since the bridge started (the wall clock: the bridge sees no lockstep)")
     parser.set_defaults(func=_do_bridge)
 
 

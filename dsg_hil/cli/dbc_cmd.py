@@ -16,7 +16,7 @@ LOAD_LIMIT = 0.30
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("dbc", help=command_help("dbc"),
                             description="List every message of the DBC with its ID, sender, cycle time and "
-                                        "worst-case bus load (bit stuffing included). Exit 3 above 30 %%.")
+                                        f"worst-case bus load (bit stuffing included). Exit 3 above {LOAD_LIMIT:.0%}.")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the shipped dbc/dsg_hil.dbc)")
     parser.add_argument("--bitrate", type=positive_number, default=500_000.0, help="bit/s (default 500000)")
     parser.set_defaults(func=_do_dbc)

@@ -43,15 +43,17 @@ LOG_CHANNEL = "vcan0"  # the channel name written to logs of runs that are not o
 _FROM_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
 
 
-def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
-    """python-can's bus options and ``--config-context``: the one definition for dsg-hil and ecu-stub."""
+def add_bus_arguments(parser: argparse.ArgumentParser, fresh_udp: bool = True) -> None:
+    """python-can's bus options and ``--config-context``: the one definition for dsg-hil and ecu-stub
+    (``fresh_udp`` as in :func:`bus_config`: True for the plant, False for the TCU)."""
     can.cli.add_bus_arguments(parser)
+    udp = (f"-i {UDP_MULTICAST} without -c: the plant picks a multicast group and port for this run and prints "
+           "the options that reach it" if fresh_udp else
+           f"-i {UDP_MULTICAST} needs the plant's group and port: the options 'dsg-hil plant' prints")
     parser.add_argument(
         "--config-context", metavar="SECTION",
         help="section of the python-can config file. With no interface from the flags, can.rc, CAN_INTERFACE "
-             "or the config file: socketcan on vcan0 where it exists, else virtual (one process only). "
-             f"-i {UDP_MULTICAST} without -c: the plant picks a multicast group and port for this run and "
-             "prints the options that reach it")
+             "or the config file: socketcan on vcan0 where it exists, else virtual (one process only). " + udp)
 
 
 def bus_config(args: argparse.Namespace, fresh_udp: bool = False) -> dict[str, Any]:

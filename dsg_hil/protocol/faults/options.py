@@ -18,12 +18,15 @@ if TYPE_CHECKING:
 __all__ = ["add_fault_arguments", "fault_counts", "faults_from_args", "with_faults"]
 
 
-def add_fault_arguments(parser: argparse.ArgumentParser, whose: str) -> None:
+def add_fault_arguments(parser: argparse.ArgumentParser, whose: str,
+                        examples: tuple[str, ...] = ("drop:TCU_CMD@10-12",
+                                                     "stuck:PLANT_VEHICLE.VehicleSpeed@5-8,value=0"),
+                        times: str = "the sender's seconds (simulated in lockstep)") -> None:
+    """``--fault`` and ``--fault-seed``; ``examples``: faults the command accepts, ``times``: its fault clock."""
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help=f"inject a fault into {whose}, repeatable: KIND[:MESSAGE[.Signal]][@START-[END]]"
-                             "[,key=value ...], e.g. 'drop:TCU_CMD@10-12' or 'stuck:PLANT_VEHICLE.VehicleSpeed@5-8,"
-                             "value=0' (kinds and keys: README, 'Fault injection'); times in the sender's seconds "
-                             "(simulated in lockstep)")
+                             f"[,key=value ...], e.g. {' or '.join(repr(e) for e in examples)} (kinds and keys: "
+                             f"README, 'Fault injection'); times in {times}")
     parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
                         help="seed of the draws of faults with probability < 1 (default 0)")
 
