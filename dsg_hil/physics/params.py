@@ -326,7 +326,7 @@ def load_params(path: str | Path | None = None) -> Params:
     return parse_params(text, str(path), base=shipped)
 
 
-def with_overrides(params: Params, overrides: Mapping[str, float | str], origin: str = "override") -> Params:
+def with_overrides(params: Params, overrides: Mapping[str, float | str], origin: str = "params") -> Params:
     """``params`` with values replaced by dotted key (``{"vehicle.m": 9000.0}``), each in the key's unit as
     ``dsg-hil params`` lists it. A string value is a number, optionally with that unit: ``"9000"``,
     ``"9000 kg"`` or ``"9000[kg]"`` (no conversion: another unit is an error). Each value is checked as in the
@@ -374,7 +374,7 @@ def _leaf(params: Params, key: str, origin: str) -> tuple[Mapping[str, Any], flo
         obj = getattr(obj, part, None) if part != "provenance" else None
     declared = {f.name: f for f in fields(obj)} if is_dataclass(obj) else {}
     if name not in declared or "unit" not in declared[name].metadata:
-        raise ParameterError(f"{origin} {key}: no such parameter (see 'dsg-hil params' for the keys)")
+        raise ParameterError(f"{origin}: no parameter {key!r} (see 'dsg-hil params' for the keys)")
     return declared[name].metadata, getattr(obj, name)
 
 

@@ -129,7 +129,7 @@ def test_overrides_are_checked_and_tagged(params):
     assert params.vehicle.m == 7840.0 and params.provenance["vehicle.m"][0] == "paper"  # the original unchanged
     for overrides, words in [({"vehicle.m": 0.0}, "out of range"), ({"vehicle.m": float("inf")}, "finite"),
                              ({"vehicle.m": True}, "finite"), ({"clutch.CL.N": 6.5}, "whole number"),
-                             ({"vehicle.m": "9 t"}, "unit must be 'kg'"), ({"vehicle.x": 1.0}, "no such parameter"),
-                             ({"clutch.CL": 1.0}, "no such parameter"), ({"engine.omega_rated": 50.0}, "omega_idle")]:
+                             ({"vehicle.m": "9 t"}, "unit must be 'kg'"), ({"vehicle.x": 1.0}, "no parameter"),
+                             ({"clutch.CL": 1.0}, "no parameter"), ({"engine.omega_rated": 50.0}, "omega_idle")]:
         with pytest.raises(ParameterError, match=words):
             with_overrides(params, overrides, "test")
