@@ -16,7 +16,7 @@ from ..common.files import check_output_path
 from ..protocol.bus import LOG_CHANNEL, add_bus_arguments, bus_config
 from ..protocol.faults import add_fault_arguments, faults_from_args
 from ..sim.scenario import load_scenario
-from .common import positive_number, progress
+from .common import params_from, positive_number, progress
 
 if TYPE_CHECKING:
     from ..sim.run import RunConfig
@@ -55,16 +55,18 @@ def setup_logging(verbose: bool) -> None:
 
 def run_config(args: argparse.Namespace, **fields: Any) -> RunConfig:
     """The run the options describe (``fields`` set the rest, e.g. ``tcu``): output paths checked first, the
-    scenario loaded with the options' faults after its own, the bus resolved (a fresh group for udp_multicast)."""
+    parameters loaded (``--params``, ``--set``), the scenario loaded with the options' faults after its own, the
+    bus resolved (a fresh group for udp_multicast)."""
     from ..sim.run import RunConfig  # noqa: PLC0415 - the plant (numpy ...) when a run starts
 
     setup_logging(args.verbose)
     for option in ("log", "summary"):
         check_output_path(f"--{option}", getattr(args, option, None))
+    params = params_from(args)
     scenario = load_scenario(args.scenario)
     if args.duration is not None:
         scenario = scenario.with_duration(args.duration)
-    return RunConfig(scenario=scenario, params=args.params, dbc=args.dbc, mode=args.mode,
+    return RunConfig(scenario=scenario, params=params, dbc=args.dbc, mode=args.mode,
                      bus=bus_config(args, fresh_udp=True), faults=[*scenario.faults, *faults_from_args(args)],
                      fault_seed=getattr(args, "fault_seed", 0), log=args.log, summary=getattr(args, "summary", None),
                      reply_timeout=args.reply_timeout, startup_timeout=args.startup_timeout, progress=progress,

@@ -36,13 +36,26 @@ def non_negative_int(text: str) -> int:
 
 def add_params_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--params", metavar="FILE",
-                        help="parameter file (TOML; default: the one shipped with dsg-hil, see 'dsg-hil params')")
+                        help="parameter file (TOML) layered on the one shipped with dsg-hil: it may give only the "
+                             "keys it changes (see 'dsg-hil params')")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one parameter after --params, by its dotted key as 'dsg-hil params' lists "
+                             "it, in the unit listed there (optionally stated: vehicle.m=9000 or "
+                             "'vehicle.m=9000 kg'; no conversion); repeatable")
 
 
 def params_from(args: argparse.Namespace) -> Params:
-    from ..physics.params import load_params  # noqa: PLC0415 - when a command runs, not for its --help
+    """The parameters the options give: the shipped file, ``--params`` layered on it, then each ``--set``."""
+    from ..physics.params import ParameterError, load_params, with_overrides  # noqa: PLC0415 - not for --help
 
-    return load_params(args.params)
+    params = load_params(args.params)
+    overrides: dict[str, str] = {}
+    for assignment in getattr(args, "set", None) or ():
+        key, equals, value = assignment.partition("=")
+        if not equals or not key.strip():
+            raise ParameterError(f"--set: expected KEY=VALUE (e.g. vehicle.m=9000), got {assignment!r}")
+        overrides[key.strip()] = value
+    return with_overrides(params, overrides, origin="--set") if overrides else params
 
 
 def progress(message: str) -> None:

@@ -44,6 +44,6 @@ def _do_params(args: argparse.Namespace) -> int:
             continue
         value, unit = _value_and_unit(params, key)
         print(f"{key:<34} {value:>12.6g} {unit:<9} {source:<10} {reason}")
-    print(f"# {len(params.provenance)} values: "
-          + ", ".join(f"{counts[s]} {s}" for s in ("paper", "assumed", "calibrated")))
+    sources = ("paper", "assumed", "calibrated", *(("override",) if counts["override"] else ()))
+    print(f"# {len(params.provenance)} values: " + ", ".join(f"{counts[s]} {s}" for s in sources))
     return 0

@@ -1,4 +1,5 @@
-"""Model parameters: frozen dataclasses loaded from one TOML file.
+"""Model parameters: frozen dataclasses loaded from the shipped TOML file, a user's file layered on it (a partial
+file gives only the keys it changes), and overrides by dotted key (``dsg-hil --set vehicle.m=9000``).
 
 Every value in the file is an inline table ``{ value = ..., unit = "...", source = "...", <reason> = "..." }``:
 
@@ -12,6 +13,7 @@ Anything missing, unknown, mistyped, out of range or in the wrong unit raises :c
 
 from __future__ import annotations
 
+import re
 import tomllib
 from collections.abc import Mapping
 import dataclasses
@@ -239,14 +241,28 @@ class Params:
 
 def _entry(key: str, raw: Any, meta: Mapping[str, Any], provenance: dict) -> float:
     value, source, reason = quantity(key, raw, meta["unit"], SOURCES, ParameterError)
+    provenance[key] = (source, reason)
+    return _checked(key, value, meta)
+
+
+def _checked(key: str, value: Any, meta: Mapping[str, Any]) -> float:
+    """``value`` as a float: finite, within the field's declared range, whole where a count."""
     number = finite(key, value, ParameterError, meta["lo"], meta["hi"], meta["lo_open"])
     if meta.get("whole") and number != int(number):
         raise ParameterError(f"{key}: must be a whole number (a count), got {value!r}")
-    provenance[key] = (source, reason)
     return number
 
 
-def _build(cls: type, table: Any, prefix: str, provenance: dict) -> Any:
+def _table_type(f: dataclasses.Field) -> type | None:
+    """The parameter dataclass a field holds (a sub-table), else None."""
+    sub = f.type if isinstance(f.type, type) else globals().get(str(f.type))
+    return sub if sub is not None and is_dataclass(sub) else None
+
+
+def _build(cls: type, table: Any, prefix: str, provenance: dict, base: Any = None,
+           base_provenance: Mapping[str, tuple[str, str]] | None = None) -> Any:
+    """``cls`` from ``table``; a key the table leaves out is taken from ``base`` (with its provenance) if given,
+    else it is missing."""
     if not isinstance(table, dict):
         raise ParameterError(f"{prefix or 'file'}: expected a table, got {table!r}")
     own = [f for f in fields(cls) if f.name != "provenance"]
@@ -256,11 +272,16 @@ def _build(cls: type, table: Any, prefix: str, provenance: dict) -> Any:
     values = {}
     for f in own:
         key = f"{prefix}.{f.name}" if prefix else f.name
-        if f.name not in table:
+        sub = _table_type(f)
+        if f.name not in table and base is not None:
+            values[f.name] = getattr(base, f.name)
+            assert base_provenance is not None
+            provenance.update((k, v) for k, v in base_provenance.items() if k == key or k.startswith(key + "."))
+        elif f.name not in table:
             raise ParameterError(f"{key}: missing")
-        sub = f.type if isinstance(f.type, type) else globals().get(str(f.type))
-        if sub is not None and is_dataclass(sub):
-            values[f.name] = _build(sub, table[f.name], key, provenance)
+        elif sub is not None:
+            values[f.name] = _build(sub, table[f.name], key, provenance,
+                                    None if base is None else getattr(base, f.name), base_provenance)
         else:
             values[f.name] = _entry(key, table[f.name], f.metadata, provenance)
     return cls(**values)
@@ -280,37 +301,100 @@ def _check_consistency(params: Params) -> None:
         raise ParameterError("engine.omega_rated: must be above omega_idle")
 
 
-def parse_params(text: str, origin: str = "<string>") -> Params:
-    """Parse parameter TOML text into :class:`Params` (raises :class:`ParameterError`)."""
+def parse_params(text: str, origin: str = "<string>", base: Params | None = None) -> Params:
+    """Parse parameter TOML text into :class:`Params` (raises :class:`ParameterError`). Without ``base`` the
+    text must give every key; with it, the keys the text leaves out keep ``base``'s values and provenance."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{origin}: not valid TOML: {exc}") from None
     data.pop("meta", None)
     provenance: dict[str, tuple[str, str]] = {}
-    params = _build(Params, data, "", provenance)
+    params = _build(Params, data, "", provenance, base, None if base is None else base.provenance)
     _check_consistency(params)
-    return Params(**{f.name: getattr(params, f.name) for f in fields(Params) if f.name != "provenance"},
-                  provenance=provenance)
+    return _with_provenance(params, {key: provenance[key] for key in _leaf_keys(Params)})
 
 
 def load_params(path: str | Path | None = None) -> Params:
-    """Load a parameter file (default: the one shipped with the package)."""
-    path = Path(path) if path is not None else DEFAULT_PARAMS_PATH
-    text = read_input_file(path, "parameter file", ParameterError)
-    return parse_params(text, str(path))
+    """Load a parameter file layered on the shipped one (``path`` None: the shipped one alone, every key given):
+    the keys it gives replace the shipped values, each checked and tagged as in the shipped file."""
+    shipped = parse_params(read_input_file(DEFAULT_PARAMS_PATH, "parameter file", ParameterError),
+                           str(DEFAULT_PARAMS_PATH))
+    if path is None:
+        return shipped
+    text = read_input_file(Path(path), "parameter file", ParameterError)
+    return parse_params(text, str(path), base=shipped)
 
 
-def with_overrides(params: Params, overrides: Mapping[str, float]) -> Params:
-    """``params`` with values replaced by dotted key (``{"vehicle.m": 1900.0}``, SI as ``dsg-hil params`` lists
-    them); an unknown key is a :class:`ParameterError` naming it."""
-    for key, value in overrides.items():
-        params = _replace_dotted(params, key.split("."), value, key)
-    return params
+def with_overrides(params: Params, overrides: Mapping[str, float | str], origin: str = "params") -> Params:
+    """``params`` with values replaced by dotted key (``{"vehicle.m": 9000.0}``), each in the key's unit as
+    ``dsg-hil params`` lists it. A string value is a number, optionally with that unit: ``"9000"``,
+    ``"9000 kg"`` or ``"9000[kg]"`` (no conversion: another unit is an error). Each value is checked as in the
+    file (finite, in range, whole where a count), then the consistency checks re-run; the provenance of an
+    overridden key becomes ``("override", "<origin> <key>=<value> (was <old value>, <old source>)")``.
+    Errors name ``origin`` and the key (:class:`ParameterError`)."""
+    provenance = dict(params.provenance)
+    for key, raw in overrides.items():
+        meta, old = _leaf(params, key, origin)
+        number = _override_value(f"{origin} {key}", raw, meta)
+        old_source = provenance.get(key, ("", ""))[0]
+        provenance[key] = ("override", f"{origin} {key}={number:g} (was {old:g}, {old_source})")
+        params = _replace_dotted(params, key.split("."), number)
+    try:
+        _check_consistency(params)
+    except ParameterError as exc:
+        raise ParameterError(f"{origin}: {exc}") from exc
+    return _with_provenance(params, provenance)
 
 
-def _replace_dotted(obj: Any, path: list[str], value: float, key: str) -> Any:
-    if not is_dataclass(obj) or isinstance(obj, type) or not hasattr(obj, path[0]):
-        raise ParameterError(f"params: no parameter {key!r} (see 'dsg-hil params' for the keys)")
-    inner = value if len(path) == 1 else _replace_dotted(getattr(obj, path[0]), path[1:], value, key)
+_OVERRIDE = re.compile(r"\s*([^\s\[\]]+)\s*(?:\[([^\]]*)\]|(\S+))?\s*")
+
+
+def _override_value(name: str, raw: float | str, meta: Mapping[str, Any]) -> float:
+    """One override value checked as :func:`_entry` checks a file's (``raw``: a number, or its text)."""
+    if isinstance(raw, str):
+        match = _OVERRIDE.fullmatch(raw)
+        if match is None:
+            raise ParameterError(f"{name}: expected a number and optionally its unit {meta['unit']!r}, got {raw!r}")
+        number, unit = match.group(1), match.group(2) if match.group(2) is not None else match.group(3)
+        if unit is not None and unit.strip() != meta["unit"]:
+            raise ParameterError(f"{name}: unit must be {meta['unit']!r} (no conversion), got {unit.strip()!r}")
+        try:
+            raw = float(number)
+        except ValueError:
+            raise ParameterError(f"{name}: value must be a finite number, got {number!r}") from None
+    return _checked(name, raw, meta)
+
+
+def _leaf(params: Params, key: str, origin: str) -> tuple[Mapping[str, Any], float]:
+    """The field metadata and the value of the parameter at the dotted ``key``."""
+    obj: Any = params
+    *path, name = key.split(".")
+    for part in path:
+        obj = getattr(obj, part, None) if part != "provenance" else None
+    declared = {f.name: f for f in fields(obj)} if is_dataclass(obj) else {}
+    if name not in declared or "unit" not in declared[name].metadata:
+        raise ParameterError(f"{origin}: no parameter {key!r} (see 'dsg-hil params' for the keys)")
+    return declared[name].metadata, getattr(obj, name)
+
+
+def _replace_dotted(obj: Any, path: list[str], value: float) -> Any:
+    inner = value if len(path) == 1 else _replace_dotted(getattr(obj, path[0]), path[1:], value)
     return dataclasses.replace(obj, **{path[0]: inner})
+
+
+def _leaf_keys(cls: type, prefix: str = "") -> list[str]:
+    """Every dotted parameter key of ``cls``, in declaration order."""
+    keys = []
+    for f in fields(cls):
+        key = f"{prefix}.{f.name}" if prefix else f.name
+        sub = _table_type(f)
+        if sub is not None:
+            keys += _leaf_keys(sub, key)
+        elif "unit" in f.metadata:
+            keys.append(key)
+    return keys
+
+
+def _with_provenance(params: Params, provenance: Mapping[str, tuple[str, str]]) -> Params:
+    return dataclasses.replace(params, provenance=dict(provenance))

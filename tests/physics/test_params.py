@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from dsg_hil.physics.params import DEFAULT_PARAMS_PATH, ParameterError, load_params, parse_params
+from dsg_hil.physics.params import DEFAULT_PARAMS_PATH, ParameterError, load_params, parse_params, with_overrides
 
 # Table I of the paper (SI), copied here independently of the parameter file.
 TABLE_I = {
@@ -57,7 +57,7 @@ def mutate(pattern: str, repl: str) -> str:
 
 
 @pytest.mark.parametrize("text, key, words", [
-    (mutate(r"^K_a1 = .*\n", ""), "powertrain.K_a1", "missing"),
+    (mutate(r"^K_a1 = .*\n", ""), "powertrain.K_a1", "missing"),  # the shipped file must give every key
     (mutate(r"^\[powertrain\]\n",
             "[powertrain]\nK_a9 = { value = 1.0, unit = \"1\", source = \"assumed\", why = \"xxxxxxxxxxx\" }\n"),
      "powertrain.K_a9", "unknown key"),
@@ -84,3 +84,52 @@ def test_garbled_and_missing_files(tmp_path):
         load_params(bad)
     with pytest.raises(ParameterError, match="cannot read"):
         load_params(tmp_path / "absent.toml")
+
+
+def test_a_complete_file_loads_as_the_shipped_one(tmp_path):
+    copy = tmp_path / "full.toml"
+    copy.write_text(BASE, encoding="utf-8")
+    shipped, loaded = load_params(), load_params(copy)
+    assert loaded == shipped and dict(loaded.provenance) == dict(shipped.provenance)
+
+
+def test_a_partial_file_is_layered_on_the_shipped_one(tmp_path):
+    partial = tmp_path / "partial.toml"
+    partial.write_text('[meta]\nnote = "heavier"\n[vehicle]\nm = { value = 9000.0, unit = "kg", source = '
+                       '"assumed", why = "a loaded bus" }\n[clutch.CL]\nN = { value = 8, unit = "1", source = '
+                       '"assumed", why = "one more plate" }\n', encoding="utf-8")
+    shipped, params = load_params(), load_params(partial)
+    assert params.vehicle.m == 9000.0 and params.clutch.CL.N == 8.0
+    assert params.provenance["vehicle.m"] == ("assumed", "a loaded bus")
+    assert params.vehicle.f == shipped.vehicle.f and params.clutch.CL.R_o == shipped.clutch.CL.R_o
+    assert params.friction == shipped.friction
+    assert params.provenance["vehicle.f"] == shipped.provenance["vehicle.f"]
+    assert list(params.provenance) == list(shipped.provenance)  # every key, in the shipped order
+
+
+@pytest.mark.parametrize("text, words", [
+    ('[vehicle]\nmass = { value = 1.0, unit = "kg", source = "assumed", why = "xxxxx" }\n', "vehicle.mass: unknown"),
+    ('[vehicle]\nm = { value = 9000.0, unit = "kg" }\n', "vehicle.m: source"),
+    ('[vehicle]\nm = { value = 9000.0, unit = "t", source = "assumed", why = "xxxxx" }\n', "vehicle.m: unit"),
+    ('[clutch.test]\nR_i = { value = 0.2, unit = "m", source = "assumed", why = "xxxxx" }\n', "R_o"),
+    ("vehicle = 3\n", "vehicle: expected a table"),
+])
+def test_a_partial_file_is_checked_key_by_key(tmp_path, text, words):
+    partial = tmp_path / "partial.toml"
+    partial.write_text(text, encoding="utf-8")
+    with pytest.raises(ParameterError, match=re.escape(words)):
+        load_params(partial)
+
+
+def test_overrides_are_checked_and_tagged(params):
+    heavy = with_overrides(params, {"vehicle.m": 9000, "clutch.CL.N": "8 1", "engine.M_max": "300[N*m]"}, "test")
+    assert (heavy.vehicle.m, heavy.clutch.CL.N, heavy.engine.M_max) == (9000.0, 8.0, 300.0)
+    assert heavy.provenance["vehicle.m"] == ("override", "test vehicle.m=9000 (was 7840, paper)")
+    assert heavy.provenance["vehicle.f"] == params.provenance["vehicle.f"]
+    assert params.vehicle.m == 7840.0 and params.provenance["vehicle.m"][0] == "paper"  # the original unchanged
+    for overrides, words in [({"vehicle.m": 0.0}, "out of range"), ({"vehicle.m": float("inf")}, "finite"),
+                             ({"vehicle.m": True}, "finite"), ({"clutch.CL.N": 6.5}, "whole number"),
+                             ({"vehicle.m": "9 t"}, "unit must be 'kg'"), ({"vehicle.x": 1.0}, "no parameter"),
+                             ({"clutch.CL": 1.0}, "no parameter"), ({"engine.omega_rated": 50.0}, "omega_idle")]:
+        with pytest.raises(ParameterError, match=words):
+            with_overrides(params, overrides, "test")
