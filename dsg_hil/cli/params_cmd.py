@@ -21,7 +21,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         "params", help=command_help("params"),
         description="Load and check a parameter file, then list every value with its source: 'paper' (with the "
                     "place in the paper), 'assumed' (with the reasoning) or 'calibrated' (with the target).")
-    parser.add_argument("--source", choices=("paper", "assumed", "calibrated"), help="list only this source")
+    parser.add_argument("--source", choices=("paper", "assumed", "calibrated", "override"),
+                        help="list only this source (override: the values --set changed)")
     add_params_option(parser)
     parser.set_defaults(func=_do_params)
 
