@@ -37,6 +37,7 @@ import numpy as np
 from cantools.database.can import Database
 
 from ..common.errors import InputError, RunError
+from ..common.files import check_output_path
 from ..physics.params import Params, load_params, with_overrides
 from ..physics.plant import PlantOutputs
 from ..protocol import Codec, load_dbc
@@ -191,7 +192,6 @@ class Run:
         self.frames: list[can.Message] = []
         self._truth: list[tuple[float, PlantOutputs]] = []
         self.tcu: Any = None
-        self._result: Summary | None = None
         specs = [parse_fault(f) if isinstance(f, str) else f
                  for f in (self.scenario.faults if config.faults is None else config.faults)]
         self.faults_by_side = check_faults(specs, self.db)
@@ -217,8 +217,6 @@ class Run:
 
     # ---- set-up ----------------------------------------------------------------------------------------------
     def _check_paths(self) -> None:
-        from ..common.files import check_output_path  # noqa: PLC0415
-
         for option, path in (("log", self.config.log), ("summary", self.config.summary),
                              ("tcu_output", self.config.tcu_output)):
             check_output_path(option, None if path is None else str(path))
@@ -387,7 +385,7 @@ class Run:
         runner = self.runner
         data = runner.summary.as_json(runner.frames(), self.scenario.name, self.config.mode, self.interface,
                                       self.scenario.duration_s)
-        self._result = Summary(
+        summary = Summary(
             scenario=data.pop("scenario"), mode=data.pop("mode"), interface=data.pop("interface"),
             duration_s=data.pop("duration_s"), command_fallback=data.pop("command_fallback"),
             frames=data.pop("frames"), realtime_factor=data.pop("realtime_factor"),
@@ -396,8 +394,8 @@ class Run:
         if self.config.summary is not None:
             path = Path(self.config.summary)
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps(self._result.as_json(), indent=2) + "\n", encoding="utf-8")
-        return self._result
+            path.write_text(json.dumps(summary.as_json(), indent=2) + "\n", encoding="utf-8")
+        return summary
 
     def truth(self) -> dict[str, np.ndarray]:
         """The plant each control period at the tick's time (``RunConfig.truth``): ``t`` [s] and each field of
