@@ -1,18 +1,36 @@
 """Closed-loop speed, side by side in one run: the lock-step closed loop (plant + ecu-stub TCU) in one process as
 it runs now (generated codec, direct in-process bus) and as it ran before (cantools codec, python-can ``virtual``);
-where a control period goes (the plant's physics against everything around it); the plant alone; plant and TCU as
-two processes on udp_multicast; the start-up of every command; the peak memory of the commands' processes.
+where a control period goes (the plant's physics, the plant's frame I/O and bookkeeping, the run's results, the
+TCU); the plant alone; plant and TCU as two processes on udp_multicast; the start-up of every command; the peak
+memory of the commands' processes and of one process running the loop (a sweep worker's).
 
     python bench/closed_loop_speed.py [--seconds 60] [--udp-seconds 20] [--json] [--baseline-tree DIR] [--rounds 3]
+                                      [--same-cpu CPU] [--no-startup] [--loop-only]
+
+``--loop-only`` (with ``--baseline-tree``): only the one-process closed loop of the two trees side by side (real-time
+factor, the period's split, runs per core-hour, peak RSS), e.g. the default 240-s creep on a loaded machine::
+
+    python bench/closed_loop_speed.py --loop-only --baseline-tree ../main --same-cpu 1 --seconds 240
 
 The one-process loops run as fresh processes (as a user's ``dsg-hil run``), now and before alternating,
 ``--rounds`` times each, the best of each kept (a busy machine only ever slows a run down; every round's figure is
 in ``rounds``); so are the two-process runs. ``--baseline-tree``: also time the one-process closed loop, the
 two-process run and the start-ups with the package of another checkout (e.g. the main one before these changes),
 through PYTHONPATH; ``closed_loop_vs_baseline_tree`` compares them in simulated seconds per CPU second of the
-process (less disturbed by other load than wall time), ``..._wall`` in wall time. Figures are simulated seconds
+process (less disturbed by other load than wall time), ``..._wall`` in wall time; ``--same-cpu CPU``: the two
+trees' loops each round at once, pinned to that CPU, sharing its conditions (on a loaded machine, where one run
+after another sees another load, the fairer comparison). Figures are simulated seconds
 per wall second unless named per CPU second; memory is the peak resident set of the largest process of a command
 (``peak_rss_mb``; the bench's own process, which also holds cantools' reference path, apart).
+
+A period's split (``split_cpu_us``, CPU time): ``physics`` inside the plant's ``advance``, ``tcu`` inside the
+in-process TCU's ``pump`` (its frame handling, receive checks, controller and answer), ``results`` inside the run
+summary's ``on_period``/``on_status``, ``plant_io`` the rest (the plant's frames: values, encoding, sending, the
+lock-step wait and receive checks, its inputs; the timers' own cost, under 1 us, included). ``runs_per_core_hour``:
+runs of the default creep (240 s) per CPU hour, the loop alone and with each run's set-up in a warm process
+(``..._with_setup``: building the plant, the TCU and the bus, as a sweep worker does per run; the process's own
+start-up, imports and compiled code, it pays once). ``loop_peak_rss_mb``: the peak resident set of the
+process that ran the loop.
 """
 
 from __future__ import annotations
@@ -27,55 +45,95 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
-from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.physics.params import load_params
 from dsg_hil.physics.plant import Plant, PlantInputs
+from dsg_hil.results.summary import RunSummary
+from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.sim.scenario import load_scenario
+from ecu_stub.runner import TcuRunner
 
 COMMANDS = ("run", "plant", "bridge", "dbc", "vcan", "validate", "calibrate", "params", "report")
 STARTUP_REPEATS = 3
+CREEP_S = 240.0  # the default creep's duration (runs per core-hour)
+
+
+def _timed(cls: type, name: str, inside: list[float]) -> Callable[[], None]:
+    """Wrap ``cls.name`` to add the wall and CPU time spent inside it to ``inside`` ([wall, CPU]); returns the
+    undo."""
+    inner = getattr(cls, name)
+
+    def timed(*args, **kwargs):
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            inside[0] += time.perf_counter() - t0
+            inside[1] += time.process_time() - c0
+
+    setattr(cls, name, timed)
+    return lambda: setattr(cls, name, inner)
 
 
 def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
     """One in-process lock-step run: sim s per wall s (and per CPU s of this process, less disturbed by other
-    load on the machine), and the time inside the plant's advance (a control period's steps in one call)
-    against the rest of each period."""
+    load on the machine); the time inside the plant's advance (a control period's steps in one call) against the
+    rest of each period; a period's CPU time split: physics, the TCU (its pump), the results (the run summary's
+    updates) and the plant's I/O (the rest)."""
     scenario = load_scenario().with_duration(seconds)
-    inside = [0.0, 0.0]  # wall, CPU
-    advance = Plant.advance
-
-    def timed_advance(plant: Plant, inputs: PlantInputs, n_steps: int, trace=None):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = advance(plant, inputs, n_steps, trace)
-        inside[0] += time.perf_counter() - t0
-        inside[1] += time.process_time() - c0
-        return out
-
-    Plant.advance = timed_advance  # type: ignore[assignment]
+    physics, tcu, results = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]  # wall, CPU
+    undo = [_timed(Plant, "advance", physics), _timed(TcuRunner, "pump", tcu),
+            _timed(RunSummary, "on_period", results), _timed(RunSummary, "on_status", results)]
     try:
         t0, c0 = time.perf_counter(), time.process_time()
         result = run_closed_loop(scenario, transport=transport, reference_codec=reference)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
-        Plant.advance = advance
+        for restore in undo:
+            restore()
     periods, run = result.runner.n_periods, result.summary["wall_time_s"]  # run: the periods, without set-up
+    loop_cpu = cpu * run / wall if wall > 0 else cpu  # the periods' CPU time (set-up taken out in proportion)
+    us = 1e6 / periods
+    split = {"physics": physics[1], "plant_io": loop_cpu - physics[1] - tcu[1] - results[1], "results": results[1],
+             "tcu": tcu[1]}
     return {"sim_s_per_wall_s": round(seconds / wall, 2), "sim_s_per_cpu_s": round(seconds / cpu, 2),
-            "wall_s": round(wall, 3), "setup_s": round(wall - run, 3),
-            "period_us": round(1e6 * run / periods, 1), "physics_us_per_period": round(1e6 * inside[0] / periods, 1),
-            "rest_us_per_period": round(1e6 * (run - inside[0]) / periods, 1),
-            "rest_cpu_us_per_period": round(1e6 * (cpu - inside[1]) / periods, 1),
-            "frames_sent": result.summary["frames"]["sent"]}
+            "loop_sim_s_per_cpu_s": round(seconds / loop_cpu, 2), "wall_s": round(wall, 3),
+            "setup_s": round(wall - run, 3), "period_us": round(us * run, 1),
+            "physics_us_per_period": round(us * physics[0], 1), "rest_us_per_period": round(us * (run - physics[0]), 1),
+            "rest_cpu_us_per_period": round(us * (cpu - physics[1]), 1),
+            "period_cpu_us": round(us * loop_cpu, 1), "split_cpu_us": {k: round(us * v, 1) for k, v in split.items()},
+            "runs_per_core_hour": round(3600.0 * seconds / loop_cpu / CREEP_S),
+            "runs_per_core_hour_with_setup": round(3600.0 / (CREEP_S * loop_cpu / seconds + cpu - loop_cpu)),
+            "frames_sent": result.summary["frames"]["sent"],
+            "loop_peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
+
+
+def closed_loop_argv(seconds: float, transport: str = "local", reference: bool = False) -> list[str]:
+    """The command line of :func:`closed_loop` in a fresh process (this script, ``--closed-loop-only``)."""
+    return [sys.executable, str(Path(__file__).resolve()), "--closed-loop-only", "--seconds", str(seconds),
+            "--transport", transport] + (["--reference-codec"] if reference else [])
 
 
 def closed_loop_in(tree: str | None, seconds: float, transport: str = "local", reference: bool = False) -> dict:
     """:func:`closed_loop` in a fresh process on ``tree``'s package (None: this one's)."""
-    argv = [sys.executable, str(Path(__file__).resolve()), "--closed-loop-only", "--seconds", str(seconds),
-            "--transport", transport] + (["--reference-codec"] if reference else [])
-    proc = subprocess.run(argv, capture_output=True, text=True, check=True, env=env_for(tree), cwd=NEUTRAL_CWD,
-                          timeout=60 * seconds + 120)
+    proc = subprocess.run(closed_loop_argv(seconds, transport, reference), capture_output=True, text=True,
+                          check=True, env=env_for(tree), cwd=NEUTRAL_CWD, timeout=60 * seconds + 120)
     return json.loads(proc.stdout)
+
+
+def closed_loops_on_one_cpu(trees: list[str | None], seconds: float, cpu: int) -> list[dict]:
+    """:func:`closed_loop` on each tree's package, in fresh processes started together and pinned to ``cpu``: they
+    share its conditions time slice by time slice (on a loaded machine, where runs one after the other see
+    different loads, the fairer comparison)."""
+    procs = [subprocess.Popen(closed_loop_argv(seconds), stdout=subprocess.PIPE, text=True, env=env_for(tree),
+                              cwd=NEUTRAL_CWD, preexec_fn=lambda: os.sched_setaffinity(0, {cpu}))
+             for tree in trees]
+    outs = [proc.communicate(timeout=120 * seconds + 240)[0] for proc in procs]
+    if any(proc.returncode for proc in procs):
+        raise RuntimeError(f"a closed loop on CPU {cpu} failed")
+    return [json.loads(out) for out in outs]
 
 
 def best_of(runs: list[dict], key: str) -> dict:
@@ -96,10 +154,16 @@ def side_by_side(configs: dict[str, tuple[str | None, str, bool]], seconds: floa
     return {name: best_of(r, key) for name, r in runs.items()}
 
 
-def tree_vs_tree(tree: str, seconds: float, rounds: int) -> dict:
-    """The one-process closed loop on this package and on ``tree``'s, compared per CPU second of the process."""
-    best = side_by_side({"this": (None, "local", False), "baseline": (tree, "local", False)}, seconds, rounds,
-                        "sim_s_per_cpu_s")
+def tree_vs_tree(tree: str, seconds: float, rounds: int, cpu: int | None = None) -> dict:
+    """The one-process closed loop on this package and on ``tree``'s, compared per CPU second of the process; with
+    ``cpu``, both at once on that CPU each round (:func:`closed_loops_on_one_cpu`)."""
+    if cpu is None:
+        best = side_by_side({"this": (None, "local", False), "baseline": (tree, "local", False)}, seconds, rounds,
+                            "sim_s_per_cpu_s")
+    else:
+        pairs = [closed_loops_on_one_cpu([None, tree], seconds, cpu) for _ in range(rounds)]
+        best = {name: best_of([pair[i] for pair in pairs], "sim_s_per_cpu_s")
+                for i, name in enumerate(("this", "baseline"))}
     return {"this_tree": best["this"], "baseline_tree": best["baseline"],
             "closed_loop_vs_baseline_tree": round(best["this"]["sim_s_per_cpu_s"]
                                                   / best["baseline"]["sim_s_per_cpu_s"], 2),
@@ -230,8 +294,13 @@ def main() -> None:
     ap.add_argument("--udp-seconds", type=float, default=20.0, help="simulated duration on udp_multicast "
                                                                      "(default 20; 0: skip)")
     ap.add_argument("--baseline-tree", metavar="DIR", help="another checkout to time the subprocess figures with")
+    ap.add_argument("--same-cpu", type=int, metavar="CPU", help="run this tree's and the baseline tree's closed "
+                    "loops together, pinned to this CPU (fairer on a loaded machine)")
     ap.add_argument("--rounds", type=int, default=3, help="runs of each configuration, the best kept (default 3)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--no-startup", action="store_true", help="skip the start-up times of the commands")
+    ap.add_argument("--loop-only", action="store_true", help="with --baseline-tree: only the one-process closed "
+                    "loop of the two trees, side by side")
     ap.add_argument("--closed-loop-only", action="store_true", help=argparse.SUPPRESS)  # see closed_loop_in
     ap.add_argument("--transport", default="local", help=argparse.SUPPRESS)
     ap.add_argument("--reference-codec", action="store_true", help=argparse.SUPPRESS)
@@ -239,6 +308,16 @@ def main() -> None:
     if args.closed_loop_only:
         closed_loop(0.5, args.transport, args.reference_codec)  # warm up: imports, caches, first calls
         print(json.dumps(closed_loop(args.seconds, args.transport, args.reference_codec)))
+        return
+
+    if args.loop_only:
+        if not args.baseline_tree:
+            ap.error("--loop-only needs --baseline-tree")
+        sbs = tree_vs_tree(args.baseline_tree, args.seconds, args.rounds, args.same_cpu)
+        if args.json:
+            print(json.dumps({"seconds": args.seconds, "rounds": args.rounds, "side_by_side": sbs}))
+        else:
+            print_side_by_side(sbs, args.seconds, args.rounds, args.baseline_tree)
         return
 
     best = side_by_side({"now": (None, "local", False), "before": (None, "virtual", True)}, args.seconds,
@@ -268,12 +347,15 @@ def main() -> None:
         out["peak_rss_mb"]["dsg-hil run -i udp_multicast (plant, ecu-stub)"] = peak_rss_mb(
             dsg_hil_run(args.seconds, os.devnull, "-i", "udp_multicast"))
     out["peak_rss_mb_max"] = max(out["peak_rss_mb"].values())
-    out["startup_s"] = startup(None)
-    out["startup_max_s"] = max(out["startup_s"].values())
+    if not args.no_startup:
+        out["startup_s"] = startup(None)
+        out["startup_max_s"] = max(out["startup_s"].values())
     if args.baseline_tree:
-        out["side_by_side"] = tree_vs_tree(args.baseline_tree, args.seconds, args.rounds)
+        out["side_by_side"] = tree_vs_tree(args.baseline_tree, args.seconds, args.rounds, args.same_cpu)
         out["closed_loop_vs_baseline_tree"] = out["side_by_side"]["closed_loop_vs_baseline_tree"]
-        out["baseline_tree"] = {"path": args.baseline_tree, "startup_s": startup(args.baseline_tree)}
+        out["baseline_tree"] = {"path": args.baseline_tree}
+        if not args.no_startup:
+            out["baseline_tree"]["startup_s"] = startup(args.baseline_tree)
         if args.udp_seconds > 0:
             out["baseline_tree"]["udp_multicast"] = udp_two_processes(args.udp_seconds, args.baseline_tree)
     if args.json:
@@ -297,6 +379,15 @@ def main() -> None:
                   "sim s/CPU s")
         print(f"this tree against {args.baseline_tree}: {sbs['closed_loop_vs_baseline_tree']:.2f}x per CPU s, "
               f"{sbs['closed_loop_vs_baseline_tree_wall']:.2f}x in wall time")
+        runs = [("this tree", sbs["this_tree"]), ("baseline tree", sbs["baseline_tree"])]
+    else:
+        runs = [("this tree", now)]
+    print(f"a period in CPU us, loop alone (x real time per CPU s; runs of the {CREEP_S:g}-s creep per core-hour, "
+          "+ each run's set-up; peak RSS of the loop's process):")
+    for label, r in runs:
+        split = "  ".join(f"{k} {v:5.1f}" for k, v in r["split_cpu_us"].items())
+        print(f"  {label:<14}{r['period_cpu_us']:7.1f} = {split}   ({r['loop_sim_s_per_cpu_s']:.0f}x; "
+              f"{r['runs_per_core_hour']} / {r['runs_per_core_hour_with_setup']} runs; {r['loop_peak_rss_mb']:.0f} MB)")
     print(f"plant alone, one step per call: {plant:.1f} sim s / wall s")
     print("peak RSS (MB): " + ", ".join(f"{k} {v:.0f}" for k, v in out["peak_rss_mb"].items()))
     if "udp_multicast" in out:
@@ -304,10 +395,28 @@ def main() -> None:
         print(f"  python-can udp_multicast, median per call: {out['udp_multicast_primitives']}")
         if "baseline_tree" in out and "udp_multicast" in out["baseline_tree"]:
             print(f"  ... with {args.baseline_tree}: {out['baseline_tree']['udp_multicast']}")
+    if "startup_s" not in out:
+        return
     print("start-up (median of 3, s):")
     for name, t in out["startup_s"].items():
         base = out.get("baseline_tree", {}).get("startup_s", {}).get(name)
         print(f"  {name:<26}{t:6.2f}" + (f"   (baseline {base:.2f})" if base is not None else ""))
+
+
+def print_side_by_side(sbs: dict, seconds: float, rounds: int, baseline: str) -> None:
+    """The lines of ``--loop-only``: each tree's real-time factor, its period split, runs per core-hour, peak RSS."""
+    print(f"one-process lock-step closed loop (plant + ecu-stub, in-process bus), {seconds:g} simulated s of the "
+          f"default creep, best of {rounds} fresh processes per tree")
+    print(f"{'':<16}{'x real time':>12}{'x per CPU s':>12}{'CPU us/period':>14}   split (CPU us)"
+          f"{'':<40}{'runs/core-h':>12}{'+ set-up':>9}{'RSS MB':>8}")
+    for label, r in (("this tree", sbs["this_tree"]), ("baseline tree", sbs["baseline_tree"])):
+        split = "  ".join(f"{k} {v:5.1f}" for k, v in r["split_cpu_us"].items())
+        print(f"{label:<16}{r['sim_s_per_wall_s']:>12.1f}{r['loop_sim_s_per_cpu_s']:>12.1f}{r['period_cpu_us']:>14.1f}"
+              f"   {split:<54}{r['runs_per_core_hour']:>12}{r['runs_per_core_hour_with_setup']:>9}"
+              f"{r['loop_peak_rss_mb']:>8.0f}")
+    print(f"this tree against {baseline}: {sbs['closed_loop_vs_baseline_tree']:.2f}x per CPU s, "
+          f"{sbs['closed_loop_vs_baseline_tree_wall']:.2f}x in wall time (rounds, x per CPU s: this "
+          f"{sbs['this_tree']['rounds']}, baseline {sbs['baseline_tree']['rounds']})")
 
 
 if __name__ == "__main__":

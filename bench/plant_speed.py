@@ -193,11 +193,12 @@ STEP_STUDY_REF_MS = 0.05
 
 def step_study(params: Params, seconds: float = 30.0) -> list[dict]:
     """What limits the speed accuracy under stick/slip: the ``creep_fine`` inputs at each step of
-    :data:`STEP_STUDY_MS` against the plant at :data:`STEP_STUDY_REF_MS` (speed, errors). The contact law (stick
-    or slip on the end-of-step velocity, mu at the step's start) shifts the lightly damped driveline modes at a
-    1-ms step (the 6.2-Hz shuffle with CL locked runs at 6.7 Hz; the 87.7-Hz mode of the held vehicle loses most
-    of its damping: ``bench/contact_law.py``), so the oscillations a lock or release starts drift out of phase
-    with the reference; the error shrinks with the step."""
+    :data:`STEP_STUDY_MS` against the plant at :data:`STEP_STUDY_REF_MS` (speed, errors). The old contact law
+    (stick or slip on the end-of-step velocity, mu at the step's start) shifted the lightly damped driveline modes
+    at a 1-ms step (the 6.2-Hz shuffle with CL locked ran at 6.7 Hz; the 87.7-Hz mode of the held vehicle lost most
+    of its damping), so the oscillations a lock or release starts drifted out of phase with the reference (12.7 %
+    of full scale at 1 ms); the plant's law (mean velocity, mu at mid-step, sub-steps at a mode change and while a
+    clutch is locked: dsg_hil.physics.plant, ``bench/contact_law.py``) keeps them."""
     def at(dt_ms: float) -> tuple[np.ndarray, np.ndarray, float]:
         speeds, temps, wall, _ = run_plant(Plant(params, dt=dt_ms * 1e-3, T_init=80.0), creep_inputs, seconds,
                                            PERIOD)

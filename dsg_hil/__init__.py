@@ -9,6 +9,8 @@ The layout follows the data flow, one direction (``tests/test_layout.py`` holds 
     sim/       scenario, the plant's CAN edge, the runner, the closed loop, open_run
     paper/     reference numbers, validation, calibration, reduced model, report and figures
     testing/   run_plant and the pytest plugin          cli/  the dsg-hil command
+    sweep/     dsg-hil sweep: many runs on Dask, judged on the plant's truth; --search (Optuna)
+    fmi/       the plant as an FMU, a controller FMU as the TCU (extra fmi; imported by cli only)
     e2e/       the vcan end-to-end suite and 'dsg-hil vcan'  data/ the shipped DBC, parameters, scenario
 
 The names below are imported when first used (PEP 562): ``import dsg_hil`` loads no numpy, cantools or python-can.

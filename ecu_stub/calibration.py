@@ -64,6 +64,7 @@ class SpeedControl:
     ki_n_per_m: float = c("N/m", 0.0, 1e8)
     force_rate_n_per_s: float = c("N/s", 1.0, 1e8)
     P_max_mpa: float = c("MPa", 0.1, 1.5)
+    overspeed_fraction: float = c("1", 0.0, 1.0)  # over target by this (clutch force zero): the brake is requested
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,6 @@ class Launch:
 
     F_prefill_n: float = c("N", 0.0, 1e6)
     prefill_ready_fraction: float = c("1", 0.1, 1.0)  # measured pressure / pre-fill pressure to release the brake
-    hold_max_s: float = c("s", 0.0, 10.0)  # longest hill-hold without a creep request (pedal released)
     standstill_mps: float = c("m/s", 0.0, 0.5)
     accel_mps2: float = c("m/s^2", 0.01, 5.0)  # the speed reference rises to the desired creep speed at this rate
 

@@ -2,7 +2,8 @@
 
 Exit status as dsg-hil's (:func:`dsg_hil.common.cli.run_main`): 0 at ``--duration`` or ``--idle-exit``, 1 the run
 failed, 2 bad input or usage (one ``error:`` line naming the file or option), 130 Ctrl-C, 143 SIGTERM (serving
-stops, the frame counts are printed).
+stops, the frame counts are printed), at any moment from the first line of :func:`main`: this module imports the
+standard library and ``dsg_hil.common`` only, python-can and the rest once main's signal handling is in place.
 """
 
 from __future__ import annotations
@@ -12,14 +13,13 @@ import logging
 import sys
 import threading
 from collections.abc import Mapping
+from contextlib import ExitStack
 from importlib import metadata
+from typing import Any
 
-from dsg_hil.protocol.bus import (FrameLog, add_bus_arguments, bus_config, bus_name, log_channel, open_bus,
-                                  per_process_warning)
-from dsg_hil.common.cli import run_main
+from dsg_hil.common.cli import run_main, signals_held
 from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import check_output_path
-from dsg_hil.protocol.faults import FaultError, add_fault_arguments, check_faults, faults_from_args, with_faults
 
 __all__ = ["EXAMPLE_FAULTS", "by_cause", "main"]
 
@@ -35,6 +35,9 @@ def _version() -> str:
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    from dsg_hil.protocol.bus import add_bus_arguments  # noqa: PLC0415 - python-can: after main's signal handling
+    from dsg_hil.protocol.faults import add_fault_arguments  # noqa: PLC0415
+
     parser = argparse.ArgumentParser(
         prog="ecu-stub",
         description="Transmission control unit with the paper's creep strategy: engages CL first (hill-hold and "
@@ -56,7 +59,12 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                              ".asc, .blf, .csv ...")
     parser.add_argument("--idle-exit", type=float, metavar="S",
                         help="stop when the plant has been silent for S seconds after having been heard")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log protocol events")
+    loudness = parser.add_mutually_exclusive_group()  # as dsg-hil's -v/-q
+    loudness.add_argument("-v", "--verbose", action="store_true", help="log protocol events")
+    loudness.add_argument("-q", "--quiet", action="store_true",
+                          help="print errors only, and the frame counts at the end (they count what the warnings "
+                               "would have said: frames rejected, lost, answers re-sent): no 'listening' line, no "
+                               "warnings")
     parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
     return parser.parse_args(argv)
 
@@ -74,14 +82,31 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _serve(args: argparse.Namespace, stop: threading.Event) -> None:
+    with ExitStack() as stack:
+        with signals_held():  # set up whole (imports, DBC, bus, log): a signal now acts once the TCU is ready
+            tcu, config = _set_up(args, stack)
+        from dsg_hil.protocol.bus import bus_name, per_process_warning  # noqa: PLC0415 - loaded by _set_up
+
+        if not args.quiet:
+            print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
+            if warning := per_process_warning(config):
+                print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
+        tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
+
+
+def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, Any]]:
+    """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
+    serving ends); returns it and the bus configuration."""
     from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
+    from dsg_hil.protocol.bus import FrameLog, bus_config, log_channel, open_bus  # noqa: PLC0415
+    from dsg_hil.protocol.faults import FaultError, check_faults, faults_from_args, with_faults  # noqa: PLC0415
 
     from .calibration import load_calibration  # noqa: PLC0415
     from .controller import CreepController  # noqa: PLC0415
     from .runner import TCU_RX, TCU_USES, TcuRunner  # noqa: PLC0415
 
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, stream=sys.stderr,
-                        format="%(levelname)s %(name)s: %(message)s")
+    level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
+    logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
     for option in ("duration", "idle_exit"):
         value = getattr(args, option)
         if value is not None and not 0.0 < value < float("inf"):
@@ -98,22 +123,21 @@ def _serve(args: argparse.Namespace, stop: threading.Event) -> None:
     inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
     tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
     bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
+    stack.callback(bus.shutdown)
     record = FrameLog(args.log, log_channel(config)) if args.log else None
+    if record is not None:
+        stack.callback(record.stop)
     tcu = TcuRunner(codec, bus, controller, (record,) if record else ())
     tcu_side.append(tcu)
-    try:  # 'listening' inside: a signal from then on still reaches the counts below
-        print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
-        if warning := per_process_warning(config):
-            print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
-        tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
-    finally:
-        bus.shutdown()
-        if record is not None:
-            record.stop()
-        c = tcu.frame_counts()
-        print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
-              f"{c['incomplete_answers']} on incomplete plant frames); received "
-              f"{c['received']}, rejected {c['rejected']}{by_cause(tcu.rx.rejected)}, lost {c['lost']}, "
-              f"duplicates {c['duplicates']}", file=sys.stderr, flush=True)
-        if injector is not None:
-            print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)
+    stack.callback(_print_counts, tcu, injector)  # first when the stack closes, then the log and the bus
+    return tcu, config
+
+
+def _print_counts(tcu: Any, injector: Any) -> None:
+    c = tcu.frame_counts()
+    print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
+          f"{c['incomplete_answers']} on incomplete plant frames); received "
+          f"{c['received']}, rejected {c['rejected']}{by_cause(tcu.rx.rejected)}, lost {c['lost']}, "
+          f"duplicates {c['duplicates']}", file=sys.stderr, flush=True)
+    if injector is not None:
+        print(f"ecu-stub: faults injected (frames hit): {injector.hits()}", file=sys.stderr, flush=True)

@@ -15,49 +15,113 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_right
+from collections.abc import Callable
 
 from dsg_hil.common.units import CV
 
 from .calibration import Clutch, FrictionMap
 
-__all__ = ["friction_coefficient", "friction_heat", "plate_step", "torque_per_mpa"]
+__all__ = ["friction_coefficient", "friction_heat", "heat_w", "mu_lookup", "nm_per_mpa", "plate_step",
+           "torque_per_mpa"]
+
+_MPA_TO_PA, _RPM_TO_RAD_S = CV.MPA_TO_PA, CV.RPM_TO_RAD_S
 
 
-def _locate(grid: tuple[float, ...], x: float) -> tuple[int, float]:
-    """Index i and weight w of x between grid[i] and grid[i+1], clamped to the grid."""
-    if x <= grid[0]:
-        return 0, 0.0
-    if x >= grid[-1]:
-        return len(grid) - 2, 1.0
-    i = bisect_right(grid, x) - 1
-    return i, (x - grid[i]) / (grid[i + 1] - grid[i])
+MuLookup = Callable[[float, float, float], float]
+_LOOKUPS: dict[int, tuple[FrictionMap, MuLookup]] = {}  # by id() of the map (hashing a map hashes all of mu)
+
+
+def _lookup(m: FrictionMap) -> MuLookup:
+    """``mu(T, |slip|, P)`` of the map ``m`` (:func:`_build`), built once per map."""
+    entry = _LOOKUPS.get(id(m))
+    if entry is not None and entry[0] is m:
+        return entry[1]
+    if len(_LOOKUPS) >= 64:  # calibrations come and go (identify, tests): keep the cache small
+        _LOOKUPS.clear()
+    mu_of = _build(m)
+    _LOOKUPS[id(m)] = (m, mu_of)
+    return mu_of
+
+
+def mu_lookup(m: FrictionMap) -> MuLookup:
+    """``mu(T, |slip|, P)`` of the map ``m`` (T [degC], |slip| [r/min] >= 0, P [MPa]) as one function, built once per
+    map: what :func:`friction_coefficient` evaluates, for a caller that writes the formulas out."""
+    return _lookup(m)
+
+
+def _build(m: FrictionMap) -> MuLookup:
+    """``mu(T, |slip|, P)`` of the map ``m``. On each axis the index i and weight w of x between grid[i] and
+    grid[i+1], clamped to the grid (i = 0, w = 0 below it; the last span, w = 1 above); the spans precomputed (the
+    same subtractions, so the same floats), the map's tuples held in the closure. (Apart from :func:`_lookup`: a
+    function holding a closure makes its cells on every call.)"""
+    T_grid, S_grid, P_grid, table = m.T_grid_c, m.slip_grid_rpm, m.P_grid_mpa, m.mu
+    T_lo, T_hi, T_last, T_span = T_grid[0], T_grid[-1], len(T_grid) - 2, _spans(T_grid)
+    S_lo, S_hi, S_last, S_span = S_grid[0], S_grid[-1], len(S_grid) - 2, _spans(S_grid)
+    P_lo, P_hi, P_last, P_span = P_grid[0], P_grid[-1], len(P_grid) - 2, _spans(P_grid)
+
+    def mu_of(T_c: float, slip: float, P_mpa: float) -> float:  # the three axes written out: a call each costs more
+        if T_c <= T_lo:
+            i, wt = 0, 0.0
+        elif T_c >= T_hi:
+            i, wt = T_last, 1.0
+        else:
+            i = bisect_right(T_grid, T_c) - 1
+            wt = (T_c - T_grid[i]) / T_span[i]
+        if slip <= S_lo:
+            j, ws = 0, 0.0
+        elif slip >= S_hi:
+            j, ws = S_last, 1.0
+        else:
+            j = bisect_right(S_grid, slip) - 1
+            ws = (slip - S_grid[j]) / S_span[j]
+        if P_mpa <= P_lo:
+            k, wp = 0, 0.0
+        elif P_mpa >= P_hi:
+            k, wp = P_last, 1.0
+        else:
+            k = bisect_right(P_grid, P_mpa) - 1
+            wp = (P_mpa - P_grid[k]) / P_span[k]
+        lo, hi = table[i], table[i + 1]  # the four corners in (T, slip), each interpolated in P; in this order
+        a, b, c, d = lo[j], lo[j + 1], hi[j], hi[j + 1]
+        vt, vs, vp = 1 - wt, 1 - ws, 1 - wp
+        return (((0.0 + vt * vs * (vp * a[k] + wp * a[k + 1])) + vt * ws * (vp * b[k] + wp * b[k + 1]))
+                + wt * vs * (vp * c[k] + wp * c[k + 1])) + wt * ws * (vp * d[k] + wp * d[k + 1])
+
+    return mu_of
+
+
+def _spans(grid: tuple[float, ...]) -> tuple[float, ...]:
+    return tuple(grid[i + 1] - grid[i] for i in range(len(grid) - 1))
+
+
+def nm_per_mpa(mu: float, c: Clutch) -> float:
+    """Clutch torque per MPa of piston pressure [N m/MPa] at friction coefficient ``mu``, equation (5): mu k_geom."""
+    return mu * c.k_geom_m3 * _MPA_TO_PA
+
+
+def heat_w(mu: float, c: Clutch, P_mpa: float, slip_rpm: float) -> float:
+    """Friction power into the plates [W] at friction coefficient ``mu``, pressure ``P_mpa`` >= 0 and slip
+    ``slip_rpm`` >= 0, equation (4): torque (5) times slip speed, mu k_geom P |slip|. The one formula of the TCU's
+    heat (predictor, monitor's bounds, handover margin); ``mu`` from :func:`mu_lookup` at the same state."""
+    return mu * c.k_geom_m3 * _MPA_TO_PA * P_mpa * slip_rpm * _RPM_TO_RAD_S
 
 
 def friction_coefficient(m: FrictionMap, T_c: float, slip_rpm: float, P_mpa: float) -> float:
-    """mu from the map: trilinear in (T, |slip|, P), clamped at the edges."""
-    i, wt = _locate(m.T_grid_c, T_c)
-    j, ws = _locate(m.slip_grid_rpm, abs(slip_rpm))
-    k, wp = _locate(m.P_grid_mpa, P_mpa)
-    lo, hi = m.mu[i], m.mu[i + 1]  # the four corners in (T, slip), each interpolated in P; summed in this order
-    a, b, c, d = lo[j], lo[j + 1], hi[j], hi[j + 1]
-    vt, vs, vp = 1 - wt, 1 - ws, 1 - wp
-    mu = 0.0
-    mu += vt * vs * (vp * a[k] + wp * a[k + 1])
-    mu += vt * ws * (vp * b[k] + wp * b[k + 1])
-    mu += wt * vs * (vp * c[k] + wp * c[k + 1])
-    mu += wt * ws * (vp * d[k] + wp * d[k + 1])
-    return mu
+    """mu from the map: trilinear in (T, |slip|, P), clamped at the edges (the four corners in (T, slip), each
+    interpolated in P, summed in that order)."""
+    return _lookup(m)(T_c, abs(slip_rpm), P_mpa)
 
 
 def torque_per_mpa(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
     """Clutch torque per MPa of piston pressure [N m/MPa], equation (5), at the given state."""
-    return friction_coefficient(m, T_c, slip_rpm, P_mpa) * c.k_geom_m3 * CV.MPA_TO_PA
+    return nm_per_mpa(_lookup(m)(T_c, abs(slip_rpm), P_mpa), c)
 
 
 def friction_heat(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
-    """Friction power into the plates [W], equation (4): torque (5) times slip speed."""
+    """Friction power into the plates [W], equation (4) (:func:`heat_w`) at the map's mu of that state."""
     P = max(P_mpa, 0.0)
-    return torque_per_mpa(m, c, T_c, slip_rpm, P) * P * abs(slip_rpm) * CV.RPM_TO_RAD_S
+    slip = abs(slip_rpm)
+    return heat_w(_lookup(m)(T_c, slip, P), c, P, slip)
 
 
 def plate_step(c: Clutch, T_c: float, heat_w: float, T_oil_c: float, dt: float) -> float:

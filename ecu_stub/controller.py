@@ -2,9 +2,9 @@
 
 No bus, no clock: time is passed in, so the strategy is tested with a fake clock and can run behind any bus.
 
-* IDLE: both clutches open. Hill-hold: while the vehicle stands and the driver brakes, the TCU also requests the
-  brake, so the vehicle stays held when the driver's foot comes off (released after ``launch.hold_max_s`` if the
-  driver does not ask to creep).
+* IDLE: both clutches open. Hold: the TCU requests the brake while the vehicle stands, and while it moves with
+  nobody braking it (a creep request withdrawn without the brake stops and holds the vehicle); it leaves a moving
+  vehicle to the driver's brake only. The hold ends when a launch's pre-fill carries the vehicle.
 * ENGAGE: on the creep request, the on-coming clutch (CL first) is filled at once to the pressure that carries
   ``launch.F_prefill_n`` at the wheel (enough to hold the heaviest vehicle on the steepest documented grade, with
   rolling resistance); the brake request is dropped when the measured pressure has reached it.
@@ -14,15 +14,24 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   efficiency).
 * HANDOVER: a torque handover as in a DCT shift: over ``handover_time_s`` the on-coming clutch takes a growing
   share x of the wheel force and the off-going the rest (1 - x), each converted to pressure by its own model,
-  while the speed controller keeps running.
+  while the speed controller keeps running. Downhill (no clutch can brake at creep speed) the brake is requested
+  once the vehicle is ``speed.overspeed_fraction`` over its target and still speeding up, until it stands.
 * The handover starts when the active clutch's *predicted* plate temperature reaches its limit
   ``T_safe - prediction_error_k - dT_crossover`` (``dT_crossover``: the heat still coming into the off-going plate
-  while its share ramps out and its pressure lags, from its present friction power; see :meth:`limit`), or when
-  the prediction has stayed within ``dwell_band_k`` under the limit for ``dwell_time_s``. The other clutch takes
-  over if it is predicted ``takeover_headroom_k`` under its limit; otherwise STOPPED_OVERHEAT.
+  while its share ramps out and its pressure lags, at the friction power it would have through the crossover
+  (the vehicle carried to its desired speed: not a launch's transient power), but at least the monitor's
+  worst-case heat of a fastest release, so that the monitor can always release it in time; see :meth:`limit`),
+  or when the prediction has stayed within ``dwell_band_k`` under the limit for ``dwell_time_s``.
+  The other clutch takes over if it is predicted ``takeover_headroom_k`` under its limit; otherwise
+  STOPPED_OVERHEAT.
 * STOPPED_OVERHEAT: the brake is requested and the clutch torque ramps out over ``stop_release_s``. Latched until
-  the driver withdraws the creep request.
-* FAULT: plant frames missing or invalid: both clutches open, fault bit set; back to IDLE when they return.
+  the driver withdraws the creep request (then IDLE: still held).
+* FAULT: plant frames missing or invalid: both clutches open, the brake requested, fault bit set; back to IDLE
+  (held) when they return.
+
+Every cycle the thermal monitor (:class:`ecu_stub.monitor.ThermalMonitor`) judges the pressures decided, in every
+state: it limits a command whose plate bound would pass ``T_safe`` and turns a limit on the clutch that carries the
+vehicle into STOPPED_OVERHEAT (:meth:`CreepController._supervised`; the argument: ``docs/safety.md``).
 
 Start-up: a plate's temperature is unknown when the TCU wakes up, so it estimates it from the oil: the oil in a
 clutch pack settles within a fraction of a second to the balance of heat from the plates and the cooling flow,
@@ -34,10 +43,12 @@ the oil in the pack) while it takes its estimate from this observer; afterwards 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from .calibration import TcuCalibration, load_calibration
-from .clutch_model import friction_heat, plate_step, torque_per_mpa
+from .clutch_model import heat_w, mu_lookup, nm_per_mpa
+from .monitor import ThermalMonitor, crossover_heat_w, release_time_s
 from .pid import PID
 
 __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "TcuInputs", "TcuOutputs"]
@@ -45,6 +56,7 @@ __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER
 OTHER = {"CL": "CH", "CH": "CL"}
 FAULT_PLANT_MISSING = 0x01
 BRAKE_PRESSED_PCT = 5.0
+CLUTCH_OPEN_MPA = 0.02  # measured piston pressure under which a clutch carries next to nothing (downhill check)
 
 
 @dataclass(slots=True)  # not frozen: built every control period, a frozen one costs several times more
@@ -101,7 +113,6 @@ class CreepController:
         self.F_cmd = 0.0  # wheel force demanded by the speed controller [N]
         self.v_ref = 0.0  # speed reference: the desired speed reached along a ramp [m/s]
         self.brake_request = False
-        self.hold_since: float | None = None  # hill-hold: when the driver's foot came off without a creep request
         self.last_now: float | None = None
         self.dt = 0.01  # the last control period [s]
         self.handover_from = "NONE"
@@ -109,6 +120,9 @@ class CreepController:
         self.near_limit_since: float | None = None
         self.stop_t0 = 0.0
         self.stop_P0 = {"CL": 0.0, "CH": 0.0}
+        self.monitor = ThermalMonitor(self.cal)
+        self.bound = {"CL": 0.0, "CH": 0.0}  # the monitor's bound of the last cycle [degC]
+        self.inp = TcuInputs(plant_valid=False)  # the inputs of the last cycle
 
     # ---- the clutch model ------------------------------------------------------------------------------------
     def observed_plate_c(self, clutch: str, inp: TcuInputs) -> float:
@@ -134,45 +148,80 @@ class CreepController:
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
         T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm
+        mu_of = mu_lookup(cal.friction)
         for c, clutch, out_rpm, P, T_oil in (("CL", cal.CL, inp.cl_out_rpm, inp.P_CL_mpa, inp.T_oil_CL_c),
                                              ("CH", cal.CH, inp.ch_out_rpm, inp.P_CH_mpa, inp.T_oil_CH_c)):
-            heat[c] = friction_heat(cal.friction, clutch, T_pred[c], clutch_in - out_rpm, P)  # slip as slip_rpm(c)
-            T_pred[c] = plate_step(clutch, T_pred[c], heat[c], T_oil, dt)
+            # friction_heat and plate_step written out (the same operations): slip as slip_rpm(c)
+            T, P, slip = T_pred[c], max(P, 0.0), abs(clutch_in - out_rpm)
+            Q = heat[c] = heat_w(mu_of(T, slip, P), clutch, P, slip)
+            K = clutch.K_plate_oil_w_k
+            T_inf = T_oil + Q / K
+            T_pred[c] = T_inf + (T - T_inf) * math.exp(-K * dt / clutch.C_plate_j_k)
 
     def pressure_for(self, clutch: str, force_n: float, inp: TcuInputs) -> float:
         """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu k_geom)."""
-        c = self.cal.clutch(clutch)
-        torque = max(force_n, 0.0) * c.speed_ratio_m / self.cal.vehicle.eta
-        per_mpa = torque_per_mpa(self.cal.friction, c, self._T_pred[clutch], inp.slip_rpm(clutch),
-                                 max(self.P_cmd[clutch], inp.pressure_mpa(clutch)))
-        return min(torque / per_mpa, self.cal.speed.P_max_mpa)
+        cal = self.cal
+        c = cal.clutch(clutch)
+        torque = max(force_n, 0.0) * c.speed_ratio_m / cal.vehicle.eta
+        per_mpa = nm_per_mpa(mu_lookup(cal.friction)(self._T_pred[clutch], abs(inp.slip_rpm(clutch)),  # torque_per_mpa
+                                                     max(self.P_cmd[clutch], inp.pressure_mpa(clutch))), c)
+        return min(torque / per_mpa, cal.speed.P_max_mpa)
 
     def force_capacity(self, clutch: str, inp: TcuInputs) -> float:
         """Largest wheel force the clutch gives at the pressure limit [N]."""
-        c, P_max = self.cal.clutch(clutch), self.cal.speed.P_max_mpa
-        per_mpa = torque_per_mpa(self.cal.friction, c, self._T_pred[clutch], inp.slip_rpm(clutch), P_max)
-        return per_mpa * P_max * self.cal.vehicle.eta / c.speed_ratio_m
+        cal = self.cal
+        c, P_max = cal.clutch(clutch), cal.speed.P_max_mpa
+        per_mpa = nm_per_mpa(mu_lookup(cal.friction)(self._T_pred[clutch], abs(inp.slip_rpm(clutch)), P_max), c)
+        return per_mpa * P_max * cal.vehicle.eta / c.speed_ratio_m
 
     # ---- the thermal limits ----------------------------------------------------------------------------------
-    def crossover_rise_k(self, clutch: str, heat_w: float) -> float:
-        """Worst rise of an off-going plate after the decision [K]: its friction power falls linearly to zero over
-        the handover (half of it on average), its pressure lags the command by the hydraulic lag, and the decision
-        itself may come one control period late. Cooling is neglected (conservative)."""
-        s = self.cal.strategy
-        return heat_w * (0.5 * s.handover_time_s + s.hydraulic_lag_s + self.dt) / self.cal.clutch(clutch).C_plate_j_k
+    def worst_heat(self, clutch: str) -> float:
+        """Friction power [W] at the highest pressure the clutch may see (its command or the measured pressure) and
+        the worst slip until it is released (:func:`ecu_stub.monitor.worst_heat_w`): the monitor's bound."""
+        inp, cal = self.inp, self.cal  # worst_heat_w written out (the same operations: it runs every cycle)
+        c, T = cal.clutch(clutch), self._T_pred[clutch]
+        P = max(max(self.P_cmd[clutch], inp.pressure_mpa(clutch)), 0.0)
+        slip = abs(max(abs(inp.slip_rpm(clutch)), abs(inp.clutch_in_rpm)))
+        return heat_w(mu_lookup(cal.friction)(T, slip, P), c, P, slip)
 
-    def limit(self, clutch: str, heat_w: float | None = None) -> float:
-        """Predicted plate temperature at which the clutch must start handing over [degC]:
-        T_safe - worst prediction error - the rise still coming during the crossover."""
+    def crossover_heat(self, clutch: str) -> float:
+        """Friction power [W] the clutch would have through a crossover at its full share
+        (:func:`ecu_stub.monitor.crossover_heat_w`): the monitor's pressure (command or measured, the larger), at the
+        slip of the vehicle at its desired speed (or the present slip, if smaller)."""
+        inp = self.inp
+        P = max(self.P_cmd[clutch], inp.pressure_mpa(clutch), 0.0)
+        return crossover_heat_w(self.cal, clutch, self._T_pred[clutch], inp.slip_rpm(clutch), inp.clutch_in_rpm,
+                                inp.desired_speed_mps, P)
+
+    def crossover_rise_k(self, clutch: str, heat_w: float, worst_w: float | None = None) -> float:
+        """Rise of an off-going plate after the decision [K], the larger of: the crossover at friction power
+        ``heat_w`` at its full share (:meth:`crossover_heat`; its share falls linearly to zero over the handover,
+        half of it on average; its pressure lags the command by the hydraulic lag; the decision may come one period
+        late), and the monitor's fastest release at the worst power ``worst_w``
+        (:func:`ecu_stub.monitor.release_time_s`; default ``heat_w``), so that at the decision the monitor's bound
+        is within T_safe and it can always release the clutch in time if the crossover brings more heat. Cooling
+        is neglected. With share 1 - t/t_h and power at most Q over the crossover,
+        int_0^t_h (1 - t/t_h) Q dt = Q t_h / 2."""
+        s, C = self.cal.strategy, self.cal.clutch(clutch).C_plate_j_k
+        worst = heat_w if worst_w is None else worst_w
+        return max(heat_w * (0.5 * s.handover_time_s + s.hydraulic_lag_s + self.dt),
+                   worst * release_time_s(self.cal, self.dt)) / C
+
+    def limit(self, clutch: str, heat_w: float | None = None, worst_w: float | None = None) -> float:
+        """Predicted plate temperature at which the clutch must start handing over [degC]: T_safe - worst prediction
+        error - :meth:`crossover_rise_k` (default: :meth:`crossover_heat` and :meth:`worst_heat`). Not the power
+        of the decision instant: in a launch the clutch passes the launch's transient power (a vehicle still at
+        rest slips the whole input speed), which the crossover, carried to the desired speed, does not see."""
         s = self.cal.strategy
-        heat = self.heat[clutch] if heat_w is None else heat_w
-        return s.T_safe_c - s.prediction_error_k - self.crossover_rise_k(clutch, heat)
+        if heat_w is None:
+            heat_w, worst_w = self.crossover_heat(clutch), self.worst_heat(clutch) if worst_w is None else worst_w
+        return s.T_safe_c - s.prediction_error_k - self.crossover_rise_k(clutch, heat_w, worst_w)
 
     def can_take_over(self, clutch: str) -> bool:
         """The clutch may take the load if its estimate is ``takeover_headroom_k`` under its limit, the limit taken at
-        the largest friction power of the two now (the on-coming clutch will carry the same wheel force)."""
-        load = max(self.heat.values())
-        return self._T_pred[clutch] <= self.limit(clutch, load) - self.cal.strategy.takeover_headroom_k
+        the larger friction powers of the two now (the on-coming clutch will carry the same wheel force)."""
+        load, worst = max(self.heat.values()), max(self.worst_heat("CL"), self.worst_heat("CH"))
+        return self._T_pred[clutch] <= self.limit(clutch, load, worst) - self.cal.strategy.takeover_headroom_k
 
     def _limit_reached(self, now: float) -> bool:
         c = self.active
@@ -193,12 +242,13 @@ class CreepController:
             raise ValueError(f"time must advance: {now} after {self.last_now}")
         self.last_now, self.dt = now, dt
         faults = inp.fault_bits
-        if not inp.plant_valid:
+        if not inp.plant_valid:  # the vehicle is held by the brake until the plant's frames return
             if self.state != "FAULT":
-                self.state, self.active, self.brake_request = "FAULT", "NONE", False
+                self.state, self.active, self.brake_request = "FAULT", "NONE", True
                 self._open_both()
             return self._outputs(faults | FAULT_PLANT_MISSING)
         self._predict(inp, dt, now)
+        last, self.inp = self.inp, inp
         if self.state == "FAULT":
             self.state = "IDLE"
 
@@ -210,11 +260,11 @@ class CreepController:
                 x = 1.0 if self.cal.strategy.stop_release_s <= 0 else min(
                     (now - self.stop_t0) / self.cal.strategy.stop_release_s, 1.0)
                 self.P_cmd = {c: P * (1.0 - x) for c, P in self.stop_P0.items()}
-            return self._outputs(faults)
+            return self._supervised(inp, now, faults)
 
         pedal = inp.brake_pct >= BRAKE_PRESSED_PCT
         if not (inp.creep_request and not pedal) or self.starting(now):
-            self._idle(inp, now, pedal)
+            self._idle(inp, pedal)
             return self._outputs(faults)
 
         if self.state == "IDLE":
@@ -226,7 +276,8 @@ class CreepController:
             self.F_cmd = self.cal.launch.F_prefill_n
             self.brake_request = self.brake_request and abs(inp.v_mps) < self.cal.launch.standstill_mps
 
-        self.hold_since = None
+        if self.state in ("CREEP", "HANDOVER"):
+            self._hold_speed(inp, last)
         step = self.cal.launch.accel_mps2 * dt
         self.v_ref = min(max(inp.desired_speed_mps, self.v_ref - step), self.v_ref + step)
         v_err = self.v_ref - inp.v_mps
@@ -256,11 +307,42 @@ class CreepController:
             if self.state == "ENGAGE":  # hold the pre-fill on the other clutch, as a fresh engage
                 self.P_cmd[self.active], self.active = 0.0, other
                 self.near_limit_since = None
-                return self._outputs(faults)
+                return self._supervised(inp, now, faults)
             self.state, self.handover_from, self.active = "HANDOVER", self.active, other
             self.handover_t0 = now
             self.near_limit_since = None
+        return self._supervised(inp, now, faults)
+
+    def _supervised(self, inp: TcuInputs, now: float, faults: int) -> TcuOutputs:
+        """The outputs after the thermal monitor (:mod:`ecu_stub.monitor`): pressures limited where its bound
+        would pass T_safe, and a stop if the clutch that carries the vehicle had to be limited."""
+        carrying = "NONE" if self.state == "STOPPED_OVERHEAT" else self.active
+        clutch_in = inp.clutch_in_rpm  # (slip_rpm and pressure_mpa of each clutch, written out)
+        verdict = self.monitor.check(self._T_pred, {"CL": clutch_in - inp.cl_out_rpm, "CH": clutch_in - inp.ch_out_rpm},
+                                     clutch_in, self.P_cmd, {"CL": inp.P_CL_mpa, "CH": inp.P_CH_mpa}, carrying,
+                                     self.dt)
+        for c, P in verdict.P_limit_mpa.items():
+            self.P_cmd[c] = min(self.P_cmd[c], P)
+        self.bound = verdict.bound_c
+        if verdict.stop and self.state != "STOPPED_OVERHEAT":
+            return self._stop(now, faults)
         return self._outputs(faults)
+
+    def _hold_speed(self, inp: TcuInputs, last: TcuInputs) -> None:
+        """Downhill: at creep speeds both clutches slip forwards and cannot brake, so once the vehicle is more than
+        ``speed.overspeed_fraction`` over its target and still speeding up with both clutches open, the TCU
+        requests the brake (speed controller held at zero force) until the vehicle stands: long enough for the
+        request to reach the brakes (TCU_STATUS), which stop it at once (one bit: the full service brake)."""
+        # speeding up with both clutches open (commanded and measured): the slope pushes, not a lagging piston
+        pushed = inp.v_mps > last.v_mps and self.F_cmd <= 0.0 and max(inp.P_CL_mpa, inp.P_CH_mpa) < CLUTCH_OPEN_MPA
+        braking = self.brake_request
+        if inp.v_mps > inp.desired_speed_mps * (1.0 + self.cal.speed.overspeed_fraction) and pushed:
+            self.brake_request = True
+        elif braking and abs(inp.v_mps) < self.cal.launch.standstill_mps:
+            self.brake_request = False
+        if braking or self.brake_request:  # the speed controller starts again from zero force at this speed
+            self.pid.reset(0.0)
+            self.v_ref = max(inp.v_mps, 0.0)
 
     def _speed_control(self, v_err: float, dt: float, clutch: str, inp: TcuInputs, share: float = 1.0) -> float:
         """PI on speed with a wheel-force output limited to what the clutches can give (anti-windup)."""
@@ -270,19 +352,12 @@ class CreepController:
         self.pid.out_max = cap
         return self.pid.update(v_err, dt)
 
-    def _idle(self, inp: TcuInputs, now: float, pedal: bool) -> None:
-        """No creep wanted (or not yet allowed): clutches open; hill-hold while standing on the brake, for at most
-        hold_max_s after."""
+    def _idle(self, inp: TcuInputs, pedal: bool) -> None:
+        """No creep wanted (or not yet allowed): clutches open, and the vehicle held by the brake request unless
+        the driver brakes a moving vehicle himself (a standing one stays held when his foot comes off)."""
         self.state, self.active = "IDLE", "NONE"
         self._open_both()
-        standing = abs(inp.v_mps) < self.cal.launch.standstill_mps
-        if pedal and standing:
-            self.brake_request, self.hold_since = True, None
-        elif self.brake_request:
-            if self.hold_since is None:
-                self.hold_since = now
-            if now - self.hold_since >= self.cal.launch.hold_max_s:
-                self.brake_request, self.hold_since = False, None
+        self.brake_request = abs(inp.v_mps) < self.cal.launch.standstill_mps or not pedal
 
     def _open_both(self) -> None:
         self.P_cmd = {"CL": 0.0, "CH": 0.0}

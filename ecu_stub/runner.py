@@ -16,6 +16,9 @@ each on its DBC cycle from t = 0) waits for them: it is answered when the last o
 as several CPUs may deliver, or re-sent with the period); only the third sight of the same tick is answered with
 what the TCU has (counted as ``incomplete_answers``).
 
+Before the controller sees the plant's values, VehicleSpeed is voted against the clutch-output speeds
+(:mod:`ecu_stub.plausibility`): replaced by theirs when it alone is implausible, FAULT when no two agree.
+
 Listeners (``--log``) get every frame the TCU took (new, valid) and every frame it sent, first transmissions
 only (neither the presence handshake nor re-sent answers), as the plant logs its side: in lock-step stamped with
 the tick's time, so the same run gives the same record; else with the wall clock.
@@ -33,10 +36,13 @@ from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec, ProtocolError, RxMonitor, TxScheduler
 from dsg_hil.protocol.frame import data_frame
 from dsg_hil.protocol.lockstep import Frames, LockstepResponder, choices, frame_io
+from dsg_hil.protocol.validity import RxState, all_valid
 
+from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
+from .plausibility import SpeedVoter, Verdict
 
-__all__ = ["REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TcuRunner"]
+__all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
 
 log = logging.getLogger(__name__)
 
@@ -54,8 +60,16 @@ TCU_TX = {
     "TCU_STATUS": ("State", "ActiveClutch", "BrakeRequest", "T_CL_Pred", "T_CH_Pred", "FaultBits"),
 }
 TCU_USES = {**TCU_RX, **TCU_TX}
+TX_VALUES = {  # by message sent, in the order of an answer (TCU_CMD last), each signal's value: an expression of the
+    # controller's outputs ``out`` (and the tick's ``echo``), ``states`` and ``clutches`` the DBC's value tables
+    "TCU_STATUS": {"State": "states[out.state]", "ActiveClutch": "clutches[out.active_clutch]",
+                   "BrakeRequest": "float(out.brake_request)", "T_CL_Pred": "out.T_CL_pred_c",
+                   "T_CH_Pred": "out.T_CH_pred_c", "FaultBits": "out.fault_bits"},
+    "TCU_CMD": {"P_CL_Cmd": "out.P_CL_cmd_mpa", "P_CH_Cmd": "out.P_CH_cmd_mpa", "SyncEcho": "echo"},
+}
 REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
+FAULT_IMPLAUSIBLE = 0x10  # TCU_STATUS.FaultBits bit 4: a valid frame's speed failed the plausibility vote
 SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
 DRAIN_MAX = 256  # real time: frames already waiting taken before a control cycle, at most (a busy bus: go on)
 
@@ -87,6 +101,26 @@ class TcuRunner:
         self.now = -1.0
         self.last: TcuOutputs | None = None
         self.sent = 0
+        # (outputs, echo, counter) -> frame data, by message (the controller's outputs in the DBC's values and units)
+        names = {"states": self.states, "clutches": self.clutches}
+        self._frame_data = {name: codec.expression_encoder(name, ("out", "echo"), values, names)
+                            for name, values in TX_VALUES.items()}
+        self._required_of: RxMonitor | None = None  # see inputs
+        self._required: tuple[RxState, ...] = ()
+        # VehicleSpeed voted against the clutch outputs' speeds (ecu_stub.plausibility) with the calibration's speed
+        # ratios; none for a controller without a TcuCalibration (an FMU: it brings its own checks). Control cycles
+        # whose VehicleSpeed the vote replaced ("VehicleSpeed") or whose speeds it found all implausible ("speeds")
+        self.speed_vote: SpeedVoter | None = None
+        cal = getattr(self.controller, "cal", None)
+        if isinstance(cal, TcuCalibration):
+            def scale(message: str, signal: str) -> float:
+                return float(codec.message(message).get_signal_by_name(signal).scale)
+
+            self.speed_vote = SpeedVoter(cal.CL.speed_ratio_m, cal.CH.speed_ratio_m,
+                                         scale("PLANT_VEHICLE", "VehicleSpeed"),
+                                         max(scale("PLANT_SPEEDS", "CLOutputSpeed"),
+                                             scale("PLANT_SPEEDS", "CHOutputSpeed")))
+        self.implausible = {"VehicleSpeed": 0, "speeds": 0}
         self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
                                       send=self._send_one, recv=recv, on_taken=self._taken if listeners else None)
 
@@ -116,18 +150,30 @@ class TcuRunner:
         return self.link.incomplete_answers
 
     def inputs(self, now: float) -> TcuInputs:
-        states = self.rx.states
+        rx = self.rx
         faults = 0
-        if self.rx.rejected:
-            for reason, n in self.rx.rejected.items():
+        if rx.rejected:
+            for reason, n in rx.rejected.items():
                 if n:
                     faults |= FAULT_BITS.get(reason, 0)
-        engine, speeds, vehicle, pressure, oil, driver = required = [states[name] for name in REQUIRED]
-        if not all(state.valid(now) for state in required):
+        if rx is not self._required_of:  # the states of REQUIRED, looked up once per receive monitor
+            self._required_of, self._required = rx, tuple(rx.states[name] for name in REQUIRED)
+        required = self._required
+        if not all_valid(required, now):
             return TcuInputs(plant_valid=False, fault_bits=faults)
-        e, s, v, p, o, d = engine.values, speeds.values, vehicle.values, pressure.values, oil.values, driver.values
+        e, s, v, p, o, d = [state.values for state in required]
+        v_mps, vote = v["VehicleSpeed"], self.speed_vote
+        verdict = Verdict.OK
+        if vote is not None:
+            verdict, v_mps = vote.update(v_mps, s["CLOutputSpeed"], s["CHOutputSpeed"], now)
+        if verdict is not Verdict.OK:  # a sensor fault: VehicleSpeed replaced by the shafts' speed, or none trusted
+            faults |= FAULT_IMPLAUSIBLE
+            if verdict is Verdict.FAULT:
+                self.implausible["speeds"] += 1
+                return TcuInputs(plant_valid=False, fault_bits=faults)  # FAULT: clutches open, brake requested
+            self.implausible["VehicleSpeed"] += 1
         return TcuInputs(True, e["EngineSpeed"], s["ClutchInputSpeed"], s["CLOutputSpeed"], s["CHOutputSpeed"],
-                         v["VehicleSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"], o["T_Sump"],
+                         v_mps, p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"], o["T_Sump"],
                          d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults)
 
     def control(self, now: float, echo: int = 0) -> Frames:
@@ -139,19 +185,16 @@ class TcuRunner:
     def _step(self, now: float, echo: int) -> Frames:
         """One controller cycle at ``now``: compute, then TCU_STATUS when due and TCU_CMD, last (in lock-step it
         completes the answer to the tick), recorded for the listeners; returns the frames, unsent."""
-        self.now = self.link.tick * self.cycle_ms / CV.S_TO_MS if self.lockstep else now
+        link = self.link
+        lockstep, tick_ms = link.lockstep, link.tick * self.cycle_ms
+        self.now = tick_ms / CV.S_TO_MS if lockstep else now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
-        tx, frames = self.tx, []
-        due = tx.due_ms(self.link.tick * self.cycle_ms) if self.lockstep else tx.due(now)  # lock-step: whole ms
-        if "TCU_STATUS" in due:
-            frames.append((tx.ids["TCU_STATUS"], tx.data("TCU_STATUS", {
-                "State": self.states[out.state], "ActiveClutch": self.clutches[out.active_clutch],
-                "BrakeRequest": float(out.brake_request), "T_CL_Pred": out.T_CL_pred_c,
-                "T_CH_Pred": out.T_CH_pred_c, "FaultBits": out.fault_bits})))
-        if "TCU_CMD" in due:
-            frames.append((tx.ids["TCU_CMD"], tx.data("TCU_CMD", {
-                "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa, "SyncEcho": echo})))
+        tx, frames = link.tx, []
+        due = tx.due_ms(tick_ms) if lockstep else tx.due(now)  # lock-step: whole ms
+        for name in TX_VALUES:  # TCU_STATUS, then TCU_CMD
+            if name in due:
+                frames.append((tx.ids[name], self._frame_data[name](out, echo, tx.next_counter(name))))
         if self.listeners:
             for frame_id, data in frames:
                 self._record(frame_id, data, now, is_rx=False)
@@ -160,6 +203,8 @@ class TcuRunner:
     def _restart(self, now: float) -> None:
         """A lock-step run starts (the presence probe, or a first tick): a fresh controller, the plant's time."""
         self.controller = type(self.controller)(self.controller.cal)
+        if self.speed_vote is not None:
+            self.speed_vote.reset()
         self.now = now
 
     def _taken(self, frame_id: int, data: bytes, stamp: float) -> None:
@@ -190,9 +235,10 @@ class TcuRunner:
 
     def frame_counts(self) -> dict:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost
-        (counter gaps) and duplicates."""
+        (counter gaps) and duplicates; and the control cycles with implausible speeds, by cause (``implausible``:
+        VehicleSpeed replaced by the shafts' speed, or no speed trusted)."""
         rx = self.rx.counts()
-        return {"sent": self.sent, "answers_resent": self.answers_resent,
+        return {"sent": self.sent, "answers_resent": self.answers_resent, "implausible": dict(self.implausible),
                 "incomplete_answers": self.incomplete_answers, "received": self.rx.received,
                 "rejected": self.rx.rejected_total, "lost": sum(m["lost"] for m in rx.values()),
                 "duplicates": sum(m["duplicates"] for m in rx.values()), "by_message": rx}

@@ -34,6 +34,13 @@ def test_closed_loop_speed_figures():
     assert now["frames_sent"] == before["frames_sent"] > 0  # the same loop on both paths
     assert len(now["rounds"]) == len(before["rounds"]) == 1
     assert now["physics_us_per_period"] + now["rest_us_per_period"] == pytest.approx(now["period_us"], abs=0.2)
+    split = now["split_cpu_us"]
+    assert set(split) == {"physics", "plant_io", "results", "tcu"}
+    # physics, TCU and results are timed where they run; plant_io is the rest of the periods' CPU time, which is
+    # estimated (set-up taken out in proportion to wall time): a 0.5-s run on a loaded machine can put it below zero
+    assert all(positive(split[k]) for k in ("physics", "results", "tcu")) and math.isfinite(split["plant_io"])
+    assert sum(split.values()) == pytest.approx(now["period_cpu_us"], abs=0.3)
+    assert positive(now["runs_per_core_hour"]) and positive(now["loop_peak_rss_mb"])
     udp = out["udp_multicast"]
     assert "error" not in udp and udp["rejected"] == 0 and positive(out["udp_multicast_sim_s_per_wall_s"])
     assert all(positive(v) for v in out["udp_multicast_primitives"].values())

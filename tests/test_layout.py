@@ -28,8 +28,10 @@ ALLOWED: dict[str, set[str]] = {
     "results": {"common", "physics"},
     "sim": {"common", "protocol", "physics", "results", "ecu_stub"},  # ecu_stub: the default in-process TCU
     "paper": {"common", "protocol", "physics", "results", "sim"},
-    "testing": {"common", "protocol", "physics", "results", "sim", "ecu_stub"},
-    "cli": {"common", "protocol", "physics", "results", "sim", "paper", "e2e", "ecu_stub"},
+    "testing": {"common", "protocol", "physics", "results", "sim", "ecu_stub", "fmi"},  # fmi: an .fmu controller
+    "fmi": {"common", "protocol", "physics", "results", "sim", "ecu_stub"},  # FMI both ways, built on the run API
+    "cli": {"common", "protocol", "physics", "results", "sim", "paper", "e2e", "ecu_stub", "sweep", "fmi"},
+    "sweep": {"common", "protocol", "physics", "results", "sim", "ecu_stub", "testing"},  # testing: controllers
     "e2e": {"common", "protocol", "physics", "results", "sim", "ecu_stub"},
     "ecu_stub": {"common", "protocol"},  # the TCU knows the plant only through the DBC
     "__init__": {"common", "protocol", "physics", "results", "sim", "testing"},  # the lazy public API

@@ -7,7 +7,8 @@ Errors reach the user as one line ``error: ...`` (``--debug`` shows the tracebac
 for ``ecu-stub`` and ``python -m ecu_stub.identify`` (one ``main``: :func:`dsg_hil.common.cli.run_main`; the tree of
 errors: :mod:`dsg_hil.common.errors`): 0 ok, 1 the run failed (peer lost ...), 2 bad input or usage (the line
 names the file, key or option), 3 a result outside its band (``dsg-hil validate``, ``dsg-hil dbc``), 130 Ctrl-C
-(SIGINT), 143 SIGTERM (128 + the signal number, as a shell reports a killed process).
+(SIGINT), 143 SIGTERM (128 + the signal number, as a shell reports a killed process), at any moment from the first
+line of :func:`main` (so this module imports the standard library and ``dsg_hil.common`` only).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import sys
 
 from .. import __version__
 from ..common.cli import run_main
+from .common import set_quiet
 
 __all__ = ["COMMANDS", "command_help", "main"]
 
@@ -30,7 +32,11 @@ COMMANDS = {  # command: (module, one-line help), in the order of 'dsg-hil --hel
     "validate": ("validate", "run the paper's single-clutch validation (Section III.C)"),
     "calibrate": ("calibrate", "re-run the calibrations of the 'calibrated' parameters"),
     "params": ("params_cmd", "list the model parameters and where each comes from"),
+    "fmu": ("fmu_cmd", "write the plant as an FMI 2.0 co-simulation FMU (extra fmi)"),
     "report": ("report_cmd", "figures and a 'paper vs dsg-hil' table: validation rig and creep run"),
+    "plot": ("plot_cmd", "plot one recorded run from its log: speed, pressures, plate temperatures"),
+    "completion": ("completion_cmd", "print a shell completion script (bash)"),
+    "sweep": ("sweep_cmd", "run a space of scenarios on Dask and judge each on the plant's truth (or --search)"),
 }
 
 
@@ -61,4 +67,17 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     """``dsg-hil``: run the command given and return its exit status (argparse's usage errors exit 2 themselves)."""
-    return run_main(_parse_args, argv, lambda args: args.func(args))
+    return run_main(_parse_args, argv, _dispatch, cut_short=_cut_short)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    set_quiet(getattr(args, "quiet", False))  # each command afresh (several may run in one process)
+    return int(args.func(args))
+
+
+def _cut_short(args: argparse.Namespace, reason: str) -> None:
+    """A signal ended the command: its ``cut_short`` if it has one (run, plant: the summary of a run that never
+    started)."""
+    cut_short = getattr(args, "cut_short", None)
+    if cut_short is not None:
+        cut_short(args, reason)

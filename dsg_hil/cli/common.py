@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from ..physics.params import Params
 
-__all__ = ["add_params_option", "params_from", "non_negative_int", "positive_number", "progress"]
+__all__ = ["add_params_option", "non_negative_int", "params_from", "positive_number", "progress", "set_overrides",
+           "set_quiet"]
 
 
 def positive_number(text: str) -> float:
@@ -35,9 +36,10 @@ def non_negative_int(text: str) -> int:
 
 
 def add_params_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--params", metavar="FILE",
+    parser.add_argument("--params", metavar="FILE|NAME",
                         help="parameter file (TOML) layered on the one shipped with dsg-hil: it may give only the "
-                             "keys it changes (see 'dsg-hil params')")
+                             "keys it changes (see 'dsg-hil params'); or a configuration's name: 'fitted' (the "
+                             "shipped file, default) or 'table1' (Table I and stated assumptions alone)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one parameter after --params, by its dotted key as 'dsg-hil params' lists "
                              "it, in the unit listed there (optionally stated: vehicle.m=9000 or "
@@ -46,19 +48,37 @@ def add_params_option(parser: argparse.ArgumentParser) -> None:
 
 def params_from(args: argparse.Namespace) -> Params:
     """The parameters the options give: the shipped file, ``--params`` layered on it, then each ``--set``."""
-    from ..physics.params import ParameterError, load_params, with_overrides  # noqa: PLC0415 - not for --help
+    from ..physics.params import load_params, with_overrides  # noqa: PLC0415 - not for --help
 
     params = load_params(args.params)
+    overrides = set_overrides(args)
+    return with_overrides(params, overrides, origin="--set") if overrides else params
+
+
+def set_overrides(args: argparse.Namespace) -> dict[str, str]:
+    """``--set KEY=VALUE`` options as ``{dotted key: value text}`` (not yet checked against the parameters)."""
+    from ..physics.params import ParameterError  # noqa: PLC0415 - not for --help
+
     overrides: dict[str, str] = {}
     for assignment in getattr(args, "set", None) or ():
         key, equals, value = assignment.partition("=")
         if not equals or not key.strip():
             raise ParameterError(f"--set: expected KEY=VALUE (e.g. vehicle.m=9000), got {assignment!r}")
         overrides[key.strip()] = value
-    return with_overrides(params, overrides, origin="--set") if overrides else params
+    return overrides
+
+
+_quiet = [False]  # set by each command (``--quiet``; see busopts.setup_logging)
+
+
+def set_quiet(quiet: bool) -> None:
+    """Whether :func:`progress` prints (``--quiet``: it does not)."""
+    _quiet[0] = quiet
 
 
 def progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
+    """One progress line on stderr (none under ``--quiet``)."""
+    if not _quiet[0]:
+        print(message, file=sys.stderr, flush=True)
 
 

@@ -17,7 +17,8 @@ from .common import non_negative_int, positive_number, progress
 __all__ = ["DEFAULT_TESTS", "add_subparser"]
 
 # The end-to-end tests ship inside the package (dsg_hil/e2e), so this runs from a checkout and from a wheel alike.
-DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "--pyargs", "dsg_hil.e2e"]
+DEFAULT_TESTS = ["python", "-m", "pytest", "-m", "vcan", "-p", "no:cacheprovider", "-v", "--durations=0",
+                 "--pyargs", "dsg_hil.e2e"]
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -39,11 +40,20 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--load", type=non_negative_int, default=0, metavar="N",
                         help="run COMMAND on a busy machine: beside 'stress-ng --cpu N' (N CPU hogs where the "
                              "command runs, in the VM or natively; needs stress-ng; default 0: idle)")
+    parser.add_argument("--install", action="store_true",
+                        help="install the system packages this run lacks (can-utils; stress-ng for --load; "
+                             "qemu-system-x86, busybox-static, linux-image-amd64 for the VM) with apt-get, as root "
+                             "or through password-less sudo, saying what it installs (default: name them and stop)")
     parser.add_argument("--kernel", metavar="FILE", help="kernel image for the VM (default: newest /boot/vmlinuz-*)")
     parser.add_argument("--outdir", metavar="DIR", help="writable directory for logs and results (default: a "
                         "temporary one, kept when the command fails)")
     parser.add_argument("--timeout", type=positive_number, default=4500.0, metavar="S",
-                        help="VM time limit (default 4500: the suite under --load took 26-48 min emulated)")
+                        help="VM time limit, boots included (default 4500: the suite under --load took 26-48 min "
+                             "emulated)")
+    parser.add_argument("--boot-timeout", type=positive_number, default=300.0, metavar="S",
+                        help="a VM that has not started COMMAND within S seconds is killed and booted again, three "
+                             "boots at most, its console's last lines shown (default 300; a boot takes 30 s to a few "
+                             "minutes emulated)")
     parser.add_argument("command", nargs=argparse.REMAINDER, help="command to run (after --)")
     parser.set_defaults(func=_do_vcan)
 
@@ -54,13 +64,6 @@ def _do_vcan(args: argparse.Namespace) -> int:
         command[0] = sys.executable
     kernel = vcan.find_kernel(args.kernel) if args.kernel else None  # bad input fails before anything is made
     check_output_path("--outdir", args.outdir, directory=True)
-    if args.load:
-        command = vcan.with_load(command, args.load)
-    outdir = Path(args.outdir or tempfile.mkdtemp(prefix="dsg-hil-vcan-")).resolve()
-    outdir.mkdir(parents=True, exist_ok=True)
-    env = {vcan.ENV_REQUIRE: "1", vcan.ENV_DURATION: f"{args.duration:g}", vcan.ENV_OUTDIR: str(outdir)}
-    if os.environ.get("PYTHONPATH"):  # the caller's, forwarded into the VM (e.g. a checkout other than the venv's)
-        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
     native = False
     if not args.vm:
         if vcan.vcan_present():
@@ -72,6 +75,19 @@ def _do_vcan(args: argparse.Namespace) -> int:
                 if args.native:
                     raise vcan.VcanError(f"no vcan0 and cannot create it: {reason}")
                 progress(f"no vcan0 here ({reason}): running in a throw-away VM")
+    missing = vcan.missing_system_packages(vm=not native, load=bool(args.load), kernel=kernel is None)
+    if missing and args.install:
+        vcan.install_system_packages(missing, say=progress)
+    elif missing:
+        raise vcan.VcanError(f"missing system packages: {' '.join(missing)} (apt-get install them, or run "
+                             "'dsg-hil vcan --install' as root or with password-less sudo)")
+    outdir = Path(args.outdir or tempfile.mkdtemp(prefix="dsg-hil-vcan-")).resolve()
+    outdir.mkdir(parents=True, exist_ok=True)
+    env = {vcan.ENV_REQUIRE: "1", vcan.ENV_DURATION: f"{args.duration:g}", vcan.ENV_OUTDIR: str(outdir)}
+    if os.environ.get("PYTHONPATH"):  # the caller's, forwarded into the VM (e.g. a checkout other than the venv's)
+        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
+    if args.load:
+        command = vcan.with_load(command, args.load)
     env[vcan.ENV_WHERE] = "native" if native else "emulated VM (QEMU TCG)"
     if native:
         progress(f"vcan0 present: running natively; logs in {outdir}")
@@ -82,7 +98,8 @@ def _do_vcan(args: argparse.Namespace) -> int:
         progress("compiling the plant's physics on the host for the VM (numba cache in the log directory)")
         vcan.warm_compiled_code(env)
         progress(f"booting {kernel.name} under QEMU (software emulation) with vcan0; logs in {outdir}")
-        rc = vcan.run_in_vm(vcan.vm_plan(command, outdir, kernel, env, Path.cwd()), args.timeout)
+        rc = vcan.run_in_vm(vcan.vm_plan(command, outdir, kernel, env, Path.cwd()), args.timeout,
+                            boot_timeout=args.boot_timeout, say=progress)
         tail = vcan.output_tail(outdir)
         if tail:  # the console interleaves and garbles; repeat the end cleanly (full: output.txt)
             print(f"--- end of the command's output in the VM ({outdir / 'output.txt'}) ---\n{tail}", flush=True)

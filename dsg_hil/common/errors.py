@@ -13,6 +13,9 @@ share them; each class is defined where it belongs (the module in brackets) and 
          |   +-- FrameError           (protocol.codec)       a received frame (unknown, dlc, crc, range): rejected
          |   +-- LogError             (common.errors)        a recorded log: unreadable, not of the DBC, no data
          |   +-- CalibrationError     (ecu_stub.calibration) the TCU's calibration file
+         |   +-- FmuError             (fmi.controller)       a controller FMU: unreadable, or a variable no DBC signal
+         |   +-- SpaceError           (sweep.space)          a sweep's space file
+         |   +-- DriverError          (sweep.drivers)        a sweep's driver setting that makes no behaviour
          +-- RunError (also a RuntimeError)                  exit 1: the run could not go on
          |   +-- PeerTimeout          (common.errors)        no TCU answered the lock-step presence probe
          |   |   +-- PeerLost         (common.errors)        the TCU fell silent during a lock-step run

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 from .errors import InputError
@@ -22,21 +23,35 @@ def read_input_file(path: Path, what: str, error: type[InputError]) -> str:
 
 def check_output_path(option: str, path: str | None, directory: bool = False) -> None:
     """Fail before the run, not after it, when ``path`` (a file; ``directory``: a directory to write into)
-    cannot be written: a directory (a file), or a parent that is not a writable directory (missing parents
-    are created at the end: the nearest existing one counts)."""
+    cannot be written: a directory (a file) or a name ending in a path separator, or a place where nothing can be
+    written. Missing parents are created when the file is written: the nearest existing one must take a new
+    entry, which is tried (a temporary entry, removed at once: permission bits say nothing for root, nor on a
+    read-only or virtual file system such as /proc)."""
     if path is None:
         return
     target = Path(path)
-    if directory and target.exists():
-        if not target.is_dir() or not os.access(target, os.W_OK | os.X_OK):
-            raise InputError(f"{option} {path}: not a writable directory")
-        return
     if not directory and target.is_dir():
         raise InputError(f"{option} {path}: is a directory")
+    if not directory and path.endswith(("/", os.sep)):
+        raise InputError(f"{option} {path}: ends in a path separator: give a file name")
+    if directory and target.exists():
+        if not target.is_dir():
+            raise InputError(f"{option} {path}: not a writable directory (a file)")
+        _probe(option, path, target)
+        return
     parent = target.parent
     while not parent.exists():
         parent = parent.parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+    if not parent.is_dir():
         raise InputError(f"{option} {path}: {parent} is not a writable directory")
+    _probe(option, path, parent)
     if target.exists() and not os.access(target, os.W_OK):
         raise InputError(f"{option} {path}: file not writable")
+
+
+def _probe(option: str, path: str, where: Path) -> None:
+    """Whether ``where`` takes a new entry: a temporary directory made and removed."""
+    try:
+        tempfile.TemporaryDirectory(dir=where).cleanup()
+    except OSError as exc:
+        raise InputError(f"{option} {path}: {where} is not a writable directory ({exc.strerror or exc})") from None

@@ -20,7 +20,7 @@ from scipy.integrate import solve_ivp
 from . import engine
 from .friction import friction_coefficient, torque_per_mu
 from .hydraulics import clamp_command
-from .powertrain import IDX, N_DOF, N_STATE, contact_velocities, road_load, vehicle_speed
+from .powertrain import IDX, N_DOF, N_STATE, contact_velocities, holding_torque, road_load, vehicle_speed
 from .thermal import NODES, heat_sources
 from .plant import Plant, PlantInputs
 
@@ -38,9 +38,11 @@ def pack(plant: Plant) -> np.ndarray:
 def torques(plant: Plant, inputs: PlantInputs) -> Torques:
     """g(y, stuck, direction) -> (u = [M_e, M_CL, M_CH, M_R], friction torques f, capacities, governor rate).
 
-    A slipping contact's friction is its capacity (5)-(6) (rolling resistance plus brake (13) for the vehicle)
-    times ``direction`` (+-1; None: the sign of its velocity); a stuck one's is the torque that keeps its velocity
-    constant, all stuck contacts solved together."""
+    A slipping contact's friction is its capacity (5)-(6) times ``direction`` (+-1; None: the sign of its
+    velocity); the vehicle's is its holding torque (breakaway rolling resistance plus brake) times ``direction``
+    plus the rest of the rolling resistance (13) in proportion to its speed up to ``v_stick``
+    (:mod:`dsg_hil.physics.powertrain`); a stuck one's is the torque that keeps its velocity constant, all stuck
+    contacts solved together. ``cap`` holds what each contact can hold at rest."""
     p = plant.params
     grade = p.vehicle.beta if inputs.grade is None else inputs.grade
     setpoint = p.engine.omega_idle if inputs.engine_speed_request is None else inputs.engine_speed_request
@@ -49,6 +51,7 @@ def torques(plant: Plant, inputs: PlantInputs) -> Torques:
     A, B_x = plant.model.matrices()
     V = contact_velocities()
     VA, VB = V @ A, V @ B_x
+    omega_full = p.vehicle.v_stick / p.vehicle.r_w * p.powertrain.i_b  # shaft III speed of v_stick
 
     def g(y: np.ndarray, stuck: Sequence[bool] = NO_CONTACT_STUCK,
           direction: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -58,10 +61,13 @@ def torques(plant: Plant, inputs: PlantInputs) -> Torques:
         mu_CH = friction_coefficient(mem_CH, T[i_CH], P_CH, p.friction)
         v = vehicle_speed(x[IDX["5"]], p.powertrain.i_b, p.vehicle.r_w)
         M_fixed, M_resist = road_load(v, grade, inputs.brake, p.vehicle)
-        cap = np.array([mu_CL * k_CL * P_CL, mu_CH * k_CH * P_CH, M_resist])
+        M_hold = holding_torque(grade, inputs.brake, p.vehicle)
+        cap = np.array([mu_CL * k_CL * P_CL, mu_CH * k_CH * P_CH, M_hold])
         d = np.copysign(1.0, V @ x) if direction is None else np.asarray(direction, dtype=float)
         held = np.flatnonzero(stuck)
         f = np.where(stuck, 0.0, cap * d)
+        if not stuck[2]:
+            f[2] += (M_resist - M_hold) * min(max(x[IDX["5"]] / omega_full, -1.0), 1.0)
         fuel, d_integral = engine.governor(x[IDX["e"]], integral, setpoint, p.engine)
         u = np.array([engine.net_torque(fuel, p.engine), f[0], f[1], M_fixed + f[2]])
         if held.size:

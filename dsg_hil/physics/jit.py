@@ -7,13 +7,17 @@ built), so ``import dsg_hil`` and commands that build no plant do not pay numba'
 Python, a parameter group (a frozen dataclass of :mod:`dsg_hil.physics.params`) is passed as its record, so the
 unit tests call the compiled code with the parameter objects they already have.
 
-Compiled code is cached next to the module (``__pycache__``); where that directory is read-only numba falls
-back to its user cache directory, and ``NUMBA_CACHE_DIR`` overrides both.
+Compiled code is cached in the user's cache directory (``$XDG_CACHE_HOME/dsg-hil/numba``, by default
+``~/.cache/dsg-hil/numba``), one sub-directory per source tree, never inside the installed package: numba's files
+there are not in pip's record of the install, so ``pip uninstall`` would leave them behind as a ``dsg_hil``
+namespace directory that hides a later editable install. ``NUMBA_CACHE_DIR`` overrides it; where it cannot be
+written numba falls back to ``__pycache__`` or its own user cache.
 """
 
 from __future__ import annotations
 
 import functools
+import os
 import weakref
 from collections import namedtuple
 from collections.abc import Callable
@@ -24,7 +28,17 @@ import numpy as np
 
 from . import params as _params
 
-__all__ = ["Compiled", "compiled", "constants", "record"]
+__all__ = ["Compiled", "cache_dir", "compiled", "constants", "record"]
+
+
+def cache_dir() -> str:
+    """Where numba caches the compiled plant: ``NUMBA_CACHE_DIR`` if set, else ``dsg-hil/numba`` in the user's
+    cache directory (``$XDG_CACHE_HOME``, by default ``~/.cache``)."""
+    given = os.environ.get("NUMBA_CACHE_DIR")
+    if given:
+        return given
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "dsg-hil", "numba")
 
 _RECORDS: dict[type, type] = {}
 _OF_GROUP: dict[int, tuple] = {}  # id(group) -> record, while the group lives
@@ -92,6 +106,9 @@ class Compiled:
         if self._dispatcher is None:
             import numba
 
+            config: Any = numba.config  # its settings are set from the environment at import: untyped
+            if not config.CACHE_DIR:  # read when the cache is set up, i.e. by njit(cache=True) just below
+                config.CACHE_DIR = cache_dir()
             self._dispatcher = numba.njit(cache=True)(self.py_func)
         return self._dispatcher
 

@@ -9,6 +9,12 @@ Every value in the file is an inline table ``{ value = ..., unit = "...", source
 
 Units are SI with temperatures in degC; each field below declares its unit, and the file must state the same one.
 Anything missing, unknown, mistyped, out of range or in the wrong unit raises :class:`ParameterError` naming the key.
+
+Named configurations (:data:`CONFIGURATIONS`), accepted wherever a parameter file is (``--params table1``,
+``RunConfig(params="table1")``, the pytest fixture's ``params="table1"``): ``fitted``, the shipped file, the
+default (its vehicle clutches calibrated on Section V.B); ``table1``, Table I and stated assumptions alone, no
+Section V.B number consumed (``data/params_table1.toml`` layered on the shipped file). A file whose name is one of
+these must be given with a directory (``./table1``).
 """
 
 from __future__ import annotations
@@ -25,12 +31,16 @@ from ..common.errors import InputError
 from ..common.files import read_input_file
 from ..common.quantities import finite, quantity
 
-__all__ = ["Circuit", "ClutchGeometry", "ClutchThermal", "ClutchThermals", "Clutches", "DEFAULT_PARAMS_PATH",
+__all__ = ["CONFIGURATIONS", "Circuit", "ClutchGeometry", "ClutchThermal", "ClutchThermals", "Clutches",
+           "DEFAULT_CONFIGURATION", "DEFAULT_PARAMS_PATH",
            "Element", "Engine", "Friction", "Hydraulics", "Oil", "ParameterError", "Params", "Powertrain", "SOURCES",
            "Thermal", "Vehicle", "load_params", "nonneg", "p", "parameters", "parse_params", "positive", "ratio",
-           "with_overrides"]
+           "value_of", "with_overrides"]
 
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
+# name -> file layered on the shipped one (None: the shipped file alone)
+CONFIGURATIONS: dict[str, Path | None] = {"fitted": None, "table1": DEFAULT_PARAMS_PATH.with_name("params_table1.toml")}
+DEFAULT_CONFIGURATION = "fitted"
 SOURCES = {"paper": "ref", "assumed": "why", "calibrated": "target"}
 
 
@@ -201,7 +211,8 @@ class Vehicle:
     A: float = positive("m^2")
     C_D: float = nonneg("1")
     rho_air: float = positive("kg/m^3")
-    v_stick: float = positive("m/s")  # below this speed rolling resistance and brake act as static friction
+    f_breakaway: float = nonneg("1")  # rolling resistance that holds a standing vehicle (at most f)
+    v_stick: float = positive("m/s")  # rolling resistance rises from f_breakaway at rest to f at this speed
     M_brake_max: float = nonneg("N*m")  # service brake torque at the wheels at full request
 
 
@@ -297,6 +308,9 @@ def _check_consistency(params: Params) -> None:
         if c.Q_relief + getattr(cool, low).Q_cool + cool.CH.Q_cool > c.Q_pump:
             raise ParameterError(f"circuit.Q_pump: smaller than Q_relief + thermal.clutch.{low}.Q_cool + "
                                  "thermal.clutch.CH.Q_cool")
+    if params.vehicle.f_breakaway > params.vehicle.f:
+        raise ParameterError(f"vehicle.f_breakaway: must not exceed f ({params.vehicle.f_breakaway} > "
+                             f"{params.vehicle.f})")
     if params.engine.omega_rated <= params.engine.omega_idle:
         raise ParameterError("engine.omega_rated: must be above omega_idle")
 
@@ -317,9 +331,12 @@ def parse_params(text: str, origin: str = "<string>", base: Params | None = None
 
 def load_params(path: str | Path | None = None) -> Params:
     """Load a parameter file layered on the shipped one (``path`` None: the shipped one alone, every key given):
-    the keys it gives replace the shipped values, each checked and tagged as in the shipped file."""
+    the keys it gives replace the shipped values, each checked and tagged as in the shipped file. A ``str`` that
+    names a configuration of :data:`CONFIGURATIONS` (``"fitted"``, ``"table1"``) loads that configuration."""
     shipped = parse_params(read_input_file(DEFAULT_PARAMS_PATH, "parameter file", ParameterError),
                            str(DEFAULT_PARAMS_PATH))
+    if isinstance(path, str) and path in CONFIGURATIONS:
+        path = CONFIGURATIONS[path]
     if path is None:
         return shipped
     text = read_input_file(Path(path), "parameter file", ParameterError)
@@ -364,6 +381,12 @@ def _override_value(name: str, raw: float | str, meta: Mapping[str, Any]) -> flo
         except ValueError:
             raise ParameterError(f"{name}: value must be a finite number, got {number!r}") from None
     return _checked(name, raw, meta)
+
+
+def value_of(params: Params, key: str, origin: str = "params") -> float:
+    """The value of the parameter at the dotted ``key`` (as ``dsg-hil params`` lists it); :class:`ParameterError`
+    naming ``origin`` for a key that is no parameter."""
+    return _leaf(params, key, origin)[1]
 
 
 def _leaf(params: Params, key: str, origin: str) -> tuple[Mapping[str, Any], float]:

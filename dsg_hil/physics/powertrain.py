@@ -15,9 +15,18 @@ equations are linear with constant coefficients, so :func:`discretize` gives the
 
 Stick/slip: the two clutches and the vehicle's rolling resistance plus brake are three friction contacts. Their
 torques are found implicitly (:func:`solve_contacts`): a clutch whose slip would cross zero within the step locks
-(slip zero at the step's end) if it can carry the torque that takes, and unlocks when it cannot; the same holds the
-vehicle at standstill. This time-stepping law cannot chatter or pump energy at the 1 ms step, although the shafts
-have modes up to ~690 Hz.
+(its mean slip over the step zero) if it can carry the torque that takes, and unlocks when it cannot; the same holds
+the vehicle at standstill (its speed at the step's end zero, :func:`law_rows`). This time-stepping law cannot
+chatter, and a torque held over the step does exactly its work on the mean velocity, at the 1 ms step although the
+shafts have modes up to ~690 Hz (:mod:`dsg_hil.physics.plant`).
+
+Rolling resistance at standstill (:func:`holding_torque`): the brake is static friction, but the wheel resistance
+of (13) is not. Tyre rolling resistance is hysteresis loss of a rolling tyre and vanishes at rest; a standing
+vehicle is held only by its breakaway resistance ``f_breakaway`` (tyres, bearings, drag: ``vehicle.f_breakaway``),
+far below Table I's f = 0.123, which is the paper's resistance while creeping. Between, the resistance rises
+linearly with speed from the breakaway value to f at ``vehicle.v_stick`` (a regularised law: a rise at one speed,
+kinetic above static, would chatter at standstill). So a vehicle on a grade steeper than ``f_breakaway`` rolls
+down it, at the speed where the law balances the gradient, and one on a gentler grade stands.
 """
 
 from __future__ import annotations
@@ -32,7 +41,8 @@ from .params import Powertrain, Vehicle
 from .thermal import zoh
 
 __all__ = ["CONTACTS", "CONTACT_INPUTS", "DOFS", "Discrete", "IDX", "INPUTS", "Model", "N_DOF", "N_SPRING", "N_STATE",
-           "SPRINGS", "build_model", "contact_velocities", "discretize", "road_load", "solve_contacts",
+           "SPRINGS", "build_model", "contact_velocities", "discretize", "holding_torque", "law_rows", "road_load",
+           "solve_contacts",
            "solve_contacts_into", "vehicle_speed"]
 
 DOFS = ("e", "in", "1", "2", "3", "4", "5")
@@ -123,7 +133,9 @@ class Discrete:
     """Exact zero-order-hold step of the linear model and of the integral of its state over the step.
 
     ``x[k+1] = Phi x[k] + Gamma u[k]`` and ``int_0^dt x dt = Phi_int x[k] + Gamma_int u[k]``.
-    ``W = V Gamma[:, contacts]`` is the (constant) response of the contact velocities to the friction torques.
+    ``L_x x + L_u u`` are the velocities the contact law acts on (:func:`law_rows`): the clutches' slips' means over
+    the step, the vehicle's (shaft III) speed at the step's end. ``W = L_u[:, contacts]`` is their (constant)
+    response to the friction torques.
     """
 
     dt: float
@@ -132,6 +144,8 @@ class Discrete:
     Phi_int: np.ndarray
     Gamma_int: np.ndarray
     V: np.ndarray
+    L_x: np.ndarray
+    L_u: np.ndarray
     W: np.ndarray
 
 
@@ -147,42 +161,70 @@ def discretize(model: Model, dt: float) -> Discrete:
     B_aug = np.vstack([B_x, np.zeros_like(B_x)])
     Gam = G @ B_aug
     V = contact_velocities()
-    Gamma = Gam[:n]
-    return Discrete(dt, E[:n, :n], Gamma, E[n:, :n], Gam[n:], V, V @ Gamma[:, CONTACT_INPUTS])
+    L_x, L_u = law_rows((E[:n, :n], Gam[:n]), (E[n:, :n], Gam[n:]), V, dt)
+    return Discrete(dt, E[:n, :n], Gam[:n], E[n:, :n], Gam[n:], V, L_x, L_u, L_u[:, CONTACT_INPUTS])
+
+
+def law_rows(end: tuple[np.ndarray, np.ndarray], integral: tuple[np.ndarray, np.ndarray], V: np.ndarray,
+             dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(L_x, L_u): the velocities the contact law acts on, ``L_x x + L_u u`` over a step from x with u held, given
+    the step's ``end = (Phi, Gamma)`` and ``integral = (Phi_int, Gamma_int)`` (:class:`Discrete`).
+
+    The clutches (rows 0, 1): their slips' MEANS over the step, ``V (Phi_int x + Gamma_int u) / dt``, so a locked
+    clutch does no work and a slipping one dissipates |M| times its slip integral exactly (module docstring of
+    :mod:`dsg_hil.physics.plant`). The vehicle (row 2): shaft III's speed at the step's END, ``V (Phi x + Gamma u)``,
+    so a held vehicle ends every step at rest. On the mean, a held vehicle that entered the step moving would end
+    it moving the other way as fast (v_end = -v_start for its near-linear speed within a step: its inertia is the
+    vehicle's), and that reversal is an undamped mode at the step's Nyquist frequency: braked from 0.2 m/s, the
+    speed rang at +-0.34 mm/s decaying with tau ~ 120 s, read as roll-back (issue 16). The clutches' sides are light
+    and stiffly coupled: a locked clutch's end slip stays at ~1e-6 rad/s on the mean law, which keeps the shuffle
+    and the 88-Hz mode (bench/contact_law.py)."""
+    L_x = np.vstack([V[:2] @ integral[0] / dt, V[2:] @ end[0]])
+    L_u = np.vstack([V[:2] @ integral[1] / dt, V[2:] @ end[1]])
+    return L_x, L_u
 
 
 @compiled
-def solve_contacts(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f0: np.ndarray, iterations: int = 50,
-                   tol: float = 1e-9) -> np.ndarray:
-    """Friction torques f (one per contact, |f_i| <= cap_i) of the implicit time-stepping friction law.
+def solve_contacts(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, limit: np.ndarray, v_ramp: np.ndarray,
+                   f0: np.ndarray, iterations: int = 50, tol: float = 1e-9) -> np.ndarray:
+    """Friction torques f (one per contact) of the implicit time-stepping friction law.
 
-    With ``v = v_free + W f`` the contact velocities at the end of the step: a contact sticks (v_i = 0) when it
-    can, with |f_i| < cap_i; otherwise it slips with f_i = cap_i sign(v_i), never reversing within the step.
-    Projected Gauss-Seidel from ``f0`` in a fixed order (deterministic); W has a dominant negative diagonal.
-    Float arrays in and out (compiled: scalar loops cost nothing there).
+    With ``v = v_free + W f`` the contact velocities the law acts on: a contact sticks (v_i = 0) when it can, with
+    |f_i| <= cap_i; otherwise it slips, never reversing within the step, with |f_i| rising linearly with |v_i|
+    from cap_i to ``limit_i`` at ``v_ramp_i`` and ``limit_i`` beyond (``limit = cap``: Coulomb friction; the
+    vehicle's rolling resistance rises with speed, see the module docstring). Projected Gauss-Seidel from ``f0``
+    in a fixed order (deterministic); W has a dominant negative diagonal. Float arrays in and out (compiled: scalar
+    loops cost nothing there).
     """
     f = f0.astype(np.float64)  # a new array: f0 is left as it is
-    solve_contacts_into(v_free, W, cap, f, iterations, tol)
+    solve_contacts_into(v_free, W, cap, limit, v_ramp, f, iterations, tol)
     return f
 
 
 @compiled
-def solve_contacts_into(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, f: np.ndarray, iterations: int = 50,
-                        tol: float = 1e-9) -> None:
+def solve_contacts_into(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, limit: np.ndarray,
+                        v_ramp: np.ndarray, f: np.ndarray, iterations: int = 50, tol: float = 1e-9) -> None:
     """:func:`solve_contacts` in place: ``f`` holds the starting torques f0 on entry, the solution on return (the
     plant's step allocates nothing)."""
     n = cap.shape[0]
     for i in range(n):
-        f[i] = min(max(f[i], -cap[i]), cap[i])
-    scale = tol * (1.0 + cap.max())
+        f[i] = min(max(f[i], -limit[i]), limit[i])
+    scale = tol * (1.0 + limit.max())
     for _ in range(iterations):
         change = 0.0
         for i in range(n):
             v_i = v_free[i]
             for j in range(n):
                 v_i += W[i, j] * f[j]
-            new = f[i] - v_i / W[i, i]
-            new = cap[i] if new > cap[i] else (-cap[i] if new < -cap[i] else new)
+            new = f[i] - v_i / W[i, i]  # the torque that sticks it
+            if new > cap[i] or new < -cap[i]:
+                s = 1.0 if new > 0.0 else -1.0
+                new = s * limit[i]
+                rise = limit[i] - cap[i]
+                if rise > 0.0:  # slipping at v = a + W_ii f (a: without its own torque), f rising with |v|
+                    v = (v_i - W[i, i] * (f[i] - s * cap[i])) / (1.0 - W[i, i] * rise / v_ramp[i])
+                    if abs(v) < v_ramp[i]:
+                        new = s * cap[i] + rise * v / v_ramp[i]
             if abs(new - f[i]) > change:
                 change = abs(new - f[i])
             f[i] = new
@@ -201,10 +243,20 @@ def road_load(v: float, grade: float, brake: float, vehicle: Vehicle) -> tuple[f
     """Road load (13) at the wheel without its acceleration term, split into (drive-independent, resisting) [N m].
 
     Returns ``(M_fixed, M_resist)``: ``M_fixed`` = air drag (signed with v) + gradient, ``M_resist`` = magnitude of
-    rolling resistance plus brake, which opposes motion (or, with the vehicle held, holds it up to this value).
+    rolling resistance plus brake, which opposes motion (in full from ``v_stick`` on); a standing vehicle is held
+    only up to :func:`holding_torque`.
     """
     air = 0.5 * vehicle.rho_air * vehicle.C_D * vehicle.A * v * abs(v)
     gradient = vehicle.m * vehicle.g * math.sin(grade)
     rolling = vehicle.m * vehicle.g * vehicle.f * math.cos(grade)
     resist = rolling * vehicle.r_w + min(max(brake, 0.0), 1.0) * vehicle.M_brake_max
     return (air + gradient) * vehicle.r_w, resist
+
+
+@compiled
+def holding_torque(grade: float, brake: float, vehicle: Vehicle) -> float:
+    """The most torque at the wheel [N m] that holds a standing vehicle: the brake plus the breakaway rolling
+    resistance ``f_breakaway m g cos(grade) r_w`` (module docstring). Of :func:`road_load`'s ``M_resist``, the rest
+    acts only on a moving vehicle, in full from ``v_stick`` on."""
+    breakaway = vehicle.m * vehicle.g * vehicle.f_breakaway * math.cos(grade) * vehicle.r_w
+    return breakaway + min(max(brake, 0.0), 1.0) * vehicle.M_brake_max

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import configparser
+import importlib.util
 import os
 import random
 import socket
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
 
 __all__ = ["DEFAULT_CHANNELS", "FrameLog", "LOG_CHANNEL", "UDP_MULTICAST", "VIRTUAL_CHANNEL", "add_bus_arguments",
            "bus_args", "bus_config", "bus_name", "fresh_udp_group", "log_channel", "open_bus", "per_process_warning",
-           "receive_filters", "resolve_bus_config", "vcan0_present"]
+           "receive_filters", "require_mf4", "resolve_bus_config", "vcan0_present"]
 
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
@@ -178,10 +179,12 @@ def open_bus(config: dict[str, Any], receive: Iterable[Message] | None = None) -
 
 class FrameLog:
     """A listener writing frames to ``path`` through python-can's writer for its extension (``.log`` candump -L,
-    ``.asc``, ``.blf``, ``.csv`` ...), every frame on the one channel name ``channel`` (see :func:`log_channel`).
-    A path python-can has no writer for is an :class:`InputError` naming ``option``."""
+    ``.asc``, ``.blf``, ``.csv``, ``.mf4`` with asammdf ...), every frame on the one channel name ``channel`` (see
+    :func:`log_channel`). A path python-can has no writer for is an :class:`InputError` naming ``option``."""
 
     def __init__(self, path: str, channel: str, option: str = "--log") -> None:
+        if path.lower().endswith(".mf4"):
+            require_mf4(f"{option} {path}")
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         try:
             self.writer = can.Logger(path)
@@ -195,3 +198,10 @@ class FrameLog:
 
     def stop(self) -> None:
         self.writer.stop()
+
+
+def require_mf4(where: str) -> None:
+    """ASAM MDF4 (``.mf4``) logs go through python-can's MF4 reader and writer, which need asammdf (the ``mf4``
+    extra): an :class:`InputError` saying so, naming ``where``, when it is missing."""
+    if importlib.util.find_spec("asammdf") is None:
+        raise InputError(f"{where}: .mf4 (ASAM MDF4) logs need asammdf: pip install 'dsg-hil[mf4]'")

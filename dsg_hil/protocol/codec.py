@@ -25,7 +25,7 @@ from cantools.database.can import Database, Message
 from .e2e import COUNTER, CRC, Protection, ProtectionError
 from ..common.errors import InputError
 from ..common.units import CV
-from .generated import generate, unsupported
+from .generated import dict_of, generate, generate_fused, unsupported
 from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
 
 __all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "load_dbc"]
@@ -138,6 +138,19 @@ class Codec:
     def encoder(self, name: str) -> Callable[[Mapping[str, float], int], bytes]:
         """:meth:`encode` of ``name`` as one callable ``(values, counter) -> data``, for a sender of it each cycle."""
         return self._encoders[name]
+
+    def expression_encoder(self, name: str, args: Sequence[str], values: Mapping[str, str],
+                           namespace: Mapping[str, object] | None = None) -> Callable[..., bytes]:
+        """An encoder of ``name`` as ``f(*args, counter)`` whose signal values are the Python expressions ``values``
+        of those arguments (by signal; ``namespace``: other names they use; a signal not named takes its default):
+        :meth:`encode` of ``{signal: expression}``, byte for byte. Fused where the codec generated the message's
+        functions (:func:`.generated.generate_fused`: no dict built and looked up, for a sender that encodes its
+        own state every cycle); else the dict, then :meth:`encoder`."""
+        message = self._by_name[name]
+        if name in self.sources:
+            return generate_fused(message, self._protection[message.frame_id], args, values, namespace)[0]
+        encode, of = self._encoders[name], dict_of(args, values, namespace)
+        return lambda *a: encode(of(*a[:-1]), a[-1])
 
     def decoder(self, frame_id: int) -> Callable[[bytes], DecodedFrame]:
         """:meth:`decode` of a frame id the codec knows as one callable ``data -> frame`` (KeyError if unknown)."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import CodeType
 from typing import Any, cast
@@ -28,9 +28,10 @@ from cantools.database.conversion import BaseConversion, IdentityConversion, Lin
 from .e2e import COUNTER, CRC, Protection
 from .ranges import raw_range, signal_range
 
-__all__ = ["Decoder", "Encoder", "GeneratedMessage", "generate", "unsupported"]
+__all__ = ["Decoder", "Encoder", "GeneratedMessage", "dict_of", "generate", "generate_fused", "unsupported"]
 
 Encoder = Callable[[Mapping[str, float], int], bytes]
+DEFAULT = "<default>"  # _encode_lines: a signal a fused encoder is given no value for
 Decoder = Callable[[bytes], Any]  # a DecodedFrame of .codec
 
 
@@ -139,18 +140,7 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
         acc, shift = _shift(signal, length)
         mask = (1 << signal.length) - 1
         lo, hi = signal_range(signal)
-        # encode: clamp (NaN or missing: the default), to raw, into the frame
-        if signal.name == COUNTER:
-            enc.append(f"    {acc} |= ((counter % {protection.counter_modulus}) & {mask}){_shifted(shift)}")
-        elif signal.name != CRC:
-            default = _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi),
-                               lo, hi)  # a number: see unsupported()
-            enc += [f"    v = get({signal.name!r})", "    if v is None:", f"        v = {default!r}",
-                    "    else:", "        v = float(v)",  # a value in range costs two comparisons, no more
-                    f"        if not {_compared(lo)} <= v <= {_compared(hi)}:",
-                    f"            v = {default!r} if v != v or v == INF or v == -INF else {lo!r} if v < "
-                    f"{_compared(lo)} else {hi!r}",
-                    *_to_raw(conversion), f"    {acc} |= (r & {mask}){_shifted(shift)}"]
+        enc += _encode_lines(signal, protection, length)
         # decode: from the frame, to physical, range check
         bits_lo, bits_hi = raw_range(signal)
         checked = not lo - 1e-9 <= bits_lo <= bits_hi <= hi + 1e-9  # else no value of its bits is out of range
@@ -168,14 +158,80 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
     counter_index = next(i for i, s in enumerate(message.signals) if s.name == COUNTER)
     # DecodedFrame(...) without its Python-level __new__ (a NamedTuple's is tuple.__new__ with the fields)
     dec.append(f"    return NEW(DecodedFrame, ({name!r}, {{{', '.join(out)}}}, v{counter_index}))")  # an int counter
-    if any(s.byte_order == "big_endian" for s in message.signals):
-        enc.append(f"    F |= from_bytes(G.to_bytes({length}, 'big'), 'little')")
-    enc.append(f"    return (F | ({crc}){_shifted(8 * k)}).to_bytes({length}, 'little')")
+    enc += _encode_end(message, protection)
     source = "\n".join(enc) + "\n\n\n" + "\n".join(dec) + "\n"
     namespace: dict = {"FrameError": frame_error, "DecodedFrame": decoded_frame, "INF": math.inf,
                        "from_bytes": int.from_bytes, "NEW": tuple.__new__, **crc_tables}  # each looked up once
     exec(_compiled(source, name), namespace)  # noqa: S102 - our own source
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
+
+
+def _encode_lines(signal: Signal, protection: Protection, length: int, value: str | None = None) -> list[str]:
+    """Source lines putting ``signal`` into the frame (``F`` or ``G``): clamped (NaN or missing: the default), to
+    raw. Its value is ``values.get(name)`` (``get``; None: missing), or the expression ``value`` (never missing),
+    or with ``value`` :data:`DEFAULT` its default; the Counter is ``counter``; the CRC is sealed after all."""
+    acc, shift = _shift(signal, length)
+    mask = (1 << signal.length) - 1
+    if signal.name == COUNTER:
+        return [f"    {acc} |= ((counter % {protection.counter_modulus}) & {mask}){_shifted(shift)}"]
+    if signal.name == CRC:
+        return []
+    lo, hi = signal_range(signal)
+    default = _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi),
+                       lo, hi)  # a number: see unsupported()
+    clamp = [f"if not {_compared(lo)} <= v <= {_compared(hi)}:",  # a value in range: two comparisons, no more
+             f"    v = {default!r} if v != v or v == INF or v == -INF else {lo!r} if v < {_compared(lo)} else {hi!r}"]
+    if value is None:
+        lines = [f"    v = get({signal.name!r})", "    if v is None:", f"        v = {default!r}", "    else:",
+                 "        v = float(v)", *(f"        {line}" for line in clamp)]
+    elif value == DEFAULT:
+        lines = [f"    v = {default!r}"]
+    else:
+        lines = [f"    v = float({value})", *(f"    {line}" for line in clamp)]
+    return [*lines, *_to_raw(_conversion(signal)), f"    {acc} |= (r & {mask}){_shifted(shift)}"]
+
+
+def _encode_end(message: Message, protection: Protection) -> list[str]:
+    """The last source lines of an encoder: big-endian signals moved in, the CRC sealed, the frame's bytes."""
+    length, k = message.length, protection.crc_byte
+    crc, _ = _crc_expression(protection)
+    lines = []
+    if any(s.byte_order == "big_endian" for s in message.signals):
+        lines.append(f"    F |= from_bytes(G.to_bytes({length}, 'big'), 'little')")
+    return [*lines, f"    return (F | ({crc}){_shifted(8 * k)}).to_bytes({length}, 'little')"]
+
+
+def generate_fused(message: Message, protection: Protection, args: Sequence[str], values: Mapping[str, str],
+                   namespace: Mapping[str, object] | None = None) -> tuple[Callable[..., bytes], str]:
+    """An encoder of ``message`` (check :func:`unsupported` first) taking ``args`` and then the counter, whose
+    signal values are the Python expressions ``values`` of those arguments (by signal; a signal not named takes its
+    default, as one missing from the dict of the plain encoder): the frame the plain encoder gives for
+    ``{signal: float(expression)}``, byte for byte, without the dict built and looked up. ``namespace``: names the
+    expressions use besides ``args``. Returns the function and its source."""
+    unknown = set(values) - {s.name for s in message.signals} | set(values) & {COUNTER, CRC}
+    if unknown:
+        raise ValueError(f"{message.name}: no signal {sorted(unknown)[0]} to give a value")
+    taken = set(args) & {"F", "G", "v", "r", "d", "q", "m", "counter", "INF", "from_bytes"}
+    if taken:
+        raise ValueError(f"{message.name}: argument {sorted(taken)[0]!r} is a name the encoder uses")
+    lines = [f"def encode({', '.join((*args, 'counter'))}):", "    F = G = 0"]
+    for signal in message.signals:
+        lines += _encode_lines(signal, protection, message.length, values.get(signal.name, DEFAULT))
+    source = "\n".join([*lines, *_encode_end(message, protection)]) + "\n"
+    scope: dict = {"INF": math.inf, "from_bytes": int.from_bytes, **_crc_expression(protection)[1], **(namespace or {})}
+    exec(_compiled(source, f"{message.name} fused"), scope)  # noqa: S102 - our own source
+    return scope["encode"], source
+
+
+def dict_of(args: Sequence[str], values: Mapping[str, str],
+            namespace: Mapping[str, object] | None = None) -> Callable[..., dict[str, float]]:
+    """``f(*args)``: the dict ``{signal: expression}`` of ``values`` (the input of a plain encoder, for a message
+    with no fused one)."""
+    items = ", ".join(f"{signal!r}: {value}" for signal, value in values.items())
+    source = f"def values({', '.join(args)}):\n    return {{{items}}}\n"
+    scope: dict = dict(namespace or {})
+    exec(_compiled(source, "values"), scope)  # noqa: S102 - our own source
+    return scope["values"]
 
 
 def _clamped(default: float, lo: float, hi: float) -> float:

@@ -13,6 +13,7 @@ in whole ticks from the DBC's milliseconds); seconds (tick x cycle time) are der
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections import Counter as Tally
 from collections.abc import Callable, Iterable
@@ -21,12 +22,14 @@ import can
 
 from ..common.errors import PeerLost, PeerTimeout  # the lock-step's errors, in the one tree
 from .codec import Codec, DecodedFrame, ProtocolError
+from .faults.spec import FaultSpec
 from .frame import data_frame
 from .validity import DUPLICATE, IGNORED, NEW, REJECTED, TIMEOUT_CYCLES, RxMonitor, TxScheduler
 
-__all__ = ["PROBE", "PROBE_INTERVAL_S", "RETRIES_PER_TICK", "RETRY_FIRST_S", "RETRY_MAX_S",
-           "SIGHTS_BEFORE_INCOMPLETE", "STATUS_RETRIES", "Frames", "LockstepMaster", "LockstepResponder", "PeerLost",
-           "PeerTimeout", "Received", "choices", "frame_io", "probe_tick"]
+__all__ = ["LOST_AFTER_TICKS", "PROBE", "PROBE_INTERVAL_S", "RETRIES_IN_EPISODE", "RETRIES_PER_TICK",
+           "RETRY_FIRST_S", "RETRY_MAX_S", "SIGHTS_BEFORE_INCOMPLETE", "STATUS_RETRIES", "WAITING_NOTICE_S", "Frames",
+           "LockstepMaster", "LockstepResponder", "PeerLost", "PeerTimeout", "Received", "answers_lost_by", "choices",
+           "frame_io", "probe_tick"]
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +39,9 @@ PROBE_INTERVAL_S = 0.2  # master: wall-clock wait for the probe's answer before 
 RETRY_FIRST_S = 0.1  # master: wall-clock wait for a tick's answer before the first re-send [s]
 RETRY_MAX_S = 1.0  # ... the wait doubles after each re-send up to this [s]
 RETRIES_PER_TICK = 6  # ... re-sends before the tick is given up (0.1+0.2+0.4+0.8+1+1+1 = 4.5 s in all)
+RETRIES_IN_EPISODE = 1  # ... for the next ticks while none is answered, or a known fault may lose it (0.3 s)
+LOST_AFTER_TICKS = int(TIMEOUT_CYCLES)  # ... a silent TCU is lost only with this many ticks in a row unanswered
+WAITING_NOTICE_S = 10.0  # master: while the handshake waits, say so at its start and then this often [s]
 STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
 SIGHTS_BEFORE_INCOMPLETE = 3  # responder: a tick seen this often is answered even with plant frames missing
 
@@ -56,6 +62,13 @@ def probe_tick(codec: Codec) -> int:
     except KeyError:
         raise ProtocolError(f"DBC {SYNC}.{TICK} lacks the VAL_ entry {PROBE!r} (the lock-step presence probe)") \
             from None
+
+
+def answers_lost_by(faults: Iterable[FaultSpec]) -> Callable[[float], bool]:
+    """For :meth:`LockstepMaster.excuse`: whether one of the TCU's ``faults`` (windows on its clock, the tick's time
+    in lock-step) may lose the answer to the tick at ``t``: any but ``duplicate`` on TCU_CMD or TCU_STATUS."""
+    windows = [spec for spec in faults if spec.message in (CMD, STATUS) and spec.kind != "duplicate"]
+    return lambda t: any(spec.active(t) for spec in windows)
 
 
 def frame_io(bus: can.BusABC) -> tuple[Callable[[int, bytes], None], Callable[[float], Received | None]]:
@@ -90,6 +103,7 @@ class LockstepMaster:
         self._use, self._clock = use, clock
         self.rx = RxMonitor(codec, self._receives)
         self.sync = TxScheduler(codec, [SYNC])
+        self._tick_encoder = codec.expression_encoder(SYNC, ("tick",), {TICK: "tick"})  # (tick, counter)
         self.probe = probe_tick(codec)
         self.sync_id, self._cmd_id = codec.frame_id(SYNC), codec.frame_id(CMD)
         self.period = codec.cycle_time(CMD)
@@ -98,7 +112,10 @@ class LockstepMaster:
         self.tick = 0
         self.probes = 0  # presence probes sent before tick 0 (not logged)
         self.unanswered_ticks = 0
+        self.unanswered_episodes = 0  # runs of ticks in a row given up (one warning each)
         self.retries: Tally[int] = Tally()  # re-sends (not logged), by frame ID
+        self.excused: Callable[[float], bool] = lambda t: False  # see :meth:`excuse`
+        self.notify: Callable[[str], object] | None = None  # see :meth:`handshake`
         self._given_up = 0  # ticks given up in a row just before this one (their answers may come late)
         self._status_tick: int | None = None  # the tick whose answer brought the last TCU_STATUS
         self._silent_s = 0.0  # wall time waited in vain on ticks given up since the TCU was last heard
@@ -109,10 +126,16 @@ class LockstepMaster:
         """Probe (SIM_SYNC with the probe's Tick, not logged) every ``PROBE_INTERVAL_S`` until the TCU answers
         (TCU_CMD with SyncEcho 255), which resets it; then start from clean counts, the receive counters following
         the answer (a repeat of it is a duplicate), SIM_SYNC's counter from 0. :class:`PeerTimeout` after
-        ``timeout`` seconds. ``pump`` lets an in-process TCU answer."""
+        ``timeout`` seconds. ``pump`` lets an in-process TCU answer. While no answer comes, ``notify`` (if set) is
+        told so after the first probe, then every ``WAITING_NOTICE_S``."""
         clock = self._clock
-        deadline = clock() + timeout
-        while clock() < deadline:
+        started = clock()
+        deadline, notice_at = started + timeout, started + PROBE_INTERVAL_S
+        while (now := clock()) < deadline:
+            if self.notify is not None and now >= notice_at and self.probes:
+                self.notify(f"lock-step: waiting for a TCU to answer ({now - started:.0f} of {timeout:g} s): start "
+                            f"ecu-stub (or your TCU) on the same bus")
+                notice_at = now + WAITING_NOTICE_S
             self.send(self.sync_id, self.sync.data(SYNC, {TICK: self.probe}), 0.0)
             self.probes += 1
             if pump is not None:
@@ -146,36 +169,63 @@ class LockstepMaster:
 
     def tick_data(self) -> bytes:
         """The data of this period's SIM_SYNC tick (counter advanced); the node sends it last, ID ``sync_id``."""
-        return self.sync.data(SYNC, {TICK: self.tick})
+        return self._tick_encoder(self.tick, self.sync.next_counter(SYNC))  # sync.data of {Tick: tick}, fused
+
+    def excuse(self, excused: Callable[[float], bool]) -> None:
+        """Ticks whose answer a known, injected fault may lose (``excused(t)`` of the period time ``t``, the TCU's
+        fault clock in lock-step): waited for as in an episode (``RETRIES_IN_EPISODE``), their silence never
+        counted toward :class:`PeerLost`."""
+        self.excused = excused
 
     def answer(self, t: float, reply_timeout: float, pump: Callable[[], None] | None = None) -> bool:
         """Wait for the TCU's answer to this tick (period time ``t``); True when the command came, False when the
-        tick was given up (counted in ``unanswered_ticks``).
+        tick was given up (counted in ``unanswered_ticks``; a run of them in ``unanswered_episodes``, with one
+        warning at its first tick and a note when the TCU answers again).
 
         The answer is the TCU_CMD whose SyncEcho is the tick's low byte (see ``_answers_tick`` for the others),
         after the TCU_STATUS when one is expected (see ``_status_expected``). While it is late the period's frames
         (tick included) are re-sent, byte for byte and not logged, after ``retry_first_s`` and then at doubling
         intervals up to ``retry_max_s``; at once when a TCU_CMD is rejected or comes without its TCU_STATUS (then
-        ``STATUS_RETRIES`` times at most). After ``retries_per_tick`` re-sends the tick is given up. Nothing at
-        all from the TCU for ``reply_timeout`` seconds of waiting (summed over ticks given up; the node's own time
-        between waits does not count, nor does a stall of it: what arrived meanwhile is read first):
-        :class:`PeerLost`."""
-        answered = self._await(t, reply_timeout, pump)
+        ``STATUS_RETRIES`` times at most). The tick is given up after ``retries_per_tick`` re-sends, or after
+        ``RETRIES_IN_EPISODE`` when the tick before was given up too or a known fault may lose its answer
+        (:meth:`excuse`) and re-sends wait on the clock: an answer lost for good costs one long wait (a stalled
+        TCU), not one per tick.
+
+        The TCU's silence (nothing at all heard: the node's own time between waits does not count, nor does a stall
+        of it, what arrived meanwhile is read first; nor do ticks excused) adds up over ticks given up in a row.
+        Once it reaches ``reply_timeout`` seconds a tick is given up after its first wait, and on the
+        ``LOST_AFTER_TICKS``-th tick in a row (the DBC's command timeout, 3 cycle times) the TCU is lost:
+        :class:`PeerLost`. So a TCU that answers each tick once, never repeating an answer, rides out two lost
+        answers in a row whatever the timeout."""
+        excused = self.excused(t)
+        answered = self._await(t, reply_timeout, pump, excused)
+        if answered and self._given_up:
+            log.info("t=%.2f s: the TCU answers again (tick %d) after %d tick(s) unanswered", t, self.tick,
+                     self._given_up)
+        elif not answered and not self._given_up:
+            self.unanswered_episodes += 1
+            log.warning("t=%.2f s: lock-step tick %d unanswered after its re-sends%s: the period runs on the last "
+                        "command while it is valid (DBC: 3 cycle times), then unpowered; the next ticks unanswered "
+                        "are counted, not logged", t, self.tick, " (an injected fault)" if excused else "")
         self._given_up = 0 if answered else self._given_up + 1
         self.unanswered_ticks += not answered
         return answered
 
-    def _await(self, t: float, reply_timeout: float, pump: Callable[[], None] | None) -> bool:
+    def _await(self, t: float, reply_timeout: float, pump: Callable[[], None] | None, excused: bool) -> bool:
         clock, recv, rx, cmd_id = self._clock, self.recv, self.rx, self._cmd_id
+        # (re-sends at once, in-process, cost no wall time: the whole schedule then, as the answers may need it)
+        short = (excused or self._given_up > 0) and self.retry_first_s > 0
+        max_retries = min(self.retries_per_tick, RETRIES_IN_EPISODE) if short else self.retries_per_tick
+        lost_tick = not excused and self._given_up + 1 >= LOST_AFTER_TICKS  # the silence may end the run here
         retries, interval = 0, self.retry_first_s
         since = clock()  # silence is counted from here, plus ``_silent_s`` of ticks given up
-        next_retry = since + interval
+        first_wait = next_retry = since + interval
         have_cmd, status_retries = False, 0
         taken: list[tuple[DecodedFrame, Received]] = []
         try:
             while True:
-                lost_at = since + reply_timeout - self._silent_s
-                item = recv(max(0.0, min(next_retry, lost_at) - clock()))
+                silent_at = math.inf if excused else max(first_wait, since + reply_timeout - self._silent_s)
+                item = recv(max(0.0, min(next_retry, silent_at) - clock()))
                 if item is not None:
                     if isinstance(item, tuple):
                         frame_id = item[0]
@@ -200,15 +250,20 @@ class LockstepMaster:
                                 return True
                     continue
                 now = clock()
-                if now >= lost_at:
-                    raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} "
-                                   f"s): peer lost; the run ends here")
+                if now >= silent_at:
+                    if lost_tick:
+                        raise PeerLost(f"TCU silent for {reply_timeout:g} s at lock-step tick {self.tick} (t={t:.2f} "
+                                       f"s), {self._given_up + 1} ticks in a row unanswered: peer lost; the run ends "
+                                       f"here")
+                    self._silent_s += now - since
+                    return have_cmd
                 if now >= next_retry:
                     if have_cmd and status_retries == STATUS_RETRIES:
                         log.info("t=%.2f s: TCU_STATUS missing from the answer to tick %d", t, self.tick)
                         return True
-                    if retries == self.retries_per_tick:
-                        self._silent_s += now - since
+                    if retries == max_retries:
+                        if not excused:
+                            self._silent_s += now - since
                         return have_cmd
                     self._resend()
                     retries += 1
@@ -285,6 +340,8 @@ class LockstepResponder:
         self._answer_sends = 0  # ... and how often they were sent
         self._pending: int | None = None  # a tick not answered for want of plant frames ...
         self._pending_sights = 0  # ... and how often it was seen
+        self._incomplete_run = 0  # ticks answered on the last values since an outage began (logged once) ...
+        self._outage: set[str] = set()  # ... and the plant messages missing in it (until one of them is back)
         self._answered_early = False  # the tick answered came before its last plant frame (see handle_data)
         self._due_every: dict[str, int] = {}  # by plant message: due at every n-th tick (a whole n only)
         for name in required:
@@ -300,10 +357,10 @@ class LockstepResponder:
 
     def pump(self) -> None:
         """Handle every frame already waiting (an in-process TCU, pumped by the plant)."""
-        recv = self._recv
+        recv, handle_data = self._recv, self.handle_data
         while (item := recv(0.0)) is not None:
             if isinstance(item, tuple):
-                self.handle_data(item[0], item[1], self.tick_time)
+                handle_data(item[0], item[1], self.tick * self.cycle)  # (tick_time, written out: every frame)
             else:
                 self.handle(item, self.tick_time)
 
@@ -317,7 +374,7 @@ class LockstepResponder:
 
     def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
         """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data."""
-        stamp = self.tick_time + self.cycle if self.lockstep else now
+        stamp = self.tick * self.cycle + self.cycle if self.lockstep else now  # tick_time + cycle
         status, frame = self.rx.take_data(frame_id, data, stamp)
         if status not in (NEW, DUPLICATE):
             return status != IGNORED
@@ -390,12 +447,21 @@ class LockstepResponder:
         missing = self._missing(tick)
         if not missing:
             self._pending = None
+            if self._outage and any(tick % self._due_every[name] == 0 for name in self._outage):
+                log.warning("tick %d: %s back after %d tick(s) answered with the last values", tick,
+                            ", ".join(sorted(self._outage)), self._incomplete_run)
+                self._incomplete_run, self._outage = 0, set()
             return True
         if self._pending_sights < SIGHTS_BEFORE_INCOMPLETE:
             log.info("tick %d: %s missing, waiting for it (late, or re-sent)", tick, ", ".join(missing))
             return False
-        log.warning("tick %d seen %d times without %s: answered with the last values", tick, self._pending_sights,
-                    ", ".join(missing))
+        # one line when an outage starts and one when its message is back (a dropped message would log each tick
+        # it is due otherwise); a message missing anew within it gets its own line
+        log.log(logging.DEBUG if self._outage.issuperset(missing) else logging.WARNING,
+                "tick %d seen %d times without %s: answered with the last values", tick, self._pending_sights,
+                ", ".join(missing))
+        self._outage.update(missing)
+        self._incomplete_run += 1
         self.incomplete_answers += 1
         self._pending = None
         return True
@@ -413,4 +479,5 @@ class LockstepResponder:
         self._restart(self.tick_time)
         self._answer = [(self.tx.ids[CMD], self.tx.data(CMD, {ECHO: self.probe & 0xFF}))]
         self._answered, self._answer_sends = self.probe, 0
-        self._pending, self._pending_sights, self._answered_early = None, 0, False
+        self._pending, self._pending_sights, self._answered_early, self._incomplete_run = None, 0, False, 0
+        self._outage = set()

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 from collections import Counter as Tally
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 import can
@@ -21,11 +21,12 @@ from .e2e import MAX_DELTA
 from .frame import data_frame
 
 __all__ = ["DUPLICATE", "IGNORED", "NEW", "NS_PER_MS", "NS_PER_S", "REJECTED", "TIMEOUT_CYCLES", "RxMonitor", "RxState",
-           "TxScheduler", "to_ns"]
+           "TxScheduler", "all_valid", "to_ns"]
 
 log = logging.getLogger(__name__)
 
 TIMEOUT_CYCLES = 3.0
+DECODED_KEPT = 256  # RxMonitor: frames kept decoded per message (a steady plant repeats its frames, counter and all)
 NS_PER_MS, NS_PER_S = 1_000_000, 1_000_000_000
 
 
@@ -86,20 +87,35 @@ class RxState:
         self.last_counter = self.last_data = None
 
     def valid(self, now: float) -> bool:
-        """Whether the last frame taken is at most ``deadline`` old at ``now`` (both times counted in whole ns)."""
-        return self.last_time is not None and to_ns(now) - to_ns(self.last_time) <= self.deadline_ns
+        """Whether the last frame taken is at most ``deadline`` old at ``now`` (both times counted in whole ns, as
+        :func:`to_ns`, written out: it runs several times every control period)."""
+        last = self.last_time
+        return last is not None and round(now * NS_PER_S) - round(last * NS_PER_S) <= self.deadline_ns
+
+
+def all_valid(states: Iterable[RxState], now: float) -> bool:
+    """Whether every one of ``states`` is :meth:`RxState.valid` at ``now`` (``now`` taken to whole ns once)."""
+    now_ns = round(now * NS_PER_S)
+    for state in states:
+        last = state.last_time
+        if last is None or now_ns - round(last * NS_PER_S) > state.deadline_ns:
+            return False
+    return True
 
 
 class RxMonitor:
-    """Decodes and checks incoming frames for the messages a node reads; counts and logs what it rejects."""
+    """Decodes and checks incoming frames for the messages a node reads; counts and logs what it rejects. A frame's
+    bytes seen again (up to :data:`DECODED_KEPT` per message) give the frame decoded the first time: decoding is
+    a pure function of the bytes, and the decoded frames are only read."""
 
     def __init__(self, codec: Codec, names: list[str]) -> None:
         self.codec = codec
         self.states = {name: RxState(name, codec.cycle_time(name), codec.protection(name).counter_modulus)
                        for name in names}
         self._ids = {codec.frame_id(name): name for name in names}
-        self._by_id = {frame_id: (self.states[name], codec.decoder(frame_id))  # take: one look-up per frame
-                       for frame_id, name in self._ids.items()}
+        self._by_id: dict[int, tuple[RxState, Callable[[bytes], DecodedFrame], dict[bytes, DecodedFrame]]] = {
+            frame_id: (self.states[name], codec.decoder(frame_id), {})  # take: one look-up per frame
+            for frame_id, name in self._ids.items()}
         self.rejected: Tally[str] = Tally()
         self.received = 0
         self._checks: dict[int, tuple[str, Callable[[DecodedFrame], str | None]]] = {}
@@ -144,13 +160,20 @@ class RxMonitor:
         known = self._by_id.get(frame_id)
         if known is None:
             return IGNORED, None
-        state, decode = known
+        state, decode, memo = known
         self.received += 1
-        try:
-            frame = decode(data)
-        except FrameError as exc:
-            self._reject(state, exc.reason, str(exc))
-            return REJECTED, None
+        kept = data.__class__ is bytes  # (a bytearray is decoded each time)
+        frame = memo.get(data) if kept else None
+        if frame is None:
+            try:
+                frame = decode(data)
+            except FrameError as exc:
+                self._reject(state, exc.reason, str(exc))
+                return REJECTED, None
+            if kept:
+                if len(memo) >= DECODED_KEPT:
+                    memo.clear()
+                memo[data] = frame
         if data == state.last_data:
             state.duplicates += 1
             return DUPLICATE, frame
@@ -158,6 +181,12 @@ class RxMonitor:
                 and (failed := extra[1](frame)) is not None:
             self._reject(state, extra[0], f"{frame.name}: {failed}")
             return REJECTED, None
+        last_counter = state.last_counter
+        if last_counter is not None and (frame.counter - last_counter) % state.counter_modulus == 1:
+            state.last_counter, state.last_data, state.last_time = frame.counter, data, now  # update's usual step,
+            state.values = frame.values  # written out (every frame)
+            state.received += 1
+            return NEW, frame
         refused = state.update(now, frame, data)
         if refused is not None:
             self._reject(state, "counter", f"{frame.name}: {refused}")
@@ -238,7 +267,16 @@ class TxScheduler:
         """The next frame of ``name`` (counter advanced)."""
         return data_frame(self.ids[name], self.data(name, values), timestamp)
 
-    def data(self, name: str, values: dict[str, float]) -> bytes:
+    def next_counter(self, name: str) -> int:
+        """The counter of the next frame of ``name`` (advanced, the frame counted as sent), for a sender that
+        encodes the frame itself (e.g. with a fused encoder, :meth:`Codec.fused_encoder`)."""
+        counters = self.counters
+        counter = counters[name]
+        counters[name] = (counter + 1) % self._moduli[name]
+        self.sent += 1
+        return counter
+
+    def data(self, name: str, values: Mapping[str, float]) -> bytes:
         """The data of the next frame of ``name`` (counter advanced), whose ID is ``ids[name]``."""
         counters = self.counters
         counter = counters[name]

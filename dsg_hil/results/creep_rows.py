@@ -62,6 +62,7 @@ class Acc(IntEnum):
     t_last = 17
     resting = 18  # _rest is not None: 1.0 / 0.0
     rest_row = 19  # out: the row whose sample starts the rest (-1: none in these rows)
+    v_prev = 20  # _v_prev: the last sample's speed (NaN: none yet), for the roll-back's trapezoid
 
 
 class Run(IntEnum):
@@ -166,7 +167,11 @@ def creep_rows(rows, start, cols, dt, creep_request, desired_speed, acc, run, sl
         v = r[c_v]
         if v < 0.0:
             acc[Acc.rollback_speed] = min(acc[Acc.rollback_speed], v)
-            acc[Acc.rollback_distance] -= v * dt
+        prev = acc[Acc.v_prev]
+        moved = 0.5 * (v + (v if prev != prev else prev))  # mean speed since the last sample (trapezoid)
+        acc[Acc.v_prev] = v
+        if moved < 0.0:
+            acc[Acc.rollback_distance] -= moved * dt
         if creep_request == 0.0:
             continue
         if v > V_MOVING:

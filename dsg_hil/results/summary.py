@@ -20,10 +20,19 @@ Definitions (constants below):
   request and the vehicle, whatever the TCU reports. **Standstill time**: creep requested, ``|v| <= V_MOVING``.
 * **Stop**: the vehicle came to rest (``v <= V_MOVING``) while creep was requested, after creep was under way, and did
   not move again before the request ended or the record ended, resting at least ``STOP_MIN_S``.
-* **Roll-back**: the most negative speed, and the distance rolled backwards. The lowest speed and the speed error
+* **Roll-back**: the most negative speed, and the distance rolled backwards: the sum of the backward displacements
+  between consecutive samples, each the trapezoid of their two speeds (the first sample: its own speed over its
+  interval). A speed that alternates sign from one sample to the next about zero (a held vehicle ringing at the
+  sampling's Nyquist frequency) moves the vehicle nowhere and adds nothing; a real roll-back adds its distance.
+  The lowest speed and the speed error
   while creeping count from the moment creep is under way (``ESTABLISHED`` of the desired speed reached) while
   a clutch slips.
 * **Prediction error**: TCU_STATUS predicted plate temperature minus the truth at that time (worst by magnitude).
+* **Failures no average hides**: the highest speed and the largest overspeed (speed minus desired speed) while creep
+  is requested; the distance rolled backwards while creep is requested or the TCU reports FAULT or
+  STOPPED_OVERHEAT (``GUARDED``: the vehicle is the TCU's to hold); the time the TCU reported FAULT (from one
+  TCU_STATUS to the next); the smallest margin to ``SAFETY_TEMPERATURE_C`` of the plates (truth) and of the TCU's
+  predictions.
 """
 
 from __future__ import annotations
@@ -38,7 +47,7 @@ from typing import Protocol
 import numpy as np
 
 from ..common.units import CV
-from .creep_rows import ACC, Col, Run, Slot, columns, kernel
+from .creep_rows import ACC, Acc, Col, Run, Slot, columns, kernel
 from .thresholds import (
     CLUTCHES,
     ESTABLISHED,
@@ -55,9 +64,16 @@ from .thresholds import (
 
 __all__ = ["CLUTCHES", "ESTABLISHED", "MIN_PHASE_S", "P_ENGAGED", "SAFETY_TEMPERATURE_C", "SETTLE_S", "SLIP_MIN",
            "STATES", "STOP_MIN_S", "TORQUE_MIN", "V_MOVING",  # re-exported: the metrics' definitions
-           "CreepMetrics", "RunSummary", "Sample", "driving_clutch", "phases"]
+           "GUARDED", "CreepMetrics", "RunSummary", "Sample", "driving_clutch", "phases"]
 
+GUARDED = ("FAULT", "STOPPED_OVERHEAT")  # TCU states in which the vehicle's roll-back counts as the TCU's
 _IN_ACC_ORDER = itemgetter(*ACC)  # values by accumulator name -> the tuple in the order of creep_rows' acc
+_ACC_UNPACKED = ("slip_CL", "slip_CH", "overlap", "max_T_CL", "max_T_CH", "above_CL", "above_CH", "energy_CL",
+                 "energy_CH", "rollback_speed", "rollback_distance", "creep", "standstill", "moved", "sq_speed_error",
+                 "driven_time", "speed_min", "t_last", "resting", "rest_row", "v_prev")  # add_rows unpacks acc so
+_RESTING, _REST_ROW = int(Acc.resting), int(Acc.rest_row)  # (plain ints index numpy faster than an IntEnum)
+if ACC != _ACC_UNPACKED:
+    raise ImportError(f"creep_rows.Acc is {ACC}, CreepMetrics.add_rows unpacks {_ACC_UNPACKED}")
 
 
 class Sample(Protocol):
@@ -152,6 +168,12 @@ class _Run:
         return start, self.lagged or last, last
 
 
+def _moved(prev: float, v: float) -> float:
+    """The mean speed between the last sample's speed ``prev`` (NaN: none) and this one's ``v``, by the trapezoid
+    rule: what the vehicle moved since the last sample, per unit time (module docstring, roll-back)."""
+    return 0.5 * (v + (v if prev != prev else prev))
+
+
 def _in_order(total: float, terms: np.ndarray) -> float:
     """``total`` plus ``terms`` added one by one, left to right (as a loop would: np.cumsum is sequential)."""
     if not len(terms):
@@ -173,7 +195,15 @@ class _Rows:
     ring: np.ndarray
     ring_t: np.ndarray
     step: Callable[..., int]  # the compiled creep_rows
+    v_col: int  # the column of the vehicle speed
     open: bool = False  # the last of CreepMetrics.runs is this run
+    acc: np.ndarray | None = None  # the accumulators (:meth:`CreepMetrics._accumulators`), kept from call to call
+
+
+def _margin(peaks: dict[str, float | None]) -> float | None:
+    """SAFETY_TEMPERATURE_C minus the higher of the two peaks [K] (None: neither known)."""
+    known = [T for T in peaks.values() if T is not None]
+    return _r(SAFETY_TEMPERATURE_C - max(known), 2) if known else None
 
 
 def _r(x: float | None, nd: int) -> float | None:
@@ -229,16 +259,24 @@ class CreepMetrics:
     max_pred: dict[str, float | None] = field(default_factory=lambda: {"CL": None, "CH": None})
     pred_error: dict[str, tuple[float, float] | None] = field(default_factory=lambda: {"CL": None, "CH": None})
     runs: list[_Run] = field(default_factory=list)
+    max_speed_creep: float | None = None  # highest speed while creep is requested
+    overspeed: float | None = None  # largest speed minus desired speed while creep is requested
+    rollback_guarded: float = 0.0  # distance rolled backwards while creep is requested or the TCU is in GUARDED
+    fault_time: float = 0.0  # time TCU_STATUS reported FAULT
+    _status_t: float | None = None  # time of the last TCU_STATUS
     _sq_speed_error: float = 0.0
     _driven_time: float = 0.0
     _moved: bool = False
     _rest: tuple[float, Sample] | None = None
     _t_last: float = 0.0
+    _v_prev: float = math.nan  # the last sample's speed (NaN: none yet): the roll-back's trapezoid
     _rows: _Rows | None = None  # add_rows: its compiled code's state
 
     def add(self, s: Sample, dt: float, creep_request: bool, desired_speed: float) -> None:
         """One sample ``s`` standing for the interval [s.t, s.t + dt) (real time; lock-step feeds whole periods
         through :meth:`add_rows`)."""
+        if self._rows is not None:  # (add_rows' accumulators are read from the attributes again)
+            self._rows.acc = None
         clutch, both = driving_clutch(s)
         t = s.t
         if clutch is not None:
@@ -271,7 +309,14 @@ class CreepMetrics:
         v = s.v
         if v < 0.0:
             self.rollback_speed = min(self.rollback_speed, v)
-            self.rollback_distance -= v * dt
+        moved = _moved(self._v_prev, v)
+        self._v_prev = v
+        if moved < 0.0:
+            self.rollback_distance -= moved * dt
+            if creep_request or self.tcu_state in GUARDED:
+                self.rollback_guarded -= moved * dt
+        if creep_request:
+            self._creep_speed(v, desired_speed)
         if not creep_request:
             self._end_rest()
             return
@@ -312,11 +357,33 @@ class CreepMetrics:
         if st is None or st.fields != tuple(fields) or st.dt != dt:
             self._materialise()
             cap = int(SETTLE_S / dt) + 8  # the window: the samples of the last SETTLE_S and the new one
-            st = self._rows = _Rows(tuple(fields), columns(tuple(fields)), sample, dt, np.zeros(len(Run)),
+            fields = tuple(fields)
+            st = self._rows = _Rows(fields, columns(fields), sample, dt, np.zeros(len(Run)),
                                     np.zeros((len(Slot), rows.shape[1])), np.zeros((cap, rows.shape[1])),
-                                    np.zeros(cap), kernel())
+                                    np.zeros(cap), kernel(), fields.index("v"))
             st.run[Run.code] = -1.0  # no run open
-        acc = self._accumulators()
+        v = rows[:, st.v_col].tolist()  # (a period's few rows: Python's floats cost less than numpy's calls)
+        if (total := sum(v)) != total:  # a NaN (or infinities of both signs): numpy's reductions, as they treat it
+            self._rollback_and_speed(rows[:, st.v_col], dt, creep_request, desired_speed)
+        else:
+            prev = self._v_prev
+            if (min(v) < 0.0 or prev < 0.0) and (creep_request or self.tcu_state in GUARDED):
+                guarded = self.rollback_guarded
+                for x in v:  # as add: the trapezoid since the last sample, row by row
+                    moved = _moved(prev, x)
+                    prev = x
+                    if moved < 0.0:
+                        guarded -= moved * dt
+                self.rollback_guarded = guarded
+            if creep_request:
+                self._creep_speed(max(v), desired_speed)
+        # the accumulators stay in their array from one call to the next (only this method and the rest's end
+        # change them between calls); the attributes are written from it after each call
+        acc = st.acc
+        if acc is None:
+            acc = st.acc = self._accumulators()
+        else:
+            acc[_RESTING], acc[_REST_ROW] = (0.0 if self._rest is None else 1.0), -1.0
         step, k, creep = st.step, 0, 1.0 if creep_request else 0.0
         while (k := step(rows, k, st.cols, dt, creep, desired_speed, acc, st.run, st.slots, st.ring,
                          st.ring_t)) < n:
@@ -325,24 +392,45 @@ class CreepMetrics:
             t = float(rows[k, st.cols[Col.t]])
             self.runs.append(_Run(CLUTCHES.get(int(st.run[Run.code])), t, t))
             st.open = True
-        a = dict(zip(ACC, acc.tolist()))
-        self.slip_time["CL"], self.slip_time["CH"], self.slip_overlap = a["slip_CL"], a["slip_CH"], a["overlap"]
-        self.max_T["CL"] = None if a["max_T_CL"] != a["max_T_CL"] else a["max_T_CL"]
-        self.max_T["CH"] = None if a["max_T_CH"] != a["max_T_CH"] else a["max_T_CH"]
-        self.above_limit["CL"], self.above_limit["CH"] = a["above_CL"], a["above_CH"]
-        self.energy["CL"], self.energy["CH"] = a["energy_CL"], a["energy_CH"]
-        self.rollback_speed, self.rollback_distance = a["rollback_speed"], a["rollback_distance"]
-        if not creep_request:
+        (slip_CL, slip_CH, self.slip_overlap, max_T_CL, max_T_CH, above_CL, above_CH, energy_CL, energy_CH,
+         self.rollback_speed, self.rollback_distance, creep_time, standstill, moved, sq_speed_error, driven_time,
+         speed_min, t_last, resting, rest_row, self._v_prev) = acc.tolist()  # in the order of Acc (_ACC_UNPACKED)
+        self.slip_time["CL"], self.slip_time["CH"] = slip_CL, slip_CH
+        self.max_T["CL"] = None if max_T_CL != max_T_CL else max_T_CL
+        self.max_T["CH"] = None if max_T_CH != max_T_CH else max_T_CH
+        self.above_limit["CL"], self.above_limit["CH"] = above_CL, above_CH
+        self.energy["CL"], self.energy["CH"] = energy_CL, energy_CH
+        if not creep_request:  # (the compiled code leaves the creep's accumulators alone without the request)
             self._end_rest()
             return
-        self.creep_time, self.standstill_time, self._moved = a["creep"], a["standstill"], a["moved"] != 0.0
-        self._sq_speed_error, self._driven_time, self._t_last = a["sq_speed_error"], a["driven_time"], a["t_last"]
-        self.speed_min_creeping = None if a["speed_min"] != a["speed_min"] else a["speed_min"]
-        if a["resting"] == 0.0:
+        self.creep_time, self.standstill_time, self._moved = creep_time, standstill, moved != 0.0
+        self._sq_speed_error, self._driven_time, self._t_last = sq_speed_error, driven_time, t_last
+        self.speed_min_creeping = None if speed_min != speed_min else speed_min
+        if resting == 0.0:
             self._rest = None
-        elif a["rest_row"] >= 0.0:
-            row = rows[int(a["rest_row"])]
+        elif rest_row >= 0.0:
+            row = rows[int(rest_row)]
             self._rest = (float(row[st.cols[Col.t]]), sample(row))
+
+    def _rollback_and_speed(self, v: np.ndarray, dt: float, creep_request: bool, desired_speed: float) -> None:
+        """:meth:`add_rows`' roll-back while guarded and highest creep speed, by numpy's reductions (speeds ``v``
+        with a NaN)."""
+        if creep_request or self.tcu_state in GUARDED:
+            prev = np.concatenate(([self._v_prev], v[:-1]))
+            moved = 0.5 * (v + np.where(prev != prev, v, prev))  # as add: the trapezoid since the last sample
+            back = moved[moved < 0.0]
+            if len(back):
+                self.rollback_guarded = _in_order(self.rollback_guarded, -back * dt)  # as add, row by row
+        if creep_request:
+            self._creep_speed(float(v.max()), desired_speed)
+
+    def _creep_speed(self, v_max: float, desired_speed: float) -> None:
+        """Creep requested at speeds up to ``v_max`` [m/s]: the highest speed and overspeed."""
+        if self.max_speed_creep is None or v_max > self.max_speed_creep:
+            self.max_speed_creep = v_max
+        over = v_max - desired_speed
+        if self.overspeed is None or over > self.overspeed:
+            self.overspeed = over
 
     def _accumulators(self) -> np.ndarray:
         """The state the compiled code accumulates into, as its ``acc``: by the names of
@@ -357,7 +445,8 @@ class CreepMetrics:
                  "creep": self.creep_time, "standstill": self.standstill_time, "moved": float(self._moved),
                  "sq_speed_error": self._sq_speed_error, "driven_time": self._driven_time,
                  "speed_min": nan if self.speed_min_creeping is None else self.speed_min_creeping,
-                 "t_last": self._t_last, "resting": float(self._rest is not None), "rest_row": -1.0}
+                 "t_last": self._t_last, "resting": float(self._rest is not None), "rest_row": -1.0,
+                 "v_prev": self._v_prev}
         return np.array(_IN_ACC_ORDER(state))
 
     def _materialise(self) -> None:
@@ -381,6 +470,9 @@ class CreepMetrics:
                truth: Sample) -> None:
         """A TCU_STATUS frame at ``t`` (raw State/ActiveClutch values), with the truth at that time."""
         state_name = STATES.get(int(state), f"UNKNOWN_{int(state)}")
+        if self.tcu_state == "FAULT" and self._status_t is not None:
+            self.fault_time += t - self._status_t
+        self._status_t = t
         clutch = CLUTCHES.get(int(active), "NONE")
         if clutch in ("CL", "CH") and self.active_clutch in ("CL", "CH") and clutch != self.active_clutch:
             self.handovers.append({"t_s": round(t, 3), "from": self.active_clutch, "to": clutch,
@@ -434,6 +526,11 @@ class CreepMetrics:
             "worst_prediction_error_c": {k: None if e is None else {"error_c": round(e[0], 2), "t_s": round(e[1], 3)}
                                          for k, e in self.pred_error.items()},
             "handovers": self.handovers,
+            "max_speed_creep_mps": _r(self.max_speed_creep, 4),
+            "overspeed_mps": _r(self.overspeed, 4),
+            "rollback_guarded_m": round(self.rollback_guarded, 4),
+            "fault_time_s": round(self.fault_time, 3),
+            "min_margin_c": {"truth": _margin(self.max_T), "predicted": _margin(self.max_pred)},
         }
 
 

@@ -1,7 +1,8 @@
 """The plant's side of the CAN contract: which DBC messages it sends and reads, and one table, :data:`SIGNALS`, of
 what each of their signals is in the plant's SI units. The table drives the encoding of the plant's frames
-(:func:`plant_signals`), the runner's reading of TCU_CMD (:func:`commanded_pressures`) and the bus-log reader
-(:mod:`dsg_hil.paper.report.log`): r/min, MPa and % exist at this edge only (:class:`dsg_hil.common.units.CV`)."""
+(:func:`frame_encoder`, from :func:`value_sources`; :func:`plant_signals` gives the values as dicts), the runner's
+reading of TCU_CMD (:func:`commanded_pressures`) and the bus-log reader (:mod:`dsg_hil.paper.report.log`): r/min,
+MPa and % exist at this edge only (:class:`dsg_hil.common.units.CV`)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,11 @@ from typing import get_type_hints
 
 from ..common.units import CV
 from ..physics.plant import PlantOutputs
+from ..protocol.codec import Codec
 from .scenario import DriverInput
 
-__all__ = ["LOCKSTEP", "PLANT_RX", "PLANT_TX", "PLANT_USES", "SIGNALS", "SYNC", "commanded_pressures",
-           "encoder_source", "plant_signals"]
+__all__ = ["LOCKSTEP", "PLANT_RX", "PLANT_TX", "PLANT_USES", "SIGNALS", "SYNC",
+           "commanded_pressures", "encoder_source", "frame_encoder", "plant_signals", "value_sources"]
 
 PLANT_TX = {
     "PLANT_ENGINE": ("EngineSpeed", "EngineTorque"),
@@ -90,14 +92,23 @@ def _to_dbc(source: str, quantity: str, factor: float) -> str:
     return f"{value} * {1.0 / factor!r}" if factor < 1.0 else f"{value} / {factor!r}"
 
 
+def value_sources(message: str) -> dict[str, str]:
+    """By signal of ``message``, the source of its value in the DBC's unit from ``out`` (the plant's outputs) or
+    ``driver`` (:data:`SIGNALS`, constants inlined)."""
+    source = "driver" if message == "DRIVER" else "out"
+    return {signal: _to_dbc(source, *SIGNALS[message, signal]) for signal in PLANT_TX[message]}
+
+
+def _items(message: str) -> str:
+    """The dict display of ``message``'s signal values (:func:`value_sources`)."""
+    return "{" + ", ".join(f"{signal!r}: {value}" for signal, value in value_sources(message).items()) + "}"
+
+
 def encoder_source() -> str:
     """The source of :func:`plant_signals`, written out from :data:`SIGNALS`: a dict display per message with its
-    constants inlined, as fast as one written by hand (it runs every control period)."""
+    constants inlined, as fast as one written by hand."""
     lines = ["def plant_signals(out, driver):", "    return {"]
-    for message, signals in PLANT_TX.items():
-        source = "driver" if message == "DRIVER" else "out"
-        items = ", ".join(f"{signal!r}: {_to_dbc(source, *SIGNALS[message, signal])}" for signal in signals)
-        lines.append(f"        {message!r}: {{{items}}},")
+    lines += [f"        {message!r}: {_items(message)}," for message in PLANT_TX]
     return "\n".join([*lines, "    }", ""])
 
 
@@ -110,6 +121,14 @@ def _encoder() -> Callable[[PlantOutputs, DriverInput], dict[str, dict[str, floa
 plant_signals = _encoder()
 plant_signals.__doc__ = """Signal values of every message the plant sends (``{message: {signal: value}}``), in DBC
 units, from the plant's outputs ``out`` and the driver's input (:data:`SIGNALS`; its source: :func:`encoder_source`)."""
+
+
+def frame_encoder(codec: Codec, message: str) -> Callable[[PlantOutputs, DriverInput, int], bytes]:
+    """``f(out, driver, counter)``: the data of a frame of ``message`` the plant sends, its values as
+    :func:`plant_signals` gives them (:func:`value_sources`), encoded by the codec without a dict in between where
+    it can (:meth:`Codec.expression_encoder`)."""
+    return codec.expression_encoder(message, ("out", "driver"), value_sources(message))
+
 
 (_CL, _CL_TO_PA), (_CH, _CH_TO_PA) = (
     next((signal, factor) for (message, signal), (name, factor) in SIGNALS.items() if (message, name) == key)

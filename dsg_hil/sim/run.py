@@ -13,7 +13,8 @@ Every entry point is built on this: ``dsg-hil run``, ``dsg-hil plant``, ``dsg-hi
 
 The run's resources (buses, log, a TCU process) are closed when the ``with`` block ends, and the summary file is
 written however the run ends: at its end, on Ctrl-C, SIGTERM (:class:`~dsg_hil.common.cli.Terminated`), or a lost
-TCU, with the stop reason ``interrupted``, ``terminated``, ``peer_lost`` or ``no_peer``.
+TCU, with the stop reason ``interrupted``, ``terminated``, ``peer_lost`` or ``no_peer``; and if a signal comes
+before the run is set up, :func:`unstarted_summary` writes that of zero periods (``dsg-hil run``/``plant`` do).
 """
 
 from __future__ import annotations
@@ -44,7 +45,9 @@ from ..protocol import Codec, load_dbc
 from ..protocol.bus import FrameLog, bus_args, bus_name, log_channel, open_bus
 from ..protocol.faults import FaultError, FaultSpec, check_faults, parse_fault, with_faults
 from ..protocol.local import local_pair
+from ..protocol.lockstep import answers_lost_by
 from ..results.outcome import Summary
+from ..results.summary import RunSummary
 from ..physics.thermal import NODES
 from ..physics.plant import Plant
 from .plant_io import PLANT_RX, PLANT_USES, SYNC
@@ -52,7 +55,8 @@ from .runner import PeerLost, PeerTimeout, PlantRunner
 from .scenario import Scenario, load_scenario
 
 __all__ = ["ECU_STUB", "EcuStubProcess", "Run", "RunConfig", "TcuFactory", "TcuProcess", "answer_at_once",
-           "at_each_tick", "attach_tcu", "open_run", "plant_for", "private_channel", "stop_process"]
+           "at_each_tick", "attach_tcu", "open_run", "plant_for", "private_channel", "stop_process",
+           "unstarted_summary"]
 
 ECU_STUB = "ecu-stub"  # RunConfig.tcu: the bundled TCU, in this process where the bus allows, else as a process
 Mode = Literal["lockstep", "realtime"]
@@ -80,7 +84,9 @@ class EcuStubProcess:
 
     faults: tuple[FaultSpec, ...] = ()
     fault_seed: int = 0
+    calibration: str | None = None  # its calibration TOML (--calibration; None: the shipped one)
     idle_exit: float = 5.0
+    quiet: bool = False  # errors and its closing counts only (ecu-stub --quiet)
     inherit_output: bool = True
     stop_timeout: float = 5.0
 
@@ -88,8 +94,10 @@ class EcuStubProcess:
         faults = [arg for spec in self.faults for arg in ("--fault", spec.as_option())]
         if faults:
             faults += ["--fault-seed", str(self.fault_seed)]
+        calibration = [] if self.calibration is None else ["--calibration", self.calibration]
+        quiet = ["--quiet"] if self.quiet else []
         return [sys.executable, "-m", "ecu_stub", *bus_args(dict(config)), "--idle-exit", f"{self.idle_exit:g}",
-                *faults]
+                *calibration, *faults, *quiet]
 
     def start(self, config: Mapping[str, Any], output: IO[bytes]) -> subprocess.Popen[bytes]:
         sink = None if self.inherit_output else output
@@ -126,7 +134,8 @@ class RunConfig:
       ``virtual`` interface talks over the direct bus instead (the same frames, faster).
     * ``tcu``: :data:`ECU_STUB` (the bundled TCU: in this process on a direct or ``virtual`` bus, else started
       as a process), a factory ``(db, bus) -> TCU`` for a TCU object in this process, a :class:`TcuProcess`,
-      or None (none: a TCU runs elsewhere, as for ``dsg-hil plant``).
+      or None (none: a TCU runs elsewhere, as for ``dsg-hil plant``). ``calibration``: the bundled TCU's
+      calibration TOML (None: the shipped one; ``python -m ecu_stub.identify --write`` makes one), checked at start.
     * ``faults``: fault specs or ``--fault`` strings (None: the scenario's ``[[fault]]`` tables), each on the
       side whose frames it changes, drawn from generators seeded ``fault_seed``.
     * ``log``: record the bus traffic to this file (by extension: ``.log`` candump -L, ``.asc``, ``.blf`` ...);
@@ -135,7 +144,8 @@ class RunConfig:
       (:meth:`Run.truth`); ``listeners`` get every frame the plant sent or took; ``on_period(runner)`` is called
       once per control period, as the plant sends the period's SIM_SYNC tick.
     * ``reply_timeout``/``startup_timeout`` [s of wall time]: lockstep waits for a silent TCU, and for the first
-      answer to the presence probe. ``progress``: a callable for progress lines (None: quiet).
+      answer to the presence probe. ``progress``: a callable for progress lines (None: quiet). ``quiet``: the
+      bundled TCU, when started as a process, prints errors and its closing counts only (``ecu-stub --quiet``).
     * ``reference_codec``: encode and decode through cantools instead of the generated codec (the same frames,
       slower: a benchmark's baseline).
     """
@@ -148,6 +158,7 @@ class RunConfig:
     bus: Mapping[str, Any] | None = None
     direct: bool = True
     tcu: str | TcuFactory | TcuProcess | None = ECU_STUB
+    calibration: str | Path | None = None
     faults: Sequence[FaultSpec | str] | None = None
     fault_seed: int = 0
     log: str | Path | None = None
@@ -160,6 +171,7 @@ class RunConfig:
     reply_timeout: float = 5.0
     startup_timeout: float = 60.0
     progress: Callable[[str], None] | None = None
+    quiet: bool = False
     reference_codec: bool = False
 
 
@@ -195,6 +207,7 @@ class Run:
         specs = [parse_fault(f) if isinstance(f, str) else f
                  for f in (self.scenario.faults if config.faults is None else config.faults)]
         self.faults_by_side = check_faults(specs, self.db)
+        self.calibration = self._calibration()
         self.bus_config, direct = self._bus_config()
         self.interface = bus_name(self.bus_config)
         process = self._tcu_process()
@@ -205,6 +218,7 @@ class Run:
         codec = Codec(self.db, PLANT_USES, reference=config.reference_codec)
         self.runner = PlantRunner(plant_for(self.scenario, self.params), self.scenario, codec, plant_bus,
                                   listeners, config.progress)
+        self.runner.link.notify = config.progress  # "waiting for a TCU", while the lock-step handshake waits
         self.runner.inject(self.faults_by_side["plant"], config.fault_seed)
         if self.runner.bus is not plant_bus:
             stack.callback(self.runner.bus.shutdown)
@@ -213,6 +227,7 @@ class Run:
         elif process is not None and isinstance(process, EcuStubProcess) and process.faults:
             self._progress("faults on the TCU's frames: passed to ecu-stub, which counts them (see its output)")
             self.runner.faults_in_tcu = [spec.describe() for spec in process.faults]
+            self.runner.link.excuse(answers_lost_by(process.faults))  # a known fault is no lost TCU
         self._process = process
 
     # ---- set-up ----------------------------------------------------------------------------------------------
@@ -220,6 +235,17 @@ class Run:
         for option, path in (("log", self.config.log), ("summary", self.config.summary),
                              ("tcu_output", self.config.tcu_output)):
             check_output_path(option, None if path is None else str(path))
+
+    def _calibration(self) -> Any:
+        """The bundled TCU's calibration, loaded now so a bad file fails before anything opens (None: default)."""
+        path = self.config.calibration
+        if path is None:
+            return None
+        if self.config.tcu != ECU_STUB:
+            raise InputError(f"calibration {path}: is the bundled TCU's (ecu-stub); give your TCU its own")
+        from ecu_stub.calibration import load_calibration  # noqa: PLC0415 - the TCU's, when one is given
+
+        return load_calibration(path)
 
     def _bus_config(self) -> tuple[dict[str, Any], bool]:
         """The bus configuration, and whether the plant and an in-process TCU share a direct in-process bus."""
@@ -295,8 +321,9 @@ class Run:
         assert isinstance(process, TcuProcess)
         if isinstance(process, EcuStubProcess):
             # the TCU waits for a silent plant as long as the plant waits for a silent TCU
-            return replace(process, faults=tuple(side), fault_seed=self.config.fault_seed,
-                           idle_exit=max(self.config.reply_timeout, 2.0))
+            calibration = None if self.config.calibration is None else str(Path(self.config.calibration).resolve())
+            return replace(process, faults=tuple(side), fault_seed=self.config.fault_seed, calibration=calibration,
+                           idle_exit=max(self.config.reply_timeout, 2.0), quiet=self.config.quiet)
         if side:
             raise InputError(f"{side[0].origin}: changes the controller's frames: a controller process injects "
                              f"its own (ecu-stub: --fault)")
@@ -307,7 +334,7 @@ class Run:
         tcu = self.config.tcu
         factory = None if isinstance(tcu, str) or isinstance(tcu, TcuProcess) else tcu
         self.tcu, faulty = attach_tcu(self.runner, tcu_bus, self.db, self.faults_by_side["tcu"],
-                                      self.config.fault_seed, factory)
+                                      self.config.fault_seed, factory, self.calibration)
         if faulty is not tcu_bus:
             self._stack.callback(faulty.shutdown)
 
@@ -333,8 +360,11 @@ class Run:
     def _drive(self, pump: Callable[[], None] | None = None) -> None:
         if self.config.mode == "lockstep":
             self.runner.run_lockstep(self.config.reply_timeout, pump=pump, startup_timeout=self.config.startup_timeout)
-        else:
-            self.runner.run_realtime()
+            return
+        self.runner.run_realtime()
+        if not self.runner.rx.received:  # a mistyped channel must not look like a clean run
+            raise PeerTimeout(f"real time: not one frame from a TCU in the {self.scenario.duration_s:g} s run (the "
+                              f"plant ran on unpowered hydraulics throughout): is the TCU on {self.interface}?")
 
     def _run_realtime_with_thread(self) -> None:
         """Real time with the TCU in this process: it serves the bus in a thread of its own."""
@@ -370,9 +400,9 @@ class Run:
                     status = proc.wait(timeout=0.5)
                 except subprocess.TimeoutExpired:
                     status = None
-                if status is not None:  # (a TCU that never answers costs the startup timeout: the same error)
+                if status is not None:
                     raise PeerTimeout("the TCU process exited at start")
-                self._drive()
+                self._drive(pump=lambda: _check_alive(proc, self.runner))
             except PeerTimeout as exc:  # (PeerLost too: the type decides the summary's stop reason)
                 raise type(exc)(f"{exc} (TCU {' '.join(process.command(self.bus_config))}: "
                                 f"{_process_state(proc, sink)})") from exc
@@ -385,17 +415,8 @@ class Run:
         runner = self.runner
         data = runner.summary.as_json(runner.frames(), self.scenario.name, self.config.mode, self.interface,
                                       self.scenario.duration_s)
-        summary = Summary(
-            scenario=data.pop("scenario"), mode=data.pop("mode"), interface=data.pop("interface"),
-            duration_s=data.pop("duration_s"), command_fallback=data.pop("command_fallback"),
-            frames=data.pop("frames"), realtime_factor=data.pop("realtime_factor"),
-            wall_time_s=data.pop("wall_time_s"), command_latency_ms=data.pop("command_latency_ms"),
-            sim_time_s=round(runner.plant.state.t, 3), faults=runner.fault_summary(), metrics=data, extra=extra)
-        if self.config.summary is not None:
-            path = Path(self.config.summary)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps(summary.as_json(), indent=2) + "\n", encoding="utf-8")
-        return summary
+        return _finish_summary(data, round(runner.plant.state.t, 3), runner.fault_summary(), extra,
+                               self.config.summary)
 
     def truth(self) -> dict[str, np.ndarray]:
         """The plant each control period at the tick's time (``RunConfig.truth``): ``t`` [s] and each field of
@@ -418,6 +439,35 @@ class Run:
                 self.summary()
         finally:
             self._stack.close()
+
+
+def _finish_summary(data: dict[str, Any], sim_time_s: float, faults: Mapping[str, Any], extra: Mapping[str, Any],
+                    path: str | Path | None) -> Summary:
+    """The :class:`Summary` of the bookkeeping's JSON ``data``, written to ``path`` if given."""
+    summary = Summary(
+        scenario=data.pop("scenario"), mode=data.pop("mode"), interface=data.pop("interface"),
+        duration_s=data.pop("duration_s"), command_fallback=data.pop("command_fallback"),
+        frames=data.pop("frames"), realtime_factor=data.pop("realtime_factor"),
+        wall_time_s=data.pop("wall_time_s"), command_latency_ms=data.pop("command_latency_ms"),
+        sim_time_s=sim_time_s, faults=faults, metrics=data, extra=extra)
+    if path is not None:
+        out = Path(path)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(summary.as_json(), indent=2) + "\n", encoding="utf-8")
+    return summary
+
+
+def unstarted_summary(reason: str, path: str | Path | None, scenario: str, mode: str, interface: str,
+                      duration_s: float, fault_seed: int = 0) -> Summary:
+    """The summary of a run a signal ended before :func:`open_run` had set it up (``reason``: ``interrupted``,
+    ``terminated``): no control period ran, so it holds what is known, the bookkeeping of zero periods (no frame
+    sent, ``sim_time_s`` 0, ``wall_time_s`` null) and the stop reason; written to ``path`` if given."""
+    bookkeeping = RunSummary(dt=0.0, stop_reason=reason)  # the period's length: unused without a period
+    frames: dict[str, Any] = dict.fromkeys(("sent", "received", "rejected", "retries", "lost", "duplicates",
+                                            "unanswered_ticks", "unanswered_episodes", "probes"), 0)
+    frames["by_message"] = {}
+    data = bookkeeping.as_json(frames, scenario, mode, interface, duration_s)
+    return _finish_summary(data, 0.0, {"seed": fault_seed, "injected": {}}, {}, path)
 
 
 def _stop_reason(exc_type: type[BaseException] | None) -> str | None:
@@ -473,22 +523,35 @@ def at_each_tick(db: Database, call: Callable[[], object]) -> Callable[[can.Mess
 
 
 def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Iterable[FaultSpec], fault_seed: int,
-               tcu_factory: TcuFactory | None = None) -> tuple[Any, can.BusABC]:
+               tcu_factory: TcuFactory | None = None, calibration: Any = None) -> tuple[Any, can.BusABC]:
     """A TCU in this process on ``bus``, its frames through the TCU-side ``faults`` (windows in the TCU's own time,
     its ``now``); the injector is registered on ``runner`` for the summary. Returns the TCU and its bus (``bus``
     behind the injector). Default TCU: the bundled ecu-stub, which knows the plant only by the DBC (with the
-    plant's kind of codec)."""
+    plant's kind of codec) with ``calibration`` (an ``ecu_stub.calibration.TcuCalibration``; None: the shipped
+    one)."""
     if tcu_factory is None:
-        from ecu_stub.runner import TCU_USES, TcuRunner  # noqa: PLC0415 - the TCU when one is attached
+        from ecu_stub.controller import CreepController  # noqa: PLC0415 - the TCU when one is attached
+        from ecu_stub.runner import TCU_USES, TcuRunner  # noqa: PLC0415
 
         reference = runner.codec.reference
+        controller = None if calibration is None else CreepController(calibration)
 
         def tcu_factory(tcu_db: Database, tcu_bus: can.BusABC) -> Any:
-            return TcuRunner(Codec(tcu_db, TCU_USES, reference=reference), tcu_bus)
+            return TcuRunner(Codec(tcu_db, TCU_USES, reference=reference), tcu_bus, controller)
     built: list[Any] = []  # the TCU, once built: the fault clock reads its time
     tcu_bus, runner.injectors["tcu"] = with_faults(bus, db, faults, fault_seed, lambda: built[0].now)
     built.append(tcu_factory(db, tcu_bus))
     return built[0], tcu_bus
+
+
+def _check_alive(proc: subprocess.Popen[bytes], runner: PlantRunner) -> None:
+    """Lock-step with a TCU process: one that exited ends the wait at once (no startup or reply timeout to sit
+    out): :class:`PeerLost` in the run, :class:`PeerTimeout` before; the caller adds its exit status and output."""
+    if proc.poll() is None:
+        return
+    if runner.clock() >= 0.0:  # the run proper has started
+        raise PeerLost(f"the TCU process exited at lock-step tick {runner.tick}")
+    raise PeerTimeout("the TCU process exited before it answered the presence probe")
 
 
 def _output_tail(sink: IO[bytes]) -> str:

@@ -7,7 +7,7 @@
   for byte (the TCU answers a repeated tick with the frames it already sent); retransmissions and duplicates are
   counted, never logged, so a run that needed them logs the same frames as one that did not. Frame timestamps
   are simulated time, so the same scenario gives the same frames, bit for bit. A TCU silent for the reply
-  timeout ends the run (PeerLost).
+  timeout over 3 ticks in a row ends the run (PeerLost).
 * Real time (``run_realtime``): the plant steps at its fixed step paced by a monotonic clock against absolute
   deadlines, sends each frame at its DBC cycle time, and uses commands as they arrive.
 
@@ -28,7 +28,7 @@ import numpy as np
 
 from ..common.units import CV
 from ..physics.plant import N_OUT, Plant, PlantInputs, PlantOutputs
-from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, commanded_pressures, plant_signals
+from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, commanded_pressures, frame_encoder
 from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import data_frame
@@ -56,19 +56,21 @@ class PlantRunner:
         self.period_ms = codec.cycle_time_ms("TCU_CMD")
         self.steps_per_period = max(1, round(self.period_ms * NS_PER_MS / plant.dt_ns))
         self.tx = TxScheduler(codec, list(PLANT_TX))
+        self._frame_data = {name: frame_encoder(codec, name) for name in PLANT_TX}  # (out, driver, counter) -> data
         self.summary = RunSummary(plant.dt)
         self.out: PlantOutputs = plant.outputs()
         self.command_valid = False
         self.P_cmd = (0.0, 0.0)
         self.sent = 0
-        self.sent_by: Tally[str] = Tally()  # frames sent (first transmissions, the ones logged)
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
+        self._sent_by_id = dict.fromkeys(self._names, 0)  # frames sent (first transmissions, the ones logged)
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
         self.link = LockstepMaster(codec, PLANT_RX, self._send, bus.recv, self._use_stamped)  # lock-step protocol
         self._keep: Callable[[int, bytes, float], None] | None = None  # lock-step: the period's frames, re-sent
         self._cmd_on_bus: float | None = None
         self._traces: dict[int, np.ndarray] = {}  # by number of steps: the plant's trace of a period (_advance)
         self._running = False  # set once the run proper starts (after the lock-step handshake)
+        self._wall0 = time.monotonic()  # when it did (wall clock: the progress line's pace and ETA)
         self.injectors: dict[str, FaultInjector | None] = {}  # by side, see ``inject``
         self.fault_seed = 0
         self.faults_in_tcu: list[str] = []  # faults passed on to a TCU process, which counts them itself
@@ -157,11 +159,20 @@ class PlantRunner:
         self.bus.send(msg)
         return msg
 
+    @property
+    def sent_by(self) -> Tally[str]:
+        """Frames sent (first transmissions, the ones logged), by message."""
+        return Tally({self._names[frame_id]: n for frame_id, n in self._sent_by_id.items() if n})
+
     def _emit(self, frame_id: int, data: bytes, stamp: float) -> None:
         """Send a frame of this period (a first transmission: counted, kept for re-sending, logged)."""
-        msg = self._send(frame_id, data, stamp)
+        if self._send_data is not None:  # _send, written out: about six frames every control period
+            self._send_data(frame_id, data)
+            msg = None
+        else:
+            msg = self._send(frame_id, data, stamp)
         self.sent += 1
-        self.sent_by[self._names[frame_id]] += 1
+        self._sent_by_id[frame_id] += 1
         if self._keep is not None:
             self._keep(frame_id, data, stamp)
         if self.listeners:
@@ -179,10 +190,22 @@ class PlantRunner:
         names = self.tx.due_ms(now_ms)
         if not names:  # real time: most 1-ms steps send nothing, so build no signal values for them
             return
-        values = plant_signals(self.out, self.scenario.driver_at(self.plant.state.t))
-        data, ids = self.tx.data, self.tx.ids
+        out, driver = self.out, self.scenario.driver_at(self.plant.state.t)
+        frame_data, ids, next_counter = self._frame_data, self.tx.ids, self.tx.next_counter
+        send, keep = self._send_data, self._keep
+        if send is None or self.listeners:
+            for name in names:  # the messages due alone, each encoded from the outputs directly
+                self._emit(ids[name], frame_data[name](out, driver, next_counter(name)), stamp)
+            return
+        sent_by = self._sent_by_id  # _emit written out for a bus taking (ID, data) and no listener (lock-step)
         for name in names:
-            self._emit(ids[name], data(name, values[name]), stamp)
+            frame_id = ids[name]
+            data = frame_data[name](out, driver, next_counter(name))
+            send(frame_id, data)
+            sent_by[frame_id] += 1
+            if keep is not None:
+                keep(frame_id, data, stamp)
+        self.sent += len(names)
 
     def _take(self, msg: can.Message, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
         """Handle one received frame: (status, frame) as :meth:`RxMonitor.take`; only new frames are used and
@@ -230,9 +253,11 @@ class PlantRunner:
         status = self.rx.states["TCU_STATUS"]
         brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
-        engine = None if self.scenario.engine_speed_rpm is None else self.scenario.engine_speed_rpm / CV.RAD_S_TO_RPM
-        return PlantInputs(P_CL_cmd=P_CL, P_CH_cmd=P_CH, brake=max(driver.brake, brake_request),
-                           grade=self.scenario.grade_rad, engine_speed_request=engine)
+        scenario = self.scenario
+        rpm = scenario.engine_speed_rpm
+        # (P_CL_cmd, P_CH_cmd, brake, grade, engine_speed_request), positional: built every control period
+        return PlantInputs(P_CL, P_CH, max(driver.brake, brake_request), scenario.grade_rad,
+                           None if rpm is None else rpm / CV.RAD_S_TO_RPM)
 
     def _advance(self, steps: int, now: float) -> None:
         """``steps`` plant steps on one set of inputs: one compiled call, whose trace (every step's outputs) feeds
@@ -251,14 +276,20 @@ class PlantRunner:
         self.summary.on_period(trace, PlantOutputs._fields, Plant.sample, creeping, fallback, desired)
 
     def _report(self, every_s: float = 10.0) -> None:
-        """A progress line when the last control period crossed a multiple of ``every_s`` (counted in steps)."""
+        """A progress line when the last control period crossed a multiple of ``every_s`` (counted in steps), with
+        the pace (simulated s per wall s since the run started) and the wall time left at that pace (ETA)."""
+        if not self.progress:
+            return
         k, every = self.plant.state.k, round(every_s * NS_PER_S / self.plant.dt_ns)
-        if self.progress and k // every != (k - self.steps_per_period) // every:
+        if k // every != (k - self.steps_per_period) // every:
             t = self.plant.state.t
             o, s, mpa = self.out, self.summary, CV.MPA_TO_PA
+            wall = time.monotonic() - self._wall0
+            pace = f"  {t / wall:.1f}x real time, ETA {(self.scenario.duration_s - t) * wall / t:.0f} s" \
+                if wall > 0 and t > 0 else ""
             self.progress(f"t={t:7.1f}/{self.scenario.duration_s:g} s  v={o.v:5.2f} m/s  T_CL={o.T_CL:6.1f}  "
                           f"T_CH={o.T_CH:6.1f} degC  P_CL={o.P_CL / mpa:4.2f}  P_CH={o.P_CH / mpa:4.2f} MPa  "
-                          f"TCU {s.tcu_state}/{s.active_clutch}")
+                          f"TCU {s.tcu_state}/{s.active_clutch}{pace}")
 
     @property
     def n_periods(self) -> int:
@@ -272,7 +303,8 @@ class PlantRunner:
 
         First the presence handshake (not logged), for up to ``startup_timeout`` s (then :class:`PeerTimeout`);
         so the run starts from the same state whenever the TCU came up. Then each tick is re-sent while its
-        answer is late; a TCU silent for ``reply_timeout`` wall-clock seconds ends the run with :class:`PeerLost`
+        answer is late; a TCU silent for ``reply_timeout`` wall-clock seconds (summed over ticks in a row given up, at
+        least 3 of them) ends the run with :class:`PeerLost`
         (stop reason ``peer_lost``), the summary being valid up to that point. Compiled code is loaded before the
         handshake: once the TCU has answered, a pause of seconds (numba's cache loaded under emulation) would
         look to it like a plant gone."""
@@ -281,7 +313,7 @@ class PlantRunner:
         link.handshake(startup_timeout, pump)
         self._running = True
         self._keep = link.keep
-        t0 = time.monotonic()
+        t0 = self._wall0 = time.monotonic()
         try:
             for tick in range(self.n_periods):
                 t = tick * self.period  # the frames' stamp [s]; the schedule counts whole ms
@@ -290,10 +322,7 @@ class PlantRunner:
                 self._emit(link.sync_id, link.tick_data(), t)
                 if pump is not None:
                     pump()
-                if not link.answer(t, reply_timeout, pump):
-                    log.warning("t=%.2f s: lock-step tick %d unanswered after %d re-sends: the period runs on the "
-                                "last command while it is valid (DBC: 3 cycle times), then unpowered",
-                                t, tick, link.retries_per_tick)
+                link.answer(t, reply_timeout, pump)  # False: given up (the master warns once per episode)
                 self._check_command(t)
                 self._advance(self.steps_per_period, t)
                 self._report()
@@ -312,7 +341,7 @@ class PlantRunner:
         Command validity is judged on the clock (a dead TCU is dead in wall time); a machine too slow to keep
         up makes the run late, which is counted and reported as ``realtime_factor``."""
         start = clock()
-        self._running = True
+        self._running, self._wall0 = True, time.monotonic()
         dt, dt_ns = self.plant.dt, self.plant.dt_ns
         n_steps = int(round(self.scenario.duration_s / dt))
         for k in range(n_steps):  # the step count is an integer; the clock's time a float (monotonic seconds)
@@ -345,13 +374,15 @@ class PlantRunner:
         """Frame counts for the summary: totals (``sent`` counts first transmissions, the frames logged) and per
         message: sent, retries (lock-step re-sends), received (every frame of it heard), taken, rejected by
         cause, lost (counter gaps), duplicates (repeats ignored); ``unanswered_ticks``: lock-step periods run
-        without their answer; ``probes``: lock-step presence probes it took to find the TCU."""
-        rx, retries = self.rx.counts(), self.retries
+        without their answer, ``unanswered_episodes``: runs of them in a row; ``probes``: lock-step presence
+        probes it took to find the TCU."""
+        rx, retries, sent_by = self.rx.counts(), self.retries, self.sent_by
         by_message = {}
         for name in PLANT_USES:
             got = rx.get(name, {"received": 0, "taken": 0, "rejected": {}, "lost": 0, "duplicates": 0})
-            by_message[name] = {"sent": self.sent_by[name], "retries": retries[name], **got}
+            by_message[name] = {"sent": sent_by[name], "retries": retries[name], **got}
         return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total,
                 "retries": sum(retries.values()), "lost": sum(m["lost"] for m in rx.values()),
                 "duplicates": sum(m["duplicates"] for m in rx.values()), "unanswered_ticks": self.unanswered_ticks,
+                "unanswered_episodes": self.link.unanswered_episodes,
                 "probes": self.probes, "by_message": by_message}

@@ -7,7 +7,9 @@ The controller is one of
   :class:`~ecu_stub.controller.CreepController` (e.g. with another calibration);
 * a command line (``list`` of ``str``, or :class:`ControllerProcess`): started as a process on a
   ``udp_multicast`` group and port of the run's own (a compiled ECU, a script, ``ecu-stub`` itself);
-* a Python object with ``step(t, inputs)`` (:class:`Controller`), run in this process.
+* a Python object with ``step(t, inputs)`` (:class:`Controller`), run in this process;
+* the path of a co-simulation FMU (``str`` or :class:`~pathlib.Path` ending in ``.fmu``): run through FMPy behind
+  ecu-stub's bus side, in this process (:mod:`dsg_hil.fmi.controller`, extra ``fmi``).
 
 The pytest plugin (:mod:`dsg_hil.testing.plugin`, fixture ``dsg_hil_run``) calls this with a directory per run.
 """
@@ -15,7 +17,8 @@ The pytest plugin (:mod:`dsg_hil.testing.plugin`, fixture ``dsg_hil_run``) calls
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from contextlib import ExitStack
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeGuard
 
@@ -87,10 +90,19 @@ def run_plant(controller: ControllerLike = None, *, scenario: Scenario | str | P
                        reply_timeout=reply_timeout, startup_timeout=startup_timeout)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-    with open_run(config) as run:
+    with ExitStack() as stack:
+        if _is_fmu(controller):
+            from ..fmi.controller import open_controller  # noqa: PLC0415 - FMPy only for an FMU
+
+            config = replace(config, tcu=stack.enter_context(open_controller(controller)).tcu_factory)
+        run = stack.enter_context(open_run(config))
         summary = run.run()
     return PlantRun(summary.as_json(), decode_frames(run.db, run.frames), run.truth(), run.frames,
                     config.log if isinstance(config.log, Path) else None, output)
+
+
+def _is_fmu(controller: Any) -> TypeGuard[str | Path]:
+    return isinstance(controller, (str, Path)) and str(controller).lower().endswith(".fmu")
 
 
 def _is_command(controller: Any) -> TypeGuard[Sequence[str]]:
@@ -99,7 +111,7 @@ def _is_command(controller: Any) -> TypeGuard[Sequence[str]]:
 
 def _tcu_factory(controller: Any) -> str | TcuFactory:
     """How the in-process TCU is built: ecu-stub (``None`` or its controller) or a Controller."""
-    if controller is None:
+    if controller is None or _is_fmu(controller):  # an FMU: its factory is set once the FMU is open
         return ECU_STUB
     from ecu_stub.controller import CreepController
     from ecu_stub.runner import TCU_USES, TcuRunner
@@ -109,4 +121,5 @@ def _tcu_factory(controller: Any) -> str | TcuFactory:
     if isinstance(controller, Controller):
         return lambda db, bus: PythonControllerTcu(Codec(db, TCU_USES), bus, controller)
     raise TypeError(f"controller: expected None, an ecu-stub CreepController, a command line (list of str), a "
-                    f"ControllerProcess or an object with step(t, inputs); got {type(controller).__name__}")
+                    f"ControllerProcess, an object with step(t, inputs) or an .fmu path; got "
+                    f"{type(controller).__name__}")

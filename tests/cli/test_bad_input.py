@@ -156,7 +156,8 @@ PROGRAMS = {"dsg-hil": ["-m", "dsg_hil"], "ecu-stub": ["-m", "ecu_stub"], "ident
 BUS = ["-i", "virtual"]
 OUT = ["--summary", "s.json", "--log", "r.log"]
 # (program, argv, bad: 'option' or 'file', form, needle). In the directory: bad.toml (not TOML), garbage.log,
-# short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty directory).
+# notblf.blf (text), short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty
+# directory).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -183,14 +184,39 @@ CASES = [
     ("dsg-hil", ["params", "--params", "bad.toml"], "file", ERROR, "bad.toml: not valid TOML"),
     ("dsg-hil", ["report", "--out", "afile"], "option", ERROR, "--out afile: not a writable directory"),
     ("dsg-hil", ["report", "--from-log", "garbage.log", "--out", "outdir"], "file", ERROR,
-     "garbage.log: cannot read the log"),
+     "garbage.log:1: cannot read the log line 'garbage'"),
+    # issue 20, items 2 and 4: checked before the run, the line naming the option or fault
+    ("dsg-hil", ["run", *BUS, "--log", "/proc/nope/r.log", "--summary", "s.json"], "option", ERROR,
+     "--log /proc/nope/r.log: /proc is not a writable directory"),
+    ("dsg-hil", ["run", *BUS, "--summary", "nodir/x/"], "option", ERROR,
+     "--summary nodir/x/: ends in a path separator: give a file name"),
+    ("dsg-hil", ["run", *BUS, "--fault", "stuck:PLANT_VEHICLE.VehicleSpeed@1-2,value=1000", *OUT], "option", ERROR,
+     "stuck value 1000 m/s cannot be encoded in PLANT_VEHICLE.VehicleSpeed: its bits carry -32.768 to 32.767 m/s"),
+    ("dsg-hil", ["validate", "--json", "/proc/nope/v.json"], "option", ERROR,
+     "--json /proc/nope/v.json: /proc is not a writable directory"),
+    ("ecu-stub", [*BUS, "--fault", "offset:TCU_CMD.P_CL_Cmd@1-2,value=1e6", "--log", "t.log"], "option", ERROR,
+     "offset value 1e+06 MPa cannot be encoded in TCU_CMD.P_CL_Cmd"),
+    ("dsg-hil", ["sweep", "bad.toml", "--n", "x"], "option", USAGE, "argument --n: not a whole number: 'x'"),
+    ("dsg-hil", ["sweep", "bad.toml", "--out", "outdir"], "file", ERROR, "bad.toml: not valid TOML"),
+    ("dsg-hil", ["fmu", "export", "--out", "plant.zip"], "option", ERROR, "--out plant.zip: an FMU's file name ends"),
+    ("dsg-hil", ["fmu", "export", "--params", "nosuch.toml"], "file", ERROR, "nosuch.toml: cannot read parameter"),
+    ("dsg-hil", ["run", *BUS, "--controller", "nosuch.fmu", *OUT], "file", ERROR, "--controller nosuch.fmu: no such"),
     ("ecu-stub", [*BUS, "--idle-exit", "0", "--log", "t.log"], "option", ERROR,
      "--idle-exit: must be a positive number of seconds"),
     ("ecu-stub", [*BUS, "--calibration", "nosuch.toml", "--log", "t.log"], "file", ERROR,
      "nosuch.toml: cannot read calibration"),
     ("identify", ["short.log", "--write", "outdir"], "option", ERROR, "--write outdir: is a directory"),
+    ("dsg-hil", ["completion", "fish"], "option", USAGE, "argument shell: invalid choice: 'fish'"),
+    ("dsg-hil", ["plot", "short.log", "-o", "outdir"], "option", ERROR, "--output outdir: is a directory"),
+    ("dsg-hil", ["plot", "garbage.log", "-o", "p.png"], "file", ERROR,
+     "garbage.log:1: cannot read the log line 'garbage'"),
+    ("dsg-hil", ["plot", "bad.toml", "-o", "p.png"], "file", ERROR, "bad.toml: cannot read the log"),
     ("identify", ["nosuch.log", "--write", "cal.toml"], "file", ERROR, "nosuch.log: cannot read the log"),
-    ("identify", ["garbage.log", "--write", "cal.toml"], "file", ERROR, "garbage.log: cannot read the log"),
+    ("identify", ["garbage.log", "--write", "cal.toml"], "file", ERROR,
+     "garbage.log:1: cannot read the log line 'garbage'"),
+    ("identify", ["notblf.blf", "--write", "cal.toml"], "file", ERROR, "notblf.blf: cannot read the log"),
+    ("identify", ["short.log", "--write", "/proc/nope/cal.toml"], "option", ERROR,  # before the fit, not after
+     "--write /proc/nope/cal.toml: /proc is not a writable directory"),
     ("identify", ["short.log", "--write", "cal.toml"], "file", ERROR,
      "short.log: thermal fit: no plate temperature record"),  # no usable data
 ]
@@ -199,6 +225,7 @@ CASES = [
 def write_inputs(where: Path) -> None:
     (where / "bad.toml").write_text("x = = 1\n", encoding="utf-8")
     (where / "garbage.log").write_text("garbage\n", encoding="utf-8")
+    (where / "notblf.blf").write_text("not a BLF file\n", encoding="utf-8")
     (where / "afile").write_text("a file, not a directory\n", encoding="utf-8")
     (where / "outdir").mkdir()
     codec = Codec(load_dbc(), {"PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed")})
@@ -232,10 +259,14 @@ def test_every_command_line_rejects_bad_input_with_exit_2_and_one_line(tmp_path,
         assert err[0].startswith("usage: ") and f": error: {needle}" in err[-1], err
 
 
+NO_FILE = {"completion"}  # commands that read no file
+
+
 def test_the_cases_cover_every_command_line_with_an_option_and_a_file():
     covered = {(c[0] if c[0] != "dsg-hil" else c[1][0], c[2]) for c in CASES}
     for command in [*COMMANDS, "ecu-stub", "identify"]:
-        assert {(command, "option"), (command, "file")} <= covered, command
+        kinds = {"option"} if command in NO_FILE else {"option", "file"}
+        assert {(command, kind) for kind in kinds} <= covered, command
 
 
 def test_a_bad_parameter_file_writes_no_log(tmp_path):

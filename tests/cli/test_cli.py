@@ -118,20 +118,24 @@ def test_ecu_stub_help_and_bad_interface():
     assert "Traceback" not in proc.stderr
 
 
-def test_plant_alone_on_virtual_warns_and_prints_counts(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", "-i", "virtual", "--duration", "0.2"],
-                          capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
+def test_plant_alone_on_virtual_warns_and_fails_for_want_of_a_tcu(tmp_path):
+    """Nobody can hear a plant alone on 'virtual': warned at start, and a real-time run that heard no TCU frame
+    ends with exit 1 and the reason (the warning again), the summary's counts written."""
+    proc = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", "-i", "virtual", "--duration", "0.2",
+                           "--summary", str(tmp_path / "s.json")], capture_output=True, text=True)
+    assert proc.returncode == 1, proc.stderr
     assert "warning: python-can's 'virtual' interface lives inside one process" in proc.stderr
-    done = proc.stderr.strip().splitlines()[-1]
-    assert re.fullmatch(r"done: stop \w+; frames sent \d+ \(re-sent 0\), received 0, rejected 0, lost 0, "
-                        r"duplicates 0, unanswered ticks 0", done), done
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: real time: not one frame from a TCU in the 0.2 s run") and \
+        last.endswith("or -i socketcan -c vcan0)"), last
+    frames = json.loads((tmp_path / "s.json").read_text())["frames"]
+    assert frames["sent"] > 0 and frames["received"] == frames["retries"] == frames["unanswered_ticks"] == 0
 
 
 def test_plant_prints_the_tcu_command_for_its_bus():
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", "-i", "udp_multicast", "--duration", "0.2"],
                           capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 1, proc.stderr  # (no TCU came: see test_a_real_time_plant_that_never_hears_a_tcu_fails)
     assert re.search(r"^TCU: ecu-stub -i udp_multicast -c 239\.255\.\d+\.\d+ --bus-kwargs port=\d+$",
                      proc.stderr, re.MULTILINE), proc.stderr
 

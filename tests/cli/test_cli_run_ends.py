@@ -5,8 +5,7 @@ processes over python-can's udp_multicast (no kernel CAN needed): lockstep gives
 from __future__ import annotations
 
 import json
-import os
-import random
+import re
 import signal
 import subprocess
 import sys
@@ -17,6 +16,7 @@ import can
 import pytest
 
 from dsg_hil.protocol import load_dbc
+from dsg_hil.protocol.bus import bus_args, fresh_udp_group
 from ecu_stub.runner import TCU_USES
 
 DSG_HIL = [sys.executable, "-m", "dsg_hil"]
@@ -24,10 +24,16 @@ ECU_STUB = [sys.executable, "-m", "ecu_stub"]
 REPLY_TIMEOUT = "10"  # [s] a live TCU on a loaded machine was once starved 1 s (a run ended as peer_lost at t=5.4 s)
 
 
+def terminal_signals() -> None:
+    """A child started as a user's terminal starts it: Ctrl-C's signal at its default disposition (a test run
+    started in the background by a non-interactive shell inherits SIGINT ignored, and so would its children)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start_run(tmp_path: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen([*DSG_HIL, "run", "--interface", "virtual", "--duration", "1000", "--summary",
                              str(tmp_path / "s.json"), "--log", str(tmp_path / "r.log"), *extra],
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=terminal_signals)  # noqa: PLW1509
 
 
 def wait_for(proc: subprocess.Popen, text: str, timeout: float = 120.0) -> list[str]:
@@ -49,7 +55,8 @@ def wait_for(proc: subprocess.Popen, text: str, timeout: float = 120.0) -> list[
                                                (signal.SIGTERM, 143, "terminated")])
 def test_signal_ends_the_run_with_summary_and_log(tmp_path, sig, code, reason):
     proc = start_run(tmp_path)
-    wait_for(proc, "t=   10.0/1000 s")  # a progress line: the run is under way
+    line = wait_for(proc, "t=   10.0/1000 s")[-1]  # a progress line: the run is under way
+    assert re.search(r"  \d+\.\dx real time, ETA \d+ s$", line), line  # its pace and the wall time left
     proc.send_signal(sig)
     err = proc.communicate(timeout=60)[1]
     assert proc.returncode == code, err
@@ -74,12 +81,14 @@ def test_unwritable_outputs_fail_before_the_run(tmp_path, option, path, message)
     assert proc.stderr.strip().splitlines() == [f"error: {option} {path}: {message}"]  # before the run starts
 
 
-def multicast_group() -> str:
-    """A group of our own for this test: 239.74.<pid>.<random> (administratively scoped IPv4)."""
-    group = f"239.74.{os.getpid() % 250}.{random.randint(1, 254)}"
+def udp_bus() -> list[str]:
+    """Bus options of a udp_multicast group and port of this test's own (:func:`fresh_udp_group`). The port matters:
+    python-can binds it on every address and Linux hands a datagram to every socket on its port that joined any
+    group, so tests sharing python-can's default port heard each other's frames when run concurrently."""
+    config = {"interface": "udp_multicast", **fresh_udp_group()}
     try:
-        a = can.Bus(interface="udp_multicast", channel=group)
-        b = can.Bus(interface="udp_multicast", channel=group)
+        a = can.Bus(**config)
+        b = can.Bus(**config)
     except (OSError, can.CanError) as exc:
         pytest.skip(f"this machine cannot do UDP multicast: {exc}")
     try:
@@ -89,7 +98,7 @@ def multicast_group() -> str:
     finally:
         a.shutdown()
         b.shutdown()
-    return group
+    return bus_args(config)
 
 
 def log_frames(path: Path) -> list[tuple[str, str]]:
@@ -113,7 +122,7 @@ def reference_log(tmp_path_factory) -> Path:
 def udp_lockstep(tmp_path: Path, during=None) -> tuple[dict, str]:
     """ecu-stub and dsg-hil plant (lockstep) as processes on a multicast group of their own; ``during(tcu,
     plant)`` runs while both are up. Returns the plant's summary and the TCU's stderr."""
-    bus = ["--interface", "udp_multicast", "--channel", multicast_group()]
+    bus = udp_bus()
     tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2", "--log", str(tmp_path / "tcu.log")],
                            stderr=subprocess.PIPE, text=True)
     assert tcu.stderr is not None  # stderr=PIPE
@@ -174,10 +183,31 @@ def test_a_stalled_tcu_costs_retries_not_the_log(tmp_path, reference_log):
     assert_records_agree(tmp_path)
 
 
+def test_a_known_fault_on_the_tcus_answers_is_no_lost_peer(tmp_path):
+    """The README's fault across processes: ``run -i udp_multicast`` passes ``drop:TCU_CMD`` to the ecu-stub it
+    starts, which drops its answers (and their repeats) to the ten ticks of the window. The run finishes (exit 0):
+    ten ticks unanswered in one episode, one warning, one fallback, the fault counted by ecu-stub; and the log is
+    the in-process run's with the same fault, bit for bit. (Before: each tick cost the whole re-send back-off and
+    the silence summed over them ended the run as peer lost.)"""
+    fault = ["--duration", "3", "--fault", "drop:TCU_CMD@2-2.1"]
+    udp = subprocess.run([*DSG_HIL, "run", "-i", "udp_multicast", *fault, "--log", str(tmp_path / "udp.log"),
+                          "--summary", str(tmp_path / "s.json")], capture_output=True, text=True, timeout=600)
+    assert udp.returncode == 0, udp.stderr
+    assert "ecu-stub: faults injected (frames hit): drop:TCU_CMD@2-2.1 " in udp.stderr
+    assert udp.stderr.count("unanswered after its re-sends (an injected fault)") == 1
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["stop_reason"] == "end_of_record" and summary["faults"]["in_tcu_process"] == ["drop:TCU_CMD@2-2.1"]
+    assert summary["frames"]["unanswered_ticks"] == 10 and summary["frames"]["unanswered_episodes"] == 1
+    assert summary["command_fallback"]["events"] == 1
+    local = subprocess.run([*DSG_HIL, "run", *fault, "--log", str(tmp_path / "local.log")], capture_output=True,
+                           text=True, timeout=600)
+    assert local.returncode == 0, local.stderr
+    assert (tmp_path / "udp.log").read_bytes() == (tmp_path / "local.log").read_bytes()
+
+
 def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
     """The TCU process killed mid-run: the plant says so in one line, exits 1 and writes the summary so far."""
-    group = multicast_group()
-    bus = ["--interface", "udp_multicast", "--channel", group]
+    bus = udp_bus()
     tcu = subprocess.Popen([*ECU_STUB, *bus], stderr=subprocess.PIPE, text=True)
     try:
         assert "listening on udp_multicast" in tcu.stderr.readline()
@@ -201,19 +231,20 @@ def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
 
 def test_no_tcu_at_all_ends_with_a_summary(tmp_path):
     """No TCU answers the presence probe: one line, exit 1, and the summary all the same (stop reason no_peer)."""
-    bus = ["--interface", "udp_multicast", "--channel", multicast_group()]
+    bus = udp_bus()
     plant = subprocess.run([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", "5", "--startup-timeout",
                             "0.5", "--summary", str(tmp_path / "s.json")], capture_output=True, text=True, timeout=120)
     assert plant.returncode == 1, plant.stderr
     assert plant.stderr.strip().splitlines()[-1].startswith("error: no TCU answered the lock-step presence probe")
+    assert plant.stderr.count("lock-step: waiting for a TCU to answer") == 1  # said at once, not after 60 s
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["stop_reason"] == "no_peer" and summary["frames"]["probes"] >= 1
     assert summary["frames"]["by_message"]["PLANT_ENGINE"]["sent"] == 0  # nothing but probes went out
 
 @pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_ecu_stub_ends_on_a_signal_with_the_same_codes_as_dsg_hil(sig, status):
-    tcu = subprocess.Popen([*ECU_STUB, "--interface", "udp_multicast", "--channel", multicast_group()],
-                           stderr=subprocess.PIPE, text=True)
+    tcu = subprocess.Popen([*ECU_STUB, *udp_bus()], stderr=subprocess.PIPE, text=True,
+                           preexec_fn=terminal_signals)  # noqa: PLW1509
     try:
         assert "listening on udp_multicast" in tcu.stderr.readline()
         tcu.send_signal(sig)
@@ -222,3 +253,42 @@ def test_ecu_stub_ends_on_a_signal_with_the_same_codes_as_dsg_hil(sig, status):
         if tcu.poll() is None:
             tcu.kill()
     assert tcu.returncode == status and "ecu-stub: sent 0 frames" in err, err
+
+
+def test_a_real_time_plant_that_never_hears_a_tcu_fails(tmp_path):
+    """Real time with nobody on the bus (a mistyped channel): exit 1 and a line saying so, not a clean-looking
+    run; the summary is written, stop reason no_peer (issue 20, item 5: it exited 0)."""
+    plant = subprocess.run([*DSG_HIL, "plant", *udp_bus(), "--duration", "1", "--summary", str(tmp_path / "s.json")],
+                           capture_output=True, text=True, timeout=120)
+    assert plant.returncode == 1, plant.stderr
+    last = plant.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: real time: not one frame from a TCU in the 1 s run") and "udp_multicast" in last
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["stop_reason"] == "no_peer" and summary["frames"]["received"] == 0
+
+
+FAULT = ["--duration", "1", "--fault", "drop:TCU_CMD@0.2-0.3"]  # ten ticks in a row unanswered, one fallback
+
+
+def test_one_warning_per_run_of_unanswered_ticks_and_quiet_prints_none():
+    loud = subprocess.run([*DSG_HIL, "run", *FAULT], capture_output=True, text=True, timeout=300)
+    assert loud.returncode == 0, loud.stderr
+    warnings = [line for line in loud.stderr.splitlines() if line.startswith("WARNING")]
+    assert sum("unanswered" in line for line in warnings) == 1, loud.stderr  # not one per tick
+    assert "unanswered ticks 10 (1 run of them)" in loud.stderr
+    quiet = subprocess.run([*DSG_HIL, "run", *FAULT, "--quiet"], capture_output=True, text=True, timeout=300)
+    assert quiet.returncode == 0 and quiet.stderr == ""
+
+
+def test_a_controller_process_that_exits_ends_the_wait_at_once(tmp_path):
+    """The fixture's command-line controller exits (status 3) after a second, before answering: the run fails
+    then, with its status and output, not after the 60-s presence-probe timeout (issue 20, item 6)."""
+    from dsg_hil.sim.run import PeerTimeout
+    from dsg_hil.testing import run_plant
+
+    script = "import sys, time; time.sleep(1.0); sys.stderr.write('controller: cannot open the bus\\n'); sys.exit(3)"
+    with pytest.raises(PeerTimeout) as info:
+        run_plant([sys.executable, "-c", script], duration=1.0, out_dir=tmp_path)
+    message = str(info.value)
+    assert message.startswith("the TCU process exited before it answered the presence probe")
+    assert "exited with status 3" in message and "controller: cannot open the bus" in message

@@ -91,3 +91,28 @@ def test_importing_it_loads_the_standard_library_only():
             "'dsg_hil.common'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == []
+
+
+def test_a_signal_held_acts_when_the_block_ends_and_an_ignored_sigint_stays_ignored():
+    from dsg_hil.common.cli import signals_held
+
+    reached = []
+    # Python's Ctrl-C handler, as in a terminal (a suite started in the background has SIGINT ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with signals_held():
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(100):
+                    time.sleep(0.001)  # the handler has run by now, and held it
+                reached.append(True)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert reached == [True]
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with signals_held():
+            os.kill(os.getpid(), signal.SIGINT)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)

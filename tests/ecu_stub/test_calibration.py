@@ -43,8 +43,8 @@ def test_bad_values_name_the_key(old, new, key):
 
 
 def test_missing_key_and_bad_map_shape():
-    lines = [line for line in TEXT.splitlines() if not line.startswith("hold_max_s")]
-    with pytest.raises(CalibrationError, match=r"launch\.hold_max_s: missing"):
+    lines = [line for line in TEXT.splitlines() if not line.startswith("standstill_mps")]
+    with pytest.raises(CalibrationError, match=r"launch\.standstill_mps: missing"):
         parse_calibration("\n".join(lines))
     raw = raw_sections()
     raw["friction"]["mu"] = {**raw["friction"]["mu"], "value": [[[0.07, 0.07]]]}

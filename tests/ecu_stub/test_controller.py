@@ -54,17 +54,19 @@ def hold_at(ctrl, clock, inp, T_CL, T_CH):
     return ctrl.update(replace(inp, T_oil_CL_c=T_CL, T_oil_CH_c=T_CH), clock.tick())
 
 
-def test_idle_with_hill_hold_while_the_driver_brakes_at_standstill():
+def test_idle_holds_the_vehicle_unless_the_driver_brakes_it_himself():
     ctrl, clock = CreepController(FLAT), Clock()
     out = run(ctrl, clock, BRAKED, 1.0)
     assert out.state == "IDLE" and out.brake_request and out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0
-    released = replace(BRAKED, brake_pct=0.0)  # foot off, no creep request: hold for hold_max_s, then let go
-    out = run(ctrl, clock, released, FLAT.launch.hold_max_s - 0.1)
-    assert out.brake_request
-    out = run(ctrl, clock, released, 0.2)
-    assert out.state == "IDLE" and not out.brake_request
-    out = run(ctrl, clock, replace(BRAKED, v_mps=1.0), 0.1)  # moving: no hill-hold
+    released = replace(BRAKED, brake_pct=0.0)  # foot off, no creep request: held, however long
+    out = run(ctrl, clock, released, 30.0)
+    assert out.state == "IDLE" and out.brake_request
+    out = run(ctrl, clock, replace(BRAKED, v_mps=1.0), 0.1)  # moving on the driver's brake: his to control
     assert not out.brake_request
+    out = run(ctrl, clock, replace(released, v_mps=1.0), 0.1)  # moving, nobody braking: stopped and held
+    assert out.brake_request
+    out = ctrl.update(TcuInputs(plant_valid=False), clock.tick())  # FAULT: held too
+    assert out.state == "FAULT" and out.brake_request
 
 
 def test_engage_prefills_under_the_brake_then_releases_it_and_tracks_speed():
@@ -95,9 +97,50 @@ def test_limit_is_t_safe_minus_prediction_error_minus_crossover_rise():
     s = FLAT.strategy
     Q = 0.07 * FLAT.CL.k_geom_m3 * 0.6e6 * 100.0 * 2 * math.pi / 60  # mu k P slip (100 r/min)
     assert ctrl.heat["CL"] == pytest.approx(Q, rel=1e-3)
-    rise = Q * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT) / FLAT.CL.C_plate_j_k
+    # the crossover's power: at the larger of command and measured pressure (the monitor's), at the slip of the
+    # vehicle at its desired speed: 150 r/min in, 0.2 m/s / r_CL = 55.45 r/min out, if under the present 100 r/min
+    P = max(ctrl.P_cmd["CL"], 0.6)
+    slip_x = 150.0 - 0.2 / FLAT.CL.speed_ratio_m * 60 / (2 * math.pi)
+    assert 94.0 < slip_x < 95.0
+    Q_x = 0.07 * FLAT.CL.k_geom_m3 * P * 1e6 * slip_x * 2 * math.pi / 60
+    assert ctrl.crossover_heat("CL") == pytest.approx(Q_x, rel=1e-9)
+    # the monitor's worst power until a release: the same pressure, and the whole input speed as slip (150 r/min:
+    # the vehicle braked to rest)
+    Q_w = 0.07 * FLAT.CL.k_geom_m3 * P * 1e6 * 150.0 * 2 * math.pi / 60
+    rise = max(Q_x * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT),  # the crossover, share 1 -> 0 linearly
+               Q_w * (s.stop_release_s / 2 + s.hydraulic_lag_s + DT)) / FLAT.CL.C_plate_j_k  # the monitor's release
     assert ctrl.limit("CL") == pytest.approx(s.T_safe_c - s.prediction_error_k - rise, rel=1e-9)
     assert 0.0 < s.prediction_error_k + rise < 15.0  # no giving up early: the hotter clutch used to within 15 K
+
+
+def test_the_margin_of_a_launch_budgets_the_crossover_not_the_launch():
+    """A vehicle still at rest 1 s into a steep launch (the new plant's breakaway) slips the whole input speed at a
+    force above the creep force; the crossover runs with the vehicle carried to its desired speed. By hand: 240
+    r/min in, 0.4 m/s desired = 0.4 / 0.03444 m = 11.61 rad/s = 110.9 r/min out, so 129.1 r/min of slip instead of
+    240, the same pressure (1.0 MPa, commanded and measured): Q_x = 0.07 k_geom 1 MPa 129.1 r/min."""
+    ctrl, clock = creeping()
+    launch = replace(CREEP, clutch_in_rpm=240.0, cl_out_rpm=0.0, ch_out_rpm=0.0, v_mps=0.0, desired_speed_mps=0.4,
+                     P_CL_mpa=1.0)
+    ctrl.update(launch, clock.tick())
+    ctrl.P_cmd["CL"] = 1.0
+    k, C, s, rpm = FLAT.CL.k_geom_m3, FLAT.CL.C_plate_j_k, FLAT.strategy, 2 * math.pi / 60
+    slip_x = 240.0 - 0.4 / FLAT.CL.speed_ratio_m / rpm
+    assert slip_x == pytest.approx(129.1, abs=0.1)
+    Q_x = 0.07 * k * 1e6 * slip_x * rpm
+    Q_now = 0.07 * k * 1e6 * 240.0 * rpm  # the launch's passing power, what the margin budgeted before
+    assert ctrl.crossover_heat("CL") == pytest.approx(Q_x, rel=1e-9)
+    assert ctrl.worst_heat("CL") == pytest.approx(Q_now, rel=1e-9)  # the monitor keeps the worst slip
+    T = ctrl.T_pred["CL"]
+    assert ctrl.limit("CL") == pytest.approx(
+        s.T_safe_c - s.prediction_error_k - max(Q_x * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT),
+                                                Q_now * (s.stop_release_s / 2 + s.hydraulic_lag_s + DT)) / C,
+        rel=1e-9)
+    assert ctrl.T_pred["CL"] == T
+    # a vehicle over its target: the present (smaller) slip
+    over = replace(launch, cl_out_rpm=200.0, v_mps=0.45)
+    ctrl.update(over, clock.tick())
+    ctrl.P_cmd["CL"] = 1.0
+    assert ctrl.crossover_heat("CL") == pytest.approx(0.07 * k * 1e6 * 40.0 * rpm, rel=1e-9)
 
 
 def test_torque_handover_splits_the_force_and_keeps_speed_control():
@@ -105,9 +148,10 @@ def test_torque_handover_splits_the_force_and_keeps_speed_control():
     inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
     run(ctrl, clock, inp, 0.5)
     limit = ctrl.limit("CL", 0.0)
-    out = hold_at(ctrl, clock, replace(inp, clutch_in_rpm=50.0, cl_out_rpm=50.0), limit - 0.05, 150.0)
+    still = replace(inp, clutch_in_rpm=0.0, cl_out_rpm=0.0, ch_out_rpm=0.0)  # no slip possible: no heat to come
+    out = hold_at(ctrl, clock, still, limit - 0.05, 150.0)
     assert out.state == "CREEP"  # just under: not yet
-    out = hold_at(ctrl, clock, replace(inp, clutch_in_rpm=50.0, cl_out_rpm=50.0), limit + 0.05, 150.0)
+    out = hold_at(ctrl, clock, still, limit + 0.05, 150.0)
     assert out.state == "HANDOVER" and out.active_clutch == "CH"
     F0 = ctrl.F_cmd
     out = run(ctrl, clock, inp, FLAT.strategy.handover_time_s / 2)

@@ -16,7 +16,11 @@ from dsg_hil.protocol import load_dbc
 from dsg_hil.paper.report.figures import creep_figures
 from dsg_hil.paper.report.log import read_log
 from dsg_hil.paper.report.paper import PAPER
+from dsg_hil.paper.holdout import BLOCKS
+from dsg_hil.paper.report.model import model_checks
 from dsg_hil.paper.validation import run_validation
+
+QUICK_BLOCKS = tuple(b for b in BLOCKS if b.calibration == "pressure path")
 
 # CL starts near its limit, CH warm: CL slips up to the limit and hands over to CH within 25 simulated seconds.
 HOT = """name = "hot creep (test)"
@@ -34,7 +38,7 @@ creep_request = true
 desired_speed_mps = 0.2
 """
 FIGURES = ("fig3_temperature", "fig4_torque", "fig5_mu", "fig8_heat_flux", "fig9_plate_temperatures", "fig10_mu",
-           "fig11_pressures", "fig12_vehicle_speed")
+           "fig11_pressures", "fig12_vehicle_speed", "fig13_sensitivity", "fig14_configurations")
 CREEP_KEYS = ("creep_time_s", "slip_time_s", "T_CL_at_first_CH_limit_c", "T_CL_at_stop_c", "mu_CH_first_slip",
               "P_CH_first_slip_mpa", "max_plate_temp_c", "phases")
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -52,8 +56,12 @@ def run(tmp_path_factory):
         cases.extend(run_validation(params, **kw))
         return cases
 
+    def checks(params, scenario, **kw):  # one calibration's hold-out, no assumed parameters screened: seconds
+        return model_checks(params, scenario, blocks=QUICK_BLOCKS, assumed=[], **kw)
+
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(report_cmd, "run_validation", validation)
+        mp.setattr(report_cmd, "model_checks", checks)
         assert main(["report", "--out", str(base / "out"), "--scenario", str(scenario)]) == 0
     return base, base / "out", cases
 
@@ -81,6 +89,28 @@ def test_report_writes_every_figure_the_page_and_report_json(run):
         assert f"(figures/{name}.png)" in page
     first = (out / "creep.log").read_text().splitlines()[0]
     assert first.startswith("(0.000000) ") and "#" in first  # candump -L
+    assert data["summary_line"] in page and data["summary_line"].startswith("Section V.B: ")
+    assert all(r["status"] in ("fitted", "predicted") for r in data["paper_vs_dsg_hil"])
+
+
+def test_report_runs_the_table1_configuration_beside_the_main_one(run):
+    _, out, _ = run
+    data = json.loads((out / "report.json").read_text())
+    assert (out / "table1" / "creep.log").stat().st_size > 0 and (out / "table1" / "summary.json").exists()
+    conf = data["configurations"]
+    assert conf["main"] == "fitted" and conf["table1"]["log"].endswith("creep.log")
+    rows = {r["key"]: r for r in conf["section_vb"]}
+    assert set(rows) == {r["key"] for r in data["paper_vs_dsg_hil"] if r["section"] == "V.B"} - {
+        "max_plate_temp_c.CL", "max_plate_temp_c.CH"}
+    assert all(r["reason"] for r in rows.values())
+    assert rows["creep_time_s"]["given_loop"] == data["creep_time_s"]
+    assert rows["creep_time_s"]["table1_loop"] == conf["table1"]["creep_time_s"]
+    page = (out / "report.md").read_text()
+    for section in ("## Hold-out check", "## Sensitivity", "## Configurations: fitted vs table1"):
+        assert section in page
+    checks = data["model_checks"]
+    assert [h["key"] for h in checks["holdout"]] == [t.key for b in QUICK_BLOCKS for t in b.targets]
+    assert len(checks["sensitivity"]["numbers"]) == 9
 
 
 def test_report_numbers_agree_with_the_per_step_summary(run):
@@ -97,14 +127,31 @@ def test_report_numbers_agree_with_the_per_step_summary(run):
         assert a["start_s"] == pytest.approx(b["start_s"], abs=0.15)
 
 
+def test_the_phase_table_agrees_with_the_summary_from_the_launch_on(run):
+    """The 100-ms SIM_* truth is interpolated onto the 10-ms grid, not held: held, phase 1 (a launch) started
+    ~0.1 s late and its mu and P 'at the start' (0.5 s in) were read off a different point of the launch."""
+    _, out, _ = run
+    live = json.loads((out / "summary.json").read_text())["phases"]
+    rep = json.loads((out / "report.json").read_text())["phases"]
+    for a, b in zip(rep, live):
+        assert a["start_s"] == pytest.approx(b["start_s"], abs=0.02)
+        for key, tol in (("mu", 0.001), ("P_mpa", 0.015)):
+            assert a[key]["start"] == pytest.approx(b[key]["start"], abs=tol), (key, a, b)
+        assert a["T_CL_end_c"] == pytest.approx(b["T_CL_end_c"], abs=0.5)
+
+
 def test_from_log_of_the_recorded_run_gives_the_same_numbers(run, monkeypatch):
     base, out, cases = run
     monkeypatch.setattr(report_cmd, "run_validation", lambda params, **kw: cases)
+    monkeypatch.setattr(report_cmd, "model_checks",
+                        lambda params, scenario, **kw: model_checks(params, scenario, blocks=(), assumed=[], **kw))
     assert main(["report", "--from-log", str(out / "creep.log"), "--out", str(base / "again")]) == 0
     a = json.loads((out / "report.json").read_text())
     b = json.loads((base / "again" / "report.json").read_text())
-    assert {k: v for k, v in a.items() if k != "log"} == {k: v for k, v in b.items() if k != "log"}
-    assert not (base / "again" / "creep.log").exists()  # no run: the given log only
+    same = lambda d: {k: v for k, v in d.items() if k not in ("log", "model_checks", "configurations")}  # noqa: E731
+    assert same(a) == same(b)
+    assert b["configurations"]["table1"] is None  # no run on the loop with --from-log
+    assert not (base / "again" / "creep.log").exists() and not (base / "again" / "table1").exists()
 
 
 def test_an_asc_log_written_by_python_can_gives_the_same_numbers(run):
@@ -165,3 +212,15 @@ def test_unwritable_out_is_checked_before_the_run(tmp_path):
     proc = _cli("--out", str(blocker / "sub"))
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1
     assert proc.stderr.startswith("error: --out ") and "not a writable directory" in proc.stderr
+
+
+def test_a_log_without_sim_frames_gives_the_figures_without_truth(run):
+    """A real ECU's log has no SIM_* frames: Fig. 8 says so instead of drawing an empty chart."""
+    base, out, _ = run
+    lines = (out / "creep.log").read_text().splitlines()
+    bare = base / "no_sim.log"
+    bare.write_text("\n".join(line for line in lines if not any(f" {i}#" in line for i in ("700", "701", "702", "7F0")))
+                    + "\n")
+    record = read_log(bare, load_dbc())
+    assert not any(record.column("Q_CL") == record.column("Q_CL"))  # all NaN: no truth on this bus
+    assert all(p.read_bytes()[:8] == PNG for p in creep_figures(record, base / "no_sim_figures"))

@@ -116,7 +116,11 @@ def test_plate_temperature_through_stick_slip_matches_solve_ivp_with_events(para
     assert ref[-1, i_CL] - ref[0, i_CL] > 1.0  # the slip really heats the plates
     np.testing.assert_allclose(T_CL, ref[:, i_CL], atol=0.1)
     braked = slice(0, 100)
-    assert np.all(np.abs(ref[braked, IDX["5"]]) < 1e-9) and np.all(np.abs(speeds[braked, IDX["5"]]) < 1e-9)
+    assert np.all(np.abs(ref[braked, IDX["5"]]) < 1e-9)
+    # the plant's contact law holds the held vehicle's speed at each step's end at zero (issue 16: the law on the
+    # step's mean speed let it flip sign each step, up to 1 mm/s at the wheel): zero to rounding at every sample
+    v_braked = np.abs(speeds[braked, IDX["5"]]) * params.vehicle.r_w / params.powertrain.i_b
+    assert np.all(v_braked < 1e-12)
     assert ref[-1, IDX["5"]] > 1.0 and speeds[-1, IDX["5"]] > 1.0  # driving away
 
 

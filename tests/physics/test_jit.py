@@ -10,6 +10,7 @@ from dsg_hil.physics import jit
 from dsg_hil.physics import params as params_module
 from dsg_hil.physics.engine import governor
 from dsg_hil.physics.friction import friction_coefficient
+from dsg_hil.physics.plant import PlantInputs
 
 
 def test_every_flat_parameter_group_has_an_importable_record_type():
@@ -59,3 +60,48 @@ def test_constants_hold_arrays_and_group_fields_by_name(params):
     assert road_load.dispatcher(2.0, 0.05, 0.3, k) == road_load(2.0, 0.05, 0.3, params.vehicle)
     with pytest.raises(ValueError, match="repeated names r_w"):
         jit.constants({"r_w": 1.0}, params.vehicle)
+
+
+def test_the_plant_step_compiled_equals_its_source_interpreted(params):
+    """The plant's whole step (stick/slip of all three contacts, mu at mid-step, mean pressures) run as machine
+    code and by the interpreter from the same state: the same state to rounding."""
+    import numpy as np
+
+    from dsg_hil.physics.plant import N_S, Plant, advance_steps
+
+    plant = Plant(params, T_init=80.0)
+    plant.advance(PlantInputs(P_CL_cmd=0.5e6, brake=1.0), 300)  # CL slipping against the held vehicle
+    b = plant._b.copy()
+    K = plant._K.view(np.recarray)  # attribute access for the interpreter (numba reads the fields by name)
+    trace = np.zeros((0, 27))
+    for inputs in ((0.9e6, 0.0, 0.0), (0.9e6, 0.3e6, 0.0), (0.0, 0.0, 1.0)):  # drives away, both, braked
+        P_CL, P_CH, brake = inputs
+        plant.advance(PlantInputs(P_CL_cmd=P_CL, P_CH_cmd=P_CH, brake=brake, grade=0.05), 40)
+        advance_steps.py_func(b, K, trace, P_CL, P_CH, brake, 0.05, params.engine.omega_idle, 40)
+        np.testing.assert_allclose(b[:N_S], plant._b[:N_S], rtol=1e-9, atol=1e-9)
+
+
+def test_the_compiled_code_is_cached_outside_the_package(tmp_path):
+    """numba's cache files are not in pip's record of an install: written into the installed package, they outlive
+    'pip uninstall' as a dsg_hil namespace directory that hides a later 'pip install -e .' (CI failed so). They go
+    to the user's cache directory, or where NUMBA_CACHE_DIR says."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import dsg_hil
+
+    code = ("from dsg_hil.physics.engine import full_load_torque\n"
+            "from dsg_hil.physics.params import Engine\n"
+            "from dataclasses import fields\n"
+            "full_load_torque(100.0, Engine(**{f.name: 1.0 for f in fields(Engine)}))\n")
+    package = Path(dsg_hil.__file__).parent
+    before = set(package.rglob("*.nb[ic]"))
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    for name, extra in (("xdg", {"XDG_CACHE_HOME": str(tmp_path / "xdg")}),
+                        ("given", {"NUMBA_CACHE_DIR": str(tmp_path / "given")})):
+        subprocess.run([sys.executable, "-c", code], env={**env, **extra}, check=True, timeout=600)
+        where = tmp_path / "xdg" / "dsg-hil" / "numba" if name == "xdg" else tmp_path / "given"
+        assert any(p.name.startswith("engine.full_load_torque") for p in where.rglob("*.nbi")), name
+    assert set(package.rglob("*.nb[ic]")) == before

@@ -124,3 +124,22 @@ def test_the_readme_shows_the_codecs_worked_examples():
     assert {name for name, *_ in frames} == {m.name for m in db.messages}  # every message has its example
     for name, frame_id, _, data in frames:
         assert f"| 0x{frame_id:03X} | {name} |" in text and f"`{data.hex(' ').upper()}`" in text, name
+
+
+def test_frames_seen_again_are_not_decoded_again_and_bad_ones_never_pass():
+    """RxMonitor keeps frames decoded by their bytes (a steady plant repeats them): the same frame again, without
+    decoding; a corrupted frame rejected every time; a bytearray taken as its bytes."""
+    codec = Codec(load_dbc(), {"TCU_CMD": ("P_CL_Cmd",)})
+    rx = RxMonitor(codec, ["TCU_CMD"])
+    frame_id = codec.frame_id("TCU_CMD")
+    calls = []
+    state, decode, memo = rx._by_id[frame_id]
+    rx._by_id[frame_id] = (state, lambda data: calls.append(data) or decode(data), memo)
+    data = [codec.encode("TCU_CMD", {"P_CL_Cmd": 0.5, "SyncEcho": 0}, counter=c % 16) for c in range(40)]
+    taken = [rx.take_data(frame_id, d, 0.01 * i) for i, d in enumerate(data)]
+    assert [status for status, _ in taken] == ["new"] * 40 and len(calls) == 16  # 16 counter values
+    assert [f.counter for _, f in taken] == [c % 16 for c in range(40)]
+    assert taken[17][1] == taken[1][1] == codec.decode(frame_id, data[1])
+    bad = data[3][:7] + bytes([data[3][7] ^ 1])
+    assert [rx.take_data(frame_id, bad, 0.5)[0] for _ in range(3)] == ["rejected"] * 3 and rx.rejected["crc"] == 3
+    assert rx.take_data(frame_id, bytearray(data[0]), 0.6)[0] == "new"

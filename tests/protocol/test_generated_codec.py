@@ -114,6 +114,35 @@ def test_encode_is_byte_identical_to_cantools(db):
     assert n >= 1800
 
 
+def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db):
+    """``Codec.expression_encoder``: values as expressions of its arguments (here ``x[name]``), the signals it does
+    not name at their defaults; the same bytes as ``encode`` of the dict, fused where the message is generated, and
+    on the cantools path."""
+    generated, reference = codecs(db)
+    rng = random.Random(21)
+    n = 0
+    for message in db.messages:
+        signals = [s.name for s in message.signals if s.name not in (COUNTER, CRC)]
+        named = signals[::2]  # the rest: defaults
+        expressions = {s: f"x[{s!r}]" for s in named}
+        encoders = [codec.expression_encoder(message.name, ("x",), expressions) for codec in (generated, reference)]
+        for _ in range(200):
+            values = {}
+            while len(values) < len(named):
+                value = random_value(rng, message.get_signal_by_name(named[len(values)]))
+                if value is not None:
+                    values[named[len(values)]] = value
+            counter = rng.randrange(-3, 300)
+            expected = reference.encode(message.name, values, counter)
+            assert [encode(values, counter) for encode in encoders] == [expected, expected], (message.name, values)
+            n += 1
+    assert n >= 600
+    with pytest.raises(ValueError, match="no signal Counter"):
+        generated.expression_encoder(db.messages[0].name, ("x",), {COUNTER: "1"})
+    with pytest.raises(ValueError, match="argument 'v' is a name the encoder uses"):
+        generated.expression_encoder(db.messages[0].name, ("v",), {})
+
+
 def test_decode_gives_the_same_values_or_the_same_rejection(db):
     generated, reference = codecs(db)
     rng = random.Random(10)

@@ -223,9 +223,34 @@ def test_a_silent_tcu_is_a_lost_peer_after_the_reply_timeout(codec):
         if plant.link.tick <= 3:
             tcu.link.pump()
 
-    with pytest.raises(PeerLost, match="TCU silent for 2 s at lock-step tick 4"):
+    with pytest.raises(PeerLost, match="TCU silent for 2 s at lock-step tick 6 .*3 ticks in a row unanswered"):
         plant.run(TICKS, pump, reply_timeout=2.0)
-    assert clock.t == pytest.approx(2.0) and plant.link.retries[plant.link.sync_id] == 4  # at 0.1, 0.3, 0.7, 1.5 s
+    # tick 4 re-sent at 0.1, 0.3, 0.7, 1.5 s, given up silent at 2 s; ticks 5 and 6 after their first wait
+    assert clock.t == pytest.approx(2.0 + 2 * RETRY_FIRST_S) and plant.link.retries[plant.link.sync_id] == 4
+    assert plant.link.unanswered_ticks == 2 and plant.link.unanswered_episodes == 1
+
+
+@pytest.mark.parametrize("reply_timeout", [0.5, 5.0])
+def test_a_tcu_that_never_repeats_an_answer_rides_out_two_lost_answers_in_a_row(codec, clean, reply_timeout):
+    """An ECU written from the DBC alone answers each tick once and ignores the re-sent tick; its answers to ticks
+    6 and 7 are lost. Two ticks are given up (the second after one short wait, not a second long one) and the run
+    goes on: two missing commands are within the DBC's 3 cycle times, and the TCU answers new ticks."""
+    cmd_id = codec.frame_id("TCU_CMD")
+    sent: set[tuple[int, bytes]] = set()
+    first_drop = nth(cmd_id, {8, 9})  # the answers to ticks 6 and 7 (after the probe's and tick 0-5's)
+
+    def once(frame_id: int, data: bytes) -> bool:
+        repeat = (frame_id, data) in sent
+        sent.add((frame_id, data))
+        return repeat or first_drop(frame_id, data)
+
+    plant, tcu, clock = pair(codec, tcu_drop=once)
+    answered = plant.run(TICKS, tcu.link.pump, reply_timeout=reply_timeout)
+    assert answered == [True] * 6 + [False, False] + [True] * (TICKS - 8)
+    assert plant.link.unanswered_ticks == 2 and plant.link.unanswered_episodes == 1
+    assert tcu.link.answers_resent > 0  # repeats it sent and the bus lost, as an ECU that never repeats
+    first_tick = min(reply_timeout, 4.5)  # the whole schedule of re-sends, or the silence reaching the timeout
+    assert clock.t == pytest.approx(first_tick + (RETRY_FIRST_S if reply_timeout < 4.5 else 3 * RETRY_FIRST_S))
 
 
 def test_no_tcu_is_a_peer_timeout(codec):

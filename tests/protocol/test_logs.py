@@ -42,5 +42,42 @@ def test_a_missing_or_garbled_log_is_one_log_error_naming_the_file(tmp_path, db,
     path = tmp_path / "bad.log"
     if content is not None:
         path.write_text(content)
-    with pytest.raises(LogError, match=f"{path}: .*{needle}"):
+    with pytest.raises(LogError, match=f"{path}(:1)?: .*{needle}"):  # (the line, where there is one)
+        list(decoded_frames(path, log_codec(db)))
+
+
+def candump_lines(tmp_path, db, n: int = 5) -> list[str]:
+    """``n`` lines of a candump -L log of DRIVER frames, each with its line end."""
+    codec = Codec(db, {"DRIVER": ["CreepRequest", "BrakePedal", "DesiredCreepSpeed"]})
+    path = tmp_path / "whole.log"
+    with can.Logger(str(path)) as writer:
+        for k in range(n):
+            data = codec.encode("DRIVER", {"CreepRequest": 1.0, "BrakePedal": 0.0, "DesiredCreepSpeed": 0.2}, k)
+            writer.on_message_received(can.Message(timestamp=k * 0.1, arbitration_id=codec.frame_id("DRIVER"),
+                                                   data=data, is_extended_id=False))
+    return path.read_text().splitlines(keepends=True)
+
+
+def test_a_candump_log_cut_mid_line_is_read_up_to_the_cut_with_a_warning(tmp_path, db, caplog):
+    """What a logger killed mid-write leaves: the last line cut short, no line end. Read to there, warned with the
+    file and line (issue 20, item 7: the whole log was rejected, no line named)."""
+    lines = candump_lines(tmp_path, db)
+    path = tmp_path / "cut.log"
+    path.write_text("".join(lines[:4]) + lines[4][:9])
+    counts: dict[str, int] = {}
+    with caplog.at_level("WARNING", logger="dsg_hil.protocol.logs"):
+        frames = list(decoded_frames(path, log_codec(db), counts))
+    assert len(frames) == 4 and counts["decoded"] == 4
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{path}:5: the last line is cut short ({lines[4][:9]!r}: a logger stopped mid-write?): read up to it"]
+
+
+@pytest.mark.parametrize("where", [1, 4])
+def test_a_bad_line_not_at_a_cut_is_an_error_naming_file_and_line(tmp_path, db, where):
+    """A line it cannot read mid-file, or a last line that ends as lines do: not a cut, the log is bad."""
+    lines = candump_lines(tmp_path, db)
+    lines[where] = "(0.2) vcan0\n"
+    path = tmp_path / "bad.log"
+    path.write_text("".join(lines))
+    with pytest.raises(LogError, match=rf"^{path}:{where + 1}: cannot read the log line '\(0\.2\) vcan0'"):
         list(decoded_frames(path, log_codec(db)))

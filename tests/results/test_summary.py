@@ -185,3 +185,60 @@ def test_rows_of_an_array_count_as_samples_one_by_one(chunk):
     assert one.stop is not None and rows.stop is not None and rows.stop[0] == one.stop[0]
     assert [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in rows.runs] == \
         [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in one.runs]
+
+
+def row_by_row_and_in_blocks(speeds: list[list[float]]) -> tuple[CreepMetrics, CreepMetrics]:
+    """The metrics of samples at ``speeds`` (one block per control period), fed with add row by row and with
+    add_rows block by block."""
+    one, rows = CreepMetrics(), CreepMetrics()
+    t = 0.0
+    for block in speeds:
+        samples = []
+        for v in block:
+            samples.append(out(round(t, 9), v=v, **CL_SLIPS))
+            one.add(samples[-1], DT, True, 0.1)
+            t += DT
+        rows.add_rows(np.array([[float(x) for x in s] for s in samples]), PlantOutputs._fields,
+                      lambda r: PlantOutputs(*r.tolist()), DT, True, 0.1)
+    return one, rows
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+def test_rows_with_a_speed_not_finite_count_as_samples_one_by_one(bad):
+    """A period's speeds with a NaN or an infinity (Python's floats cannot reduce them as numpy does): add_rows
+    still gives what add gives row by row."""
+    speeds = [[-0.02, -0.01, 0.05], [0.03, bad, -0.04], [-bad, 0.02, 0.01], [0.04, 0.05, 0.06]]
+    one, rows = row_by_row_and_in_blocks(speeds)
+    assert json.dumps(rows.as_json()) == json.dumps(one.as_json())
+    assert rows.rollback_guarded == one.rollback_guarded > 0.0
+
+
+def test_roll_back_is_the_backward_displacement_not_the_negative_samples():
+    """Issue 16: a held vehicle whose sampled speed alternates sign each sample (ringing at the sampling's Nyquist
+    frequency, as the plant's old contact law made it, +-0.89 mm/s) goes nowhere and rolls back nothing; the
+    sum of its negative samples (what the summary counted) would be 0.89e-3 * 500 * 0.01 = 4.5 mm in 10 s. A real
+    roll-back still counts in full: 1 s at -0.05 m/s, 50 mm (less half a sample at each end of it, the
+    trapezoid: the speed steps from and back to zero)."""
+    m = CreepMetrics()
+    t = 0.0
+    for k in range(1000):  # 10 s held, ringing
+        m.add(out(round(t, 9), v=0.89e-3 * (-1.0) ** k, **CL_SLIPS), DT, True, 0.1)
+        t += DT
+    j = m.as_json()
+    assert j["rollback_m"] == 0.0 and j["rollback_guarded_m"] == 0.0 and j["rollback_mps"] == pytest.approx(-0.0009)
+    t = feed(m, 1.0, t, v=-0.05, **CL_SLIPS)
+    feed(m, 1.0, t, v=0.0, **CL_SLIPS)
+    j = m.as_json()
+    assert j["rollback_m"] == pytest.approx(0.05 - 0.5 * DT * 0.89e-3, abs=1e-4) and j["rollback_mps"] == -0.05
+    assert j["rollback_guarded_m"] == j["rollback_m"]
+
+
+def test_add_rows_counts_the_roll_back_trapezoid_across_periods_as_add_does():
+    """The trapezoid spans the periods add_rows is called with (the last speed of one is the first's neighbour),
+    the same to the last bit as add row by row."""
+    speeds = [[0.02, -0.03, 0.01], [-0.04, -0.01, 0.03], [-0.03, 0.002, -0.001]]
+    one, rows = row_by_row_and_in_blocks(speeds)
+    flat = [v for block in speeds for v in block]
+    back = -sum(min(0.5 * (a + b), 0.0) for a, b in zip([flat[0], *flat[:-1]], flat, strict=True)) * DT
+    assert one.rollback_distance == pytest.approx(back, rel=1e-12) and one.rollback_guarded == one.rollback_distance
+    assert rows.rollback_distance == one.rollback_distance and rows.rollback_guarded == one.rollback_guarded

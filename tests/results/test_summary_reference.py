@@ -75,3 +75,32 @@ def test_every_stop_reason_is_documented():
     assert "peer_lost" in early and "end_of_record" in creep  # the search finds them
     documented = [_code(row[0]) for row in _tables(_section())["value"]]
     assert sorted(documented) == sorted(early | creep)
+
+
+def test_the_failure_metrics_follow_their_rows_in_the_table():
+    """The keys no average can hide a failure in, on a hand-built record: each as its README row defines it."""
+    from .test_summary import feed, out
+
+    rows = {_code(row[0]): row[2] for row in _tables(_section())["key"]}
+    assert "while creep is requested" in rows["max_speed_creep_mps"] and "FAULT" in rows["rollback_guarded_m"]
+    m = CreepMetrics()
+    t = feed(m, 1.0, 0.0, creep=False, v=0.5)  # not requested: neither speed nor roll-back counts
+    t = feed(m, 1.0, t, creep=False, v=-0.05)
+    m.status(t, 5.0, 0.0, 100.0, 100.0, out(t))  # FAULT from here: roll-back is the TCU's
+    t = feed(m, 1.0, t, creep=False, v=-0.02)
+    m.status(t, 5.0, 0.0, 100.0, 100.0, out(t))
+    m.status(t + 0.1, 0.0, 0.0, 100.0, 247.5, out(t + 0.1))  # FAULT ended: 1.1 s of it
+    t = feed(m, 1.0, t, creep=True, desired=0.1, v=-0.01, T_CL=246.0)  # creep requested: counts
+    t = feed(m, 1.0, t, creep=True, desired=0.1, v=0.3)
+    j = m.as_json()
+    assert j["max_speed_creep_mps"] == 0.3 and j["overspeed_mps"] == pytest.approx(0.2)
+    # roll-back by the trapezoid between samples: a speed step counts half a sample at each speed, so the runs of
+    # 1 s at -0.05, -0.02, -0.01 m/s give 0.08 m less half a sample of -0.05 at the start and of -0.01 at the end;
+    # guarded (from the first -0.02 sample on): 0.03 m, plus half a sample of -0.05 (its first interval is the
+    # trapezoid from -0.05) less half a sample of -0.01 at the end
+    from .test_summary import DT
+
+    assert j["rollback_m"] == pytest.approx(0.08 - 0.5 * DT * (0.05 + 0.01), abs=1e-4)
+    assert j["rollback_guarded_m"] == pytest.approx(0.03 + 0.5 * DT * (0.05 - 0.01), abs=1e-4)
+    assert j["fault_time_s"] == pytest.approx(1.1)
+    assert j["min_margin_c"] == {"truth": 4.0, "predicted": 2.5}

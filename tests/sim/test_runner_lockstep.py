@@ -14,6 +14,7 @@ from dsg_hil.physics.params import load_params
 from dsg_hil.physics.plant import Plant
 from dsg_hil.sim.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec, load_dbc
+from dsg_hil.protocol.lockstep import RETRIES_IN_EPISODE
 from dsg_hil.sim.runner import PeerLost, PlantRunner
 from dsg_hil.sim.scenario import load_scenario
 from ecu_stub.runner import TCU_USES, TcuRunner
@@ -230,7 +231,8 @@ def test_silent_tcu_ends_the_run_as_peer_lost_with_the_summary_so_far():
 
 
 def test_ticks_given_up_run_on_the_dbc_fallback():
-    """Every answer to ticks 50-51 lost (retries too): each tick is given up after its re-sends and counted;
+    """Every answer to ticks 50-51 (50-53) lost (retries too): each tick is given up after its re-sends and counted
+    (one episode);
     two missing commands are within the DBC's 3 cycle times (the last command holds), four are not (hydraulics
     unpowered: one fallback event), and control resumes."""
     results = {}
@@ -249,7 +251,9 @@ def test_ticks_given_up_run_on_the_dbc_fallback():
         summary = pair.run()
         results[n_lost] = (pair.runner.frames(), summary)
     for n_lost, (f, _) in results.items():
-        assert f["unanswered_ticks"] == n_lost and f["by_message"]["SIM_SYNC"]["retries"] == 2 * n_lost
+        # the first tick of the run given up after its 2 re-sends, the next ones after RETRIES_IN_EPISODE
+        assert f["unanswered_ticks"] == n_lost and f["unanswered_episodes"] == 1
+        assert f["by_message"]["SIM_SYNC"]["retries"] == 2 + (n_lost - 1) * RETRIES_IN_EPISODE
         assert f["rejected"] == 0
     assert results[2][1].fallback_events == 0
     assert results[4][1].fallback_events == 1 and results[4][1].fallback_time_s > 0

@@ -3,7 +3,10 @@ time series of a creep run, sampled on the control period's grid, and its creep 
 (:class:`dsg_hil.results.summary.CreepMetrics`: the same definitions as ``dsg-hil run --summary``).
 
 Nothing here needs TCU_STATUS: a third-party ECU may not send it (then the predicted temperatures are NaN and
-the TCU's handovers are absent). The simulation-only truth frames (SIM_*) are used when present.
+the TCU's handovers are absent). The simulation-only truth frames (SIM_*) are used when present; they come every
+100 ms against the 10-ms grid, so their values are interpolated linearly between frames (held after the last),
+not held from the last frame: held, a clutch's torque would show up to 100 ms late, and the phases, and the mu
+and P taken 0.5 s into each, would differ from the per-step summary's during a launch.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from ...common.errors import LogError
 from ...results.summary import CreepMetrics
 from ...sim.plant_io import SIGNALS as PLANT_SIGNALS
 
-__all__ = ["GRID_MESSAGE", "SIGNALS", "STATUS", "CreepRecord", "LogError", "LogSample", "read_log"]
+__all__ = ["GRID_MESSAGE", "SIGNALS", "STATUS", "TRUTH", "CreepRecord", "LogError", "LogSample", "read_log"]
 
 NAN = float("nan")
 
@@ -61,6 +64,7 @@ INDEX = {name: i for i, name in enumerate(LogSample._fields)}
 SIGNALS: dict[tuple[str, str], tuple[int, float]] = {key: (INDEX[name], factor) for key, (name, factor)
                                                      in PLANT_SIGNALS.items() if name in INDEX}
 STATUS = "TCU_STATUS"
+TRUTH = frozenset(index for (message, _), (index, _) in SIGNALS.items() if message.startswith("SIM_"))
 GRID_MESSAGE = "TCU_CMD"  # the sampling period: the control period of the DBC
 
 
@@ -84,23 +88,17 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
     codec = log_codec(db)
     period = codec.cycle_time(GRID_MESSAGE)
     row = [NAN] * len(LogSample._fields)
-    metrics = CreepMetrics()
-    samples: list[LogSample] = []
+    events: list[tuple[float, dict | None, list[float]]] = []  # (t, TCU_STATUS values or None: a grid sample, row)
+    truth: dict[int, tuple[list[float], list[float]]] = {i: ([], []) for i in TRUTH}  # frame times, values
     counts: dict[str, int] = {}
     t0 = None
     k = 0  # grid instant t0 + k * period
-
-    def emit(t: float) -> None:
-        row[0] = t
-        s = LogSample(*row)
-        samples.append(s)
-        metrics.add(s, period, s.creep_request >= 0.5, 0.0 if math.isnan(s.desired_speed_mps) else s.desired_speed_mps)
 
     for timestamp, frame in decoded_frames(path, codec, counts):
         if t0 is None:
             t0 = timestamp
         while timestamp - t0 > k * period + 1e-6:  # the frames of grid instant k are all in
-            emit(k * period)
+            events.append((k * period, None, row.copy()))
             k += 1
         if frame is None:
             continue
@@ -108,13 +106,41 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
             if (frame.name, signal) in SIGNALS:
                 index, factor = SIGNALS[frame.name, signal]
                 row[index] = value * factor
+                if index in truth:
+                    truth[index][0].append(timestamp - t0)
+                    truth[index][1].append(value * factor)
         if frame.name == STATUS:
-            v = frame.values
-            metrics.status(timestamp - t0, v["State"], v["ActiveClutch"], v["T_CL_Pred"], v["T_CH_Pred"],
-                           LogSample(*row))
+            events.append((timestamp - t0, frame.values, row.copy()))
     if counts["decoded"] == 0:
         raise LogError(f"{path}: no frame of the DBC in the log ({counts['rejected']} rejected, "
                        f"{counts['unknown']} with unknown IDs)")
-    emit(k * period)
+    events.append((k * period, None, row.copy()))
+    _interpolate_truth(events, truth)
+    metrics = CreepMetrics()
+    samples: list[LogSample] = []
+    for t, status, values in events:
+        if status is None:
+            values[0] = t
+            s = LogSample(*values)
+            samples.append(s)
+            metrics.add(s, period, s.creep_request >= 0.5,
+                        0.0 if math.isnan(s.desired_speed_mps) else s.desired_speed_mps)
+        else:
+            metrics.status(t, status["State"], status["ActiveClutch"], status["T_CL_Pred"], status["T_CH_Pred"],
+                           LogSample(*values))
     columns = {name: np.array([s[i] for s in samples]) for i, name in enumerate(LogSample._fields)}
     return CreepRecord(str(path), columns, metrics.as_json(), counts, metrics.tcu_state is not None)
+
+
+def _interpolate_truth(events: list[tuple[float, dict | None, list[float]]],
+                       truth: dict[int, tuple[list[float], list[float]]]) -> None:
+    """Each event's SIM_* values linearly between the frames around it (from the first frame on; held after the
+    last), in place."""
+    times = np.array([t for t, _, _ in events])
+    for index, (frame_t, frame_v) in truth.items():
+        if not frame_t:
+            continue
+        values = np.interp(times, frame_t, frame_v)
+        for (t, _, event_row), value in zip(events, values):
+            if t >= frame_t[0]:
+                event_row[index] = float(value)

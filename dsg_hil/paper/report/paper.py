@@ -1,8 +1,10 @@
 """The paper's numbers that ``dsg-hil report`` checks, with their bands and the reason for each gap, as data.
 
 Every published number and its band comes from :mod:`dsg_hil.paper.reference` (Section III.C with the bands of issue 2,
-Section V.B with those of issue 7); none is fitted to a run. ``REASONS`` holds the text of the reason column, one
-entry per key, for every number that misses its band.
+Section V.B with those of issue 7); none is fitted to a run, but some were consumed by a calibration of the
+parameters: each row's status, ``fitted`` (naming the calibration and the quantities it set) or ``predicted``, is
+derived from :data:`dsg_hil.paper.calibration.CALIBRATIONS`. ``REASONS`` holds the text of the reason column, one
+entry per key, for every number that misses its band; a log that ends before any stop gets that reason instead.
 """
 
 from __future__ import annotations
@@ -10,12 +12,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..calibration import fitted_by
+
 from ..reference import (CREEP_MU_CH, CREEP_P_CH_MPA, CREEP_SLIP_TIME_S, CREEP_T_CL_AT_FIRST_CH_LIMIT_C,
                          CREEP_T_ONCOMING_AT_STOP_C, CREEP_TIME_S, RIG_CASES, SAFETY_TEMPERATURE_C, TOL_CREEP_MU,
                          TOL_CREEP_P_MPA, TOL_CREEP_T_C, TOL_CREEP_TIME_REL, TOL_MU, TOL_RISE_C, TOL_SLIP_TIME_REL,
                          TOL_TORQUE_REL)
 
-__all__ = ["Band", "MU_BAND", "PAPER", "P_BAND", "PaperNumber", "REASONS", "T_BAND", "compare", "lookup"]
+__all__ = ["Band", "MU_BAND", "PAPER", "P_BAND", "PaperNumber", "REASONS", "SECTIONS", "STOP_KEYS", "T_BAND", "compare",
+           "lookup", "status", "tally", "tally_text"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +58,10 @@ class PaperNumber:
     band: Band
     unit: str
     where: str  # place in the paper
+
+    @property
+    def section(self) -> str:
+        return "III.C" if self.key.startswith("cases.") else "V.B"
 
 
 T_BAND, P_BAND, MU_BAND = Band(abs=TOL_CREEP_T_C), Band(abs=TOL_CREEP_P_MPA), Band(abs=TOL_CREEP_MU)
@@ -129,13 +138,58 @@ def lookup(report: dict, key: str) -> float | None:
     return float(node) if isinstance(node, (int, float)) else None
 
 
+SECTIONS = ("V.B", "III.C")
+# numbers that exist only once the vehicle has stopped (or that a stop ends)
+STOP_KEYS = ("creep_time_s", "slip_time_s.CL", "slip_time_s.CH", "T_CL_at_stop_c")
+
+
+def status(key: str) -> dict:
+    """``{"status": "fitted"|"predicted", "fitted_by": ...}`` of the published number at ``key``."""
+    cal = fitted_by(key)
+    if cal is None:
+        return {"status": "predicted", "fitted_by": None}
+    return {"status": "fitted", "fitted_by": f"{cal.name}: {', '.join(cal.quantities)} ({len(cal.targets)} numbers, "
+                                             f"{cal.unknowns} unknowns, {cal.residual_dof} residual dof)"}
+
+
+def _reason(key: str, report: dict, ok: bool | None) -> str:
+    if ok is False and key in STOP_KEYS and report.get("stop_time_s") is None and "stop_reason" in report:
+        end = lookup(report, "creep_time_s")
+        return (f"the log ends before any stop ({report['stop_reason']}, {end:g} s of creep recorded): the creep "
+                "was not followed to its end, so this number is not comparable")
+    return REASONS[key]
+
+
 def compare(report: dict) -> list[dict]:
-    """One row per paper number: the simulated value, the band, pass/miss, the reason for a gap."""
+    """One row per paper number: the simulated value, the band, pass/miss, fitted/predicted, the reason for a gap."""
     rows = []
     for p in PAPER:
         sim = lookup(report, p.key)
         ok = None if sim is None else p.band.accepts(sim, p.paper)
-        rows.append({"key": p.key, "quantity": p.label, "where": p.where, "paper": p.paper, "dsg_hil": sim,
-                     "unit": p.unit, "band": p.band.text(p.unit),
-                     "result": "n/a" if ok is None else "pass" if ok else "miss", "reason": REASONS[p.key]})
+        rows.append({"key": p.key, "quantity": p.label, "where": p.where, "section": p.section, "paper": p.paper,
+                     "dsg_hil": sim, "unit": p.unit, "band": p.band.text(p.unit),
+                     "result": "n/a" if ok is None else "pass" if ok else "miss", **status(p.key),
+                     "reason": _reason(p.key, report, ok)})
     return rows
+
+
+def tally(rows: list[dict]) -> dict:
+    """Per section: how many numbers, fitted and predicted, and pass/miss/n/a of each."""
+    out: dict[str, dict[str, Any]] = {}
+    for section in SECTIONS:
+        mine = [r for r in rows if r["section"] == section]
+        out[section] = {"numbers": len(mine)}
+        for kind in ("fitted", "predicted"):
+            group = [r for r in mine if r["status"] == kind]
+            out[section][kind] = {"count": len(group)} | {res: sum(r["result"] == res for r in group)
+                                                          for res in ("pass", "miss", "n/a")}
+    return out
+
+
+def tally_text(t: dict) -> str:
+    """The report's summary line, e.g. "Section V.B: 11 numbers, 9 fitted (9 pass), 2 predicted (2 pass); ..."."""
+    def results(d: dict) -> str:
+        return ", ".join(f"{d[k]} {k}" for k in ("pass", "miss", "n/a") if d[k]) or "none"
+
+    return "; ".join(f"Section {s}: {d['numbers']} numbers, {d['fitted']['count']} fitted ({results(d['fitted'])}), "
+                     f"{d['predicted']['count']} predicted ({results(d['predicted'])})" for s, d in t.items())

@@ -12,6 +12,7 @@ frames, the TCU's, or, between two buses (:func:`bridge_step`), a real ECU's.
 
 from __future__ import annotations
 
+import logging
 import random
 import time
 from collections import Counter as Tally
@@ -20,12 +21,15 @@ from typing import cast
 
 import can
 from cantools.database.can import Database, Message, Signal
+from cantools.database.errors import EncodeError
 
 from ..codec import raw_range, signal_range
 from ..e2e import COUNTER, CRC, Protection
 from .spec import FaultError, FaultSpec, check_against_dbc
 
 __all__ = ["FaultInjector", "FaultyBus", "bridge_step", "outside_range"]
+
+log = logging.getLogger(__name__)
 
 
 def outside_range(signal: Signal) -> float:
@@ -65,6 +69,7 @@ class FaultInjector:
         self._held: list[tuple[float, int, can.Message]] = []
         self._sequence = 0
         self.counts: Tally[str] = Tally()
+        self.encode_errors: Tally[str] = Tally()  # frames a fault could not encode: sent unchanged
 
     # ---- the frames a node sends -----------------------------------------------------------------------------
     def apply(self, msg: can.Message, t: float) -> list[can.Message]:
@@ -97,8 +102,13 @@ class FaultInjector:
         return sum(self.counts.values())
 
     def hits(self) -> str:
-        """One line for the user: each specification and the frames it hit."""
-        return ", ".join(f"{s.describe()} {self.counts[s.describe()]}" for s in self.specs) or "none"
+        """One line for the user: each specification and the frames it hit (and those it could not encode)."""
+        return ", ".join(f"{s.describe()} {self.counts[s.describe()]}{self._unencoded(s)}" for s in self.specs) \
+            or "none"
+
+    def _unencoded(self, spec: FaultSpec) -> str:
+        n = self.encode_errors[spec.describe()]
+        return f" ({n} not encodable: sent unchanged)" if n else ""
 
     # ---- one fault on one frame ---------------------------------------------------------------------------------
     def _hit(self, spec: FaultSpec) -> bool:
@@ -134,7 +144,14 @@ class FaultInjector:
             values[spec.signal] = float(values[spec.signal]) + spec.value
         elif kind == "out_of_range":
             values[spec.signal] = outside_range(message.get_signal_by_name(spec.signal))
-        return [_copy(msg, _sealed(message, values))]
+        try:
+            return [_copy(msg, _sealed(message, values))]
+        except (OverflowError, ValueError, EncodeError) as exc:  # e.g. an offset pushing the value off the bits
+            if not self.encode_errors[spec.describe()]:
+                log.warning("%s at t=%.3f s: %s cannot be encoded (%s): such frames are sent unchanged, counted",
+                            spec.origin, t, spec.target, exc)
+            self.encode_errors[spec.describe()] += 1
+            return [msg]
 
 
 def _decode(message: Message, data: bytes, scaling: bool) -> dict[str, float]:

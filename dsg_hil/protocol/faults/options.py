@@ -51,7 +51,8 @@ def with_faults(bus: can.BusABC, db: Database, specs: Iterable[FaultSpec], seed:
 
 def fault_counts(injectors: dict[str, FaultInjector | None], seed: int) -> dict:
     """The summary's ``faults``: frames each specification hit (lockstep re-sends included) per side, and the
-    seed; ``injected`` adds the sides up."""
+    seed; ``injected`` adds the sides up; ``not_encodable`` (only if any): frames hit whose changed value could
+    not be encoded, sent unchanged."""
     out: dict = {"seed": seed, "injected": {}}
     for side, injector in injectors.items():
         if injector is None:
@@ -60,4 +61,6 @@ def fault_counts(injectors: dict[str, FaultInjector | None], seed: int) -> dict:
         out[side] = counts
         for key, n in counts.items():
             out["injected"][key] = out["injected"].get(key, 0) + n
+        for key, n in injector.encode_errors.items():
+            out.setdefault("not_encodable", {})[key] = out.get("not_encodable", {}).get(key, 0) + n
     return out

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from cantools.database.can import Database
+    from cantools.database.can import Database, Signal
 
 from ...common.errors import InputError
 
@@ -220,6 +220,25 @@ def check_against_dbc(spec: FaultSpec, db: Database, where: str = "fault") -> No
         raise FaultError(f"{where}: message {spec.message!r} is not in the DBC") from None
     if spec.signal is not None:
         try:
-            message.get_signal_by_name(spec.signal)
+            signal = message.get_signal_by_name(spec.signal)
         except KeyError:
             raise FaultError(f"{where}: signal {spec.target!r} is not in the DBC") from None
+        if spec.kind in ("stuck", "offset"):
+            _check_encodable(spec, signal, where)
+
+
+def _check_encodable(spec: FaultSpec, signal: Signal, where: str) -> None:
+    """A ``stuck`` value the signal's bits cannot carry, or an ``offset`` wider than all they carry, is refused
+    before the run (not found mid-run by the sender's encoder). An offset that pushes some values out is
+    handled per frame (:class:`~dsg_hil.protocol.faults.injector.FaultInjector`: counted, the frame unchanged)."""
+    from ..ranges import raw_range, signal_range  # noqa: PLC0415 - cantools, loaded with the DBC
+
+    lo, hi = raw_range(signal)
+    minimum, maximum = signal_range(signal)
+    unit = f" {signal.unit}" if signal.unit else ""
+    if spec.kind == "stuck" and lo <= spec.value <= hi:
+        return
+    if spec.kind == "offset" and abs(spec.value) <= hi - lo:
+        return
+    raise FaultError(f"{where}: {spec.kind} value {spec.value:g}{unit} cannot be encoded in {spec.target}: its "
+                     f"bits carry {lo:g} to {hi:g}{unit} (DBC range {minimum:g} to {maximum:g}{unit})")

@@ -30,7 +30,8 @@ def test_run_passes_the_tcu_faults_to_the_ecu_stub_it_starts(tmp_path):
                            "--fault", "corrupt_crc:TCU_CMD@0.5-0.52", "--summary", str(tmp_path / "s.json")],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    assert "ecu-stub: faults injected (frames hit): corrupt_crc:TCU_CMD@0.5-0.52 14" in proc.stderr
+    assert "ecu-stub: faults injected (frames hit): corrupt_crc:TCU_CMD@0.5-0.52 4" in proc.stderr
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["faults"]["in_tcu_process"] == ["corrupt_crc:TCU_CMD@0.5-0.52"]
-    assert summary["frames"]["by_message"]["TCU_CMD"]["rejected"] == {"crc": 14}  # 2 ticks, 7 sends each
+    # 2 ticks, 2 sends each: a fault the plant knows of costs one re-send a tick (RETRIES_IN_EPISODE), not 6
+    assert summary["frames"]["by_message"]["TCU_CMD"]["rejected"] == {"crc": 4}

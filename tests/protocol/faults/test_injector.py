@@ -5,7 +5,7 @@ from __future__ import annotations
 import can
 import pytest
 
-from dsg_hil.protocol.faults import FaultInjector, FaultyBus, bridge_step, outside_range, parse_fault
+from dsg_hil.protocol.faults import FaultError, FaultInjector, FaultyBus, bridge_step, outside_range, parse_fault
 from dsg_hil.protocol import Codec, RxMonitor, TxScheduler, load_dbc
 
 USES = {"TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"), "PLANT_VEHICLE": ("VehicleSpeed", "TransOutputSpeed")}
@@ -189,3 +189,31 @@ def test_faulty_bus_and_bridge_on_virtual(db, codec):
         faulty.shutdown()
         b.shutdown()
         c.shutdown()
+
+
+@pytest.mark.parametrize("text, words", [
+    ("stuck:PLANT_VEHICLE.VehicleSpeed@1-2,value=1000", "stuck value 1000 m/s cannot be encoded in "
+     "PLANT_VEHICLE.VehicleSpeed: its bits carry -32.768 to 32.767 m/s (DBC range -30 to 30 m/s)"),
+    ("offset:TCU_CMD.P_CL_Cmd@1-2,value=-7", "offset value -7 MPa cannot be encoded in TCU_CMD.P_CL_Cmd: its bits "
+     "carry 0 to 6.5535 MPa"),
+])
+def test_a_value_the_dbc_cannot_encode_is_refused_before_any_frame(db, text, words):
+    """Not at the first frame in the window, mid-run, with cantools' bare 'out of range' (issue 20, item 2)."""
+    with pytest.raises(FaultError) as info:
+        FaultInjector(db, [parse_fault(text)])
+    assert str(info.value).startswith(f"--fault {text!r}: {words}")
+
+
+def test_an_offset_pushing_one_value_off_its_bits_is_counted_and_that_frame_sent_unchanged(db, codec):
+    """An offset fine for most values but not for this one (30 + 5 m/s > 32.767): the frame goes out as it was,
+    valid, and is counted in ``encode_errors``; the sender never dies of it."""
+    stream = frames(codec, "PLANT_VEHICLE", 3, {"VehicleSpeed": 1.0}) + \
+        frames(codec, "PLANT_VEHICLE", 2, {"VehicleSpeed": 30.0}, t0=1.0)
+    spec = parse_fault("offset:PLANT_VEHICLE.VehicleSpeed,value=5")
+    inj = FaultInjector(db, [spec])
+    out = through(inj, stream)
+    assert [m.data for m in out[3:]] == [m.data for _, m in stream[3:]]  # unchanged
+    rx, accepted = receive_all(codec, ["PLANT_VEHICLE"], out)
+    assert [f.values["VehicleSpeed"] for f in accepted] == pytest.approx([6.0, 6.0, 6.0, 30.0, 30.0])
+    assert inj.counts[spec.describe()] == 5 and inj.encode_errors[spec.describe()] == 2
+    assert "(2 not encodable: sent unchanged)" in inj.hits()

@@ -8,6 +8,7 @@ goes unanswered; more than 3 such ticks in a row put the plant's hydraulics in t
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import cast
 
@@ -139,6 +140,23 @@ def test_wrong_dlc_is_rejected_as_dlc(scenario):
     assert run.tcu.incomplete_answers == 1  # the tick answered on the last good values
 
 
+def test_an_outage_is_logged_once_where_it_starts_and_once_where_it_ends(scenario, caplog):
+    """Each of the 50 ticks of a 0.5-s outage is answered with the last values and counted, but a sweep's log
+    gets two lines for it, not fifty."""
+    with caplog.at_level(logging.WARNING, logger="dsg_hil.protocol.lockstep"):
+        run = Loop(scenario, "drop:PLANT_SPEEDS@2-2.5", duration=3.0)
+    lines = [r.getMessage() for r in caplog.records if r.name == "dsg_hil.protocol.lockstep"]
+    assert run.tcu.incomplete_answers == 50 and len(lines) == 2, lines
+    assert lines[0].endswith("seen 3 times without PLANT_SPEEDS: answered with the last values")
+    assert lines[1].endswith("PLANT_SPEEDS back after 50 tick(s) answered with the last values")
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="dsg_hil.protocol.lockstep"):  # due every other tick (20 ms)
+        run = Loop(scenario, "drop:DRIVER@2-2.5", duration=3.0)
+    lines = [r.getMessage() for r in caplog.records if r.name == "dsg_hil.protocol.lockstep"]
+    assert run.tcu.incomplete_answers == 25 and len(lines) == 2, lines
+    assert lines[1].endswith("DRIVER back after 25 tick(s) answered with the last values")
+
+
 def test_plant_speeds_missing_puts_the_tcu_in_fault_and_back(scenario):
     run = Loop(scenario, "drop:PLANT_SPEEDS@2-2.5", duration=3.5)
     assert run.injected() > 50 and run.tcu.incomplete_answers == 50  # each tick answered on its 3rd sight
@@ -161,18 +179,26 @@ def test_unknown_id_flood_is_ignored_and_changes_nothing(scenario, clean):
            [(f.arbitration_id, bytes(f.data), f.timestamp) for f in clean.frames]
 
 
-def test_stuck_vehicle_speed_is_not_detectable_and_the_controller_overdrives(scenario, clean):
-    """A plausible but wrong value with a valid counter and CRC passes every check: the TCU sees the vehicle
-    standing and pushes CL harder; the truth speed runs far above the desired one. No protection catches it."""
+def test_stuck_vehicle_speed_passes_the_frame_checks_and_the_tcus_plausibility_vote_replaces_it(scenario, clean):
+    """A plausible but wrong value with a valid counter and CRC passes every frame check: the TCU sees the vehicle
+    standing and pushes CL harder, until its plausibility vote (ecu_stub/plausibility.py) finds 40 mm between
+    VehicleSpeed and both clutch-output speeds (0.2 s at 0.2 m/s) and replaces it by theirs (FaultBits 0x10, no
+    FAULT: the two output speeds agree). The truth speed overshoots during those 0.2 s (before the vote it stayed
+    above 2.4 x the desired speed to the end of the window), then comes back."""
     run = Loop(scenario, "stuck:PLANT_VEHICLE.VehicleSpeed@2-3,value=0")
     assert run.summary["frames"]["rejected"] == run.tcu_counts["rejected"] == 0
     assert run.summary["command_fallback"]["events"] == 0
     assert 5 not in {s for _, s in run.series("TCU_STATUS", "State")}
+    bits = dict(run.series("TCU_STATUS", "FaultBits"))
+    assert not any(int(b) & 0x10 for t, b in bits.items() if t < 2.0)
+    assert all(int(b) & 0x10 for t, b in bits.items() if 2.2 <= t < 3.0)
+    assert run.tcu_counts["implausible"]["VehicleSpeed"] > 0 and run.tcu_counts["implausible"]["speeds"] == 0
     desired = scenario.driver_at(2.0).desired_speed_mps
     truth = dict(run.series("PLANT_VEHICLE", "VehicleSpeed"))  # the plant's frames as it sent them: the truth
     normal = dict(clean.series("PLANT_VEHICLE", "VehicleSpeed"))
     assert normal[2.9] == pytest.approx(desired, abs=0.02)
-    assert truth[2.9] > 2 * desired  # overdriven
+    assert max(v for t, v in truth.items() if 2.0 <= t < 3.0) > 2 * desired  # overdriven until the vote caught it
+    assert truth[2.9] < 1.5 * desired  # and back
 
 
 def test_same_faults_and_seed_give_the_same_frames(scenario, clean):

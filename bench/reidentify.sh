@@ -1,0 +1,30 @@
+#!/bin/sh
+# Re-identify the TCU calibration on the current plant (issue 18): record the eleven identification runs in
+# lock-step with the bundled ecu-stub and its current calibration, then fit and write the calibration, with the
+# commit and calibration the logs were recorded with in its header (identify --provenance).
+#
+#   bench/reidentify.sh LOGDIR [CALIBRATION_OUT]   (from the repository root; default out: the shipped file)
+#   bench/reidentify.sh --check LOGDIR             record the runs, fit nothing: exit 1 if the shipped
+#                                                  calibration's predictor exceeds its own prediction_error_k
+#
+# PYTHON: the interpreter (default: python). About 2 min on one core. Re-run after any plant change, then
+# tests/sim/test_closed_loop.py, tests/ecu_stub and tests/paper (docs/safety.md, section 1).
+set -eu
+check=
+if [ "${1:-}" = "--check" ]; then check=1; shift; fi
+logs=${1:?usage: bench/reidentify.sh [--check] LOGDIR [CALIBRATION_OUT]}
+out=${2:-ecu_stub/data/calibration.toml}
+py=${PYTHON:-python}
+mkdir -p "$logs"
+commit=$(git rev-parse --short=12 HEAD)$(git diff --quiet HEAD -- dsg_hil ecu_stub || echo "+changes")
+cal=$(sha256sum ecu_stub/data/calibration.toml | cut -c1-12)
+for scenario in ecu_stub/data/identification/*.toml; do
+    name=$(basename "$scenario" .toml)
+    echo "recording $name"
+    "$py" -m dsg_hil run -i virtual -q --scenario "$scenario" --log "$logs/$name.log"
+done
+if [ -n "$check" ]; then
+    exec "$py" -m ecu_stub.identify "$logs"/*.log --check
+fi
+"$py" -m ecu_stub.identify "$logs"/*.log --write "$out" \
+    --provenance "recorded by bench/reidentify.sh at commit $commit with ecu_stub/data/calibration.toml sha256 $cal..."

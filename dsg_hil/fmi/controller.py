@@ -1,0 +1,197 @@
+"""A controller FMU as the TCU: FMPy runs a co-simulation FMU (FMI 2.0, e.g. exported from Simulink) behind
+ecu-stub's bus side, so its commands go over CAN like any ECU's (counters, CRC, SyncEcho, receive checks and
+lock-step answers are ecu-stub's, :class:`ecu_stub.runner.TcuRunner`)::
+
+    with open_controller("my_tcu.fmu") as fmu:
+        with open_run(RunConfig(tcu=fmu.tcu_factory)) as run:
+            summary = run.run()
+
+The FMU's variables are matched to the DBC's by name (:data:`~dsg_hil.fmi.signals.TCU_INPUTS`, ``TCU_OUTPUTS``,
+plus ``PlantValid`` and ``RxFaultBits`` from the receive checks), or through a mapping ``{FMU variable: DBC
+signal}`` (a TOML file of ``"FMU name" = "DBC signal"`` lines). Every FMU input must be one of those, every TCU
+output (TCU_CMD's pressures, TCU_STATUS's signals) an FMU output; all are Reals in the DBC's units. Each control
+cycle at ``now`` sets the inputs and calls ``doStep(now, cycle)`` (``cycle``: the DBC's TCU_CMD cycle time); the
+outputs are the cycle's commands (:mod:`dsg_hil.fmi.tcu`).
+
+One instance per process: a new run resets it (fmi2Reset), never instantiates a second (PythonFMU's FMUs fail to
+instantiate twice in one process).
+"""
+
+from __future__ import annotations
+
+import shutil
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from types import TracebackType
+from typing import Any, cast
+
+import can
+from cantools.database.can import Database
+
+from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
+from ecu_stub.runner import TCU_USES, TcuRunner
+
+from ..common.errors import InputError, RunError
+from ..common.files import read_input_file
+from ..protocol import Codec
+from .signals import BUS_INPUTS, TCU_INPUTS, TCU_OUTPUTS
+from .tcu import ValueTables, input_values, tcu_outputs
+
+__all__ = ["ControllerFmu", "FmuController", "FmuError", "load_mapping", "open_controller"]
+
+
+class FmuError(InputError):
+    """A controller FMU that cannot be used: unreadable, not FMI 2.0 co-simulation, or a variable that matches no
+    DBC signal."""
+
+
+def load_mapping(path: str | Path) -> dict[str, str]:
+    """A mapping file: TOML ``"FMU variable" = "DBC signal"`` lines (optionally under ``[signals]``)."""
+    text = read_input_file(Path(path), "mapping file", FmuError)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise FmuError(f"{path}: not TOML ({exc})") from exc
+    table = data.get("signals", data)
+    bad = [key for key, value in table.items() if not isinstance(value, str)]
+    if bad:
+        raise FmuError(f"{path}: {bad[0]}: expected \"FMU variable\" = \"DBC signal\"")
+    return dict(table)
+
+
+class ControllerFmu:
+    """A controller FMU opened through FMPy, its variables checked against the DBC's (module docstring). A context
+    manager: leaving it frees the instance and the extracted files."""
+
+    def __init__(self, path: str | Path, mapping: Mapping[str, str] | None = None, cycle: float = 0.01) -> None:
+        self.path, self.cycle = Path(path), cycle
+        if not self.path.is_file():
+            raise FmuError(f"--controller {self.path}: no such file")
+        try:
+            from fmpy import extract, read_model_description  # noqa: PLC0415 - the fmi extra, when an FMU is used
+        except ImportError as exc:
+            raise FmuError(f"--controller needs the fmi extra: pip install 'dsg-hil[fmi]' ({exc})") from exc
+        try:
+            description = read_model_description(str(self.path))
+        except Exception as exc:  # noqa: BLE001 - FMPy raises anything from zip, XML and schema errors
+            raise FmuError(f"{self.path}: not a readable FMU ({exc})") from exc
+        if description.fmiVersion != "2.0" or description.coSimulation is None:
+            raise FmuError(f"{self.path}: FMI {description.fmiVersion} without FMI 2.0 co-simulation (needed: a "
+                           f"co-simulation FMU, FMI 2.0)")
+        self.inputs, self.outputs = self._match(description, dict(mapping or {}))
+        self._description = description
+        self._unzipped = extract(str(self.path))
+        self._fmu: Any = None
+        self.tables = ValueTables()
+
+    def _match(self, description: Any, mapping: dict[str, str]) -> tuple[dict[str, int], dict[str, int]]:
+        """{DBC signal: value reference} of the FMU's inputs and outputs; a mismatch is one FmuError naming it."""
+        readable = {s.name for s in TCU_INPUTS} | set(BUS_INPUTS)
+        writable = {s.name for s in TCU_OUTPUTS}
+        inputs: dict[str, int] = {}
+        outputs: dict[str, int] = {}
+        for variable in description.modelVariables:
+            if variable.causality not in ("input", "output"):
+                continue
+            signal = mapping.get(variable.name, variable.name)
+            known = readable if variable.causality == "input" else writable
+            if signal not in known:
+                raise FmuError(f"{self.path}: {variable.causality} variable {variable.name!r} matches no DBC signal "
+                               f"the TCU {'reads' if variable.causality == 'input' else 'sends'} (known: "
+                               f"{', '.join(sorted(known))}; or map it in a mapping file)")
+            if variable.type != "Real":
+                raise FmuError(f"{self.path}: variable {variable.name!r} is {variable.type}: the DBC's signals are "
+                               f"Reals in their physical unit")
+            side = inputs if variable.causality == "input" else outputs
+            if signal in side:
+                other = next(v.name for v in description.modelVariables if v.valueReference == side[signal]
+                             and v.causality == variable.causality)
+                raise FmuError(f"{self.path}: {other!r} and {variable.name!r} both map to the DBC signal {signal!r}")
+            side[signal] = variable.valueReference
+        missing = [name for name in sorted(writable) if name not in outputs]
+        if missing:
+            raise FmuError(f"{self.path}: no output variable for the DBC signal {missing[0]!r} (the TCU sends "
+                           f"{', '.join(sorted(writable))}; or map one in a mapping file)")
+        return inputs, outputs
+
+    def start(self) -> None:
+        """Initialise the FMU for a run: instantiated the first time, reset after."""
+        from fmpy.fmi2 import FMU2Slave  # noqa: PLC0415
+
+        try:
+            if self._fmu is None:
+                d = self._description
+                self._fmu = FMU2Slave(guid=d.guid, unzipDirectory=self._unzipped,
+                                      modelIdentifier=d.coSimulation.modelIdentifier, instanceName="tcu")
+                self._fmu.instantiate()
+            else:
+                self._fmu.reset()
+            self._fmu.setupExperiment(startTime=0.0)
+            self._fmu.enterInitializationMode()
+            self._fmu.exitInitializationMode()
+        except Exception as exc:  # noqa: BLE001 - FMPy's errors are plain Exceptions
+            raise RunError(f"controller FMU {self.path}: cannot start ({exc})") from exc
+        self._in_refs = list(self.inputs.values())
+        self._in_names = list(self.inputs)
+        self._out_refs = list(self.outputs.values())
+
+    def step(self, values: Mapping[str, float], now: float) -> dict[str, float]:
+        """One control cycle at ``now``: the inputs set, ``doStep(now, cycle)``, the outputs by DBC signal."""
+        fmu = self._fmu
+        try:
+            if self._in_refs:
+                fmu.setReal(self._in_refs, [values[name] for name in self._in_names])
+            fmu.doStep(currentCommunicationPoint=now, communicationStepSize=self.cycle)
+            return dict(zip(self.outputs, fmu.getReal(self._out_refs)))
+        except Exception as exc:  # noqa: BLE001
+            raise RunError(f"controller FMU {self.path}: step at t={now:g} s failed ({exc})") from exc
+
+    def tcu_factory(self, db: Database, bus: can.BusABC) -> TcuRunner:
+        """ecu-stub's bus side with this FMU as its controller (a ``RunConfig.tcu`` factory)."""
+        codec = Codec(db, TCU_USES)
+        self.cycle = codec.cycle_time("TCU_CMD")
+        # TcuRunner is typed for CreepController; FmuController has the interface it uses (update, cal)
+        return TcuRunner(codec, bus, controller=cast(CreepController, FmuController(self)))
+
+    def close(self) -> None:
+        if self._fmu is not None:
+            try:
+                self._fmu.terminate()
+                self._fmu.freeInstance()
+            except Exception:  # noqa: BLE001, S110 - closing: the run's own error, if any, is the one to show
+                pass
+            self._fmu = None
+        shutil.rmtree(self._unzipped, ignore_errors=True)
+
+    def __enter__(self) -> ControllerFmu:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+class FmuController:
+    """ecu-stub's controller interface (``update(inputs, now) -> TcuOutputs``) driving a :class:`ControllerFmu`.
+    Building one (ecu-stub does at each lock-step start, as ``type(c)(c.cal)``) starts the FMU afresh."""
+
+    def __init__(self, cal: ControllerFmu) -> None:
+        self.cal = cal  # the name ecu-stub's runner rebuilds a controller from
+        cal.start()
+
+    def update(self, inputs: TcuInputs, now: float) -> TcuOutputs:
+        fmu = self.cal
+        values = fmu.step(input_values(inputs), now)
+        try:
+            return tcu_outputs(values, fmu.tables)
+        except ValueError as exc:
+            raise RunError(f"controller FMU {fmu.path}: {exc}") from exc
+
+
+def open_controller(path: str | Path, mapping: str | Path | Mapping[str, str] | None = None) -> ControllerFmu:
+    """A controller FMU checked and ready to run (``mapping``: a dict or a mapping file); see the module's
+    docstring."""
+    if mapping is not None and not isinstance(mapping, Mapping):
+        mapping = load_mapping(mapping)
+    return ControllerFmu(path, mapping)

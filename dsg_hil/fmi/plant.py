@@ -1,0 +1,144 @@
+"""The plant as an FMI 2.0 co-simulation slave (PythonFMU): :class:`PlantSlave` wraps
+:class:`dsg_hil.physics.plant.Plant`.
+
+* Inputs (DBC names and units, :data:`~dsg_hil.fmi.signals.PLANT_INPUTS`): the TCU's pressure commands and brake
+  request, the driver's creep request, brake pedal and desired speed (a host scripts the scenario with them).
+* Outputs (:data:`~dsg_hil.fmi.signals.PLANT_OUTPUTS`): every signal the plant sends on CAN but the driver's,
+  the simulation-only truth (SIM_*) included, in the DBC's units, computed by the plant's own encoder table
+  (:func:`dsg_hil.sim.plant_io.plant_signals`) but not quantised to the DBC's resolution.
+* Parameters: every value of the parameter file (SI, its unit and source in the description), the initial
+  state (``init.*``, default: the shipped creep scenario) and the fixed internal step ``dt``.
+
+A communication step must be a whole number of internal steps (else the step fails with fmi2Error); over it the
+inputs are held, as in :meth:`Plant.advance`: brake = max(BrakePedal, BrakeRequest), grade and engine speed those
+of the parameters (``vehicle.beta``, idle). The FMU state (get/set/serialise) is the plant's whole state array,
+its last outputs, the inputs and the parameters, so a host can roll back to the bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pythonfmu import DefaultExperiment, Fmi2Causality
+
+from ..physics.params import Params, load_params, with_overrides
+from ..physics.plant import Plant, PlantInputs, PlantOutputs
+from ..sim.plant_io import SIGNALS, commanded_pressures, plant_signals
+from ..sim.run import plant_for
+from ..sim.scenario import DriverInput, Scenario, load_scenario
+from .export import PARAMS_RESOURCE
+from .signals import PLANT_INPUTS, PLANT_OUTPUTS
+from .slave import SignalSlave, described
+
+__all__ = ["INIT", "PlantSlave", "parameter_table"]
+
+_PERCENT = SIGNALS["DRIVER", "BrakePedal"][1]  # BrakePedal [%] -> the plant's brake, 0..1
+# The initial state: parameter name -> (Scenario field, unit, description)
+INIT = {"init.T_CL": ("T_CL_c", "degC", "CL plate temperature at t = 0"),
+        "init.T_CH": ("T_CH_c", "degC", "CH plate temperature at t = 0"),
+        "init.T_oil": ("T_oil_c", "degC", "every other thermal node (oil, sump, housing) at t = 0"),
+        "init.v": ("v_mps", "m/s", "vehicle speed at t = 0")}
+
+
+def parameter_table(params: Params) -> list[tuple[str, float, str, str]]:
+    """(dotted key, value, unit, 'source: reason') of every parameter, in the file's order."""
+    rows = []
+    for key, (source, reason) in params.provenance.items():
+        *path, name = key.split(".")
+        obj: Any = params
+        for part in path:
+            obj = getattr(obj, part)
+        unit = next(f.metadata["unit"] for f in dataclasses.fields(obj) if f.name == name)
+        rows.append((key, float(getattr(obj, name)), unit, f"{source}: {reason}"))
+    return rows
+
+
+class PlantSlave(SignalSlave):
+    """The plant behind the FMI 2.0 co-simulation interface (see the module docstring)."""
+
+    description = ("dsg-hil: the DSG dual wet clutch plant (Ma et al.), signals named and scaled as in the DBC. "
+                   "Needs dsg_hil installed in the host's Python.")
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        resources = Path(self.resources) if self.resources else None
+        given = resources / PARAMS_RESOURCE if resources is not None else None
+        self._params = load_params(given if given is not None and given.is_file() else None)
+        self._scenario: Scenario = load_scenario()
+        for key, value, unit, why in parameter_table(self._params):
+            self.real(key, value, unit, Fmi2Causality.parameter, f"[{unit}] {why}")
+        for key, (field, unit, what) in INIT.items():
+            self.real(key, float(getattr(self._scenario, field)), unit, Fmi2Causality.parameter,
+                       f"[{unit}] {what} (default: the shipped creep scenario)")
+        self.real("dt", 1e-3, "s", Fmi2Causality.parameter,
+                   "[s] the plant's fixed internal step; a communication step must be a whole multiple of it")
+        for signal in PLANT_INPUTS:
+            self.real(signal.name, 0.0, signal.unit, Fmi2Causality.input, described(signal))
+        for signal in PLANT_OUTPUTS:
+            self.real(signal.name, 0.0, signal.unit, Fmi2Causality.output, described(signal))
+        self.plant: Plant | None = None
+        self.out: PlantOutputs | None = None
+
+    # ---- the simulation --------------------------------------------------------------------------------------
+    def exit_initialization_mode(self) -> None:
+        """The plant, built from the parameters as set now (a changed one checked as ``dsg-hil --set`` checks it)."""
+        values = self.values
+        changed = {key: values[key] for key, value, _, _ in parameter_table(self._params) if values[key] != value}
+        params = with_overrides(self._params, changed, origin="FMU parameter") if changed else self._params
+        initial: dict[str, Any] = {field: values[key] for key, (field, _, _) in INIT.items()}
+        scenario = dataclasses.replace(self._scenario, **initial)
+        self.plant = plant_for(scenario, params, dt=values["dt"])
+        self._publish(self.plant.outputs())
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        plant = self.plant
+        if plant is None:
+            raise RuntimeError("do_step before the FMU's initialization")
+        steps = round(step_size * 1e9 / plant.dt_ns)
+        if steps < 0 or abs(step_size * 1e9 - steps * plant.dt_ns) > 1e-3:
+            raise ValueError(f"communication step {step_size} s: not a whole number of internal steps of "
+                             f"{plant.dt} s")
+        if steps:
+            self._publish(plant.advance(self.inputs(), steps))
+        return True
+
+    def inputs(self) -> PlantInputs:
+        """The plant's inputs from the input variables, converted to SI as the plant's CAN edge converts them."""
+        v = self.values
+        P_CL, P_CH = commanded_pressures(v)
+        brake = max(v["BrakePedal"] * _PERCENT, v["BrakeRequest"])
+        return PlantInputs(P_CL_cmd=P_CL, P_CH_cmd=P_CH, brake=brake)
+
+    def _publish(self, out: PlantOutputs) -> None:
+        self.out = out
+        v = self.values
+        driver = DriverInput(out.t, v["CreepRequest"] >= 0.5, v["BrakePedal"] * _PERCENT, v["DesiredCreepSpeed"])
+        values = plant_signals(out, driver)
+        for signal in PLANT_OUTPUTS:
+            v[signal.name] = float(values[signal.message][signal.signal])
+
+    # ---- FMU state: the plant's whole state, not only the registered variables (PythonFMU's default) ----------
+    def _get_fmu_state(self) -> dict[str, Any]:
+        plant = self.plant
+        return {"values": dict(self.values),
+                "plant": None if plant is None else plant.state.array.tolist(),
+                "out": None if self.out is None else list(self.out)}
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        self.values.update(state["values"])
+        if state["plant"] is not None:
+            if self.plant is None:
+                self.exit_initialization_mode()
+            assert self.plant is not None
+            self.plant.state.array[:] = np.asarray(state["plant"], dtype=float)
+            self.out = PlantOutputs(*state["out"])
+
+    @staticmethod
+    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
+        return json.dumps(state).encode("utf-8")  # floats as repr: the same double back
+

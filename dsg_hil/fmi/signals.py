@@ -1,0 +1,58 @@
+"""The FMUs' variables, named after the DBC: one table for each direction, derived from the plant's CAN edge
+(:data:`dsg_hil.sim.plant_io.SIGNALS`) and the DBC, never written out by hand.
+
+A variable carries the DBC signal's name and unit. Where two messages share a signal name (SIM_TRUTH_CL and
+SIM_TRUTH_CH both have ``T_Plate``), the variable is ``MESSAGE.Signal`` (FMI's structured naming). Every signal is
+an FMI Real in the DBC's physical unit (r/min, MPa, %, degC, a 0/1 flag as 0.0 / 1.0), the way a Simulink port or
+a CAN database's physical value is a double.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+from ecu_stub.runner import TCU_RX, TCU_TX
+
+from ..protocol import load_dbc
+from ..sim.plant_io import PLANT_RX, PLANT_TX, SYNC
+
+__all__ = ["BUS_INPUTS", "PLANT_INPUTS", "PLANT_OUTPUTS", "TCU_INPUTS", "TCU_OUTPUTS", "Signal", "signals",
+           "variable_names"]
+
+
+@dataclass(frozen=True)
+class Signal:
+    """One FMU variable that is a DBC signal: the message and signal, the FMU name, the DBC's unit."""
+
+    message: str
+    signal: str
+    name: str
+    unit: str
+
+
+def variable_names(pairs: list[tuple[str, str]]) -> list[str]:
+    """The FMU names of (message, signal) pairs: the signal's name, or ``MESSAGE.Signal`` where it is not unique."""
+    counts = Counter(signal for _, signal in pairs)
+    return [signal if counts[signal] == 1 else f"{message}.{signal}" for message, signal in pairs]
+
+
+def signals(table: dict[str, tuple[str, ...]], skip: frozenset[str] = frozenset()) -> tuple[Signal, ...]:
+    """The signals of ``{message: (signal, ...)}`` (without the signals named in ``skip``), with their DBC units."""
+    db = load_dbc()
+    pairs = [(message, signal) for message, names in table.items() for signal in names if signal not in skip]
+    units = [db.get_message_by_name(message).get_signal_by_name(signal).unit or "1" for message, signal in pairs]
+    return tuple(Signal(m, s, name, "1" if unit == "-" else unit)
+                 for (m, s), name, unit in zip(pairs, variable_names(pairs), units))
+
+
+_TRUTH_AND_SENSORS = {message: names for message, names in PLANT_TX.items() if message != "DRIVER"}
+PLANT_OUTPUTS = signals(_TRUTH_AND_SENSORS)  # every signal the plant sends but the driver's, SIM_* truth included
+# The plant's inputs: the TCU's commands it acts on (pressures, brake request) and the driver's (the scenario)
+PLANT_INPUTS = signals({"TCU_CMD": PLANT_RX["TCU_CMD"], "TCU_STATUS": ("BrakeRequest",),
+                        "DRIVER": PLANT_TX["DRIVER"]}, skip=frozenset({"SyncEcho"}))
+# The TCU's side (ecu-stub's, without the lock-step handshake): what a controller FMU reads and writes.
+# BUS_INPUTS: what the bus side (ecu-stub's receive checks) adds, by name (to TcuInputs' fields).
+TCU_INPUTS = signals({message: names for message, names in TCU_RX.items() if message != SYNC})
+TCU_OUTPUTS = signals(TCU_TX, skip=frozenset({"SyncEcho"}))
+BUS_INPUTS = {"PlantValid": "plant_valid", "RxFaultBits": "fault_bits"}

@@ -1,0 +1,168 @@
+"""Plausibility of the vehicle speed: ``PLANT_VEHICLE.VehicleSpeed`` voted against the two clutch-output speeds.
+
+A frame with a valid CRC and counter can still carry a wrong value (a stuck or offset sensor): issue 18's sweep
+found ``VehicleSpeed`` stuck at 0 for 3.1 s while creeping downhill, and the speed controller, believing the
+vehicle stopped, drove it to 0.97 m/s with 0.37 m/s requested. The TCU has two redundant measures of the same
+speed from the DBC: ``PLANT_SPEEDS.CLOutputSpeed`` and ``CHOutputSpeed``. Both sub-gearboxes keep their gear
+engaged during creep (the strategy hands the load over between the clutches, Fig. 7), so each output turns with the
+wheels: v = r_c omega_c, with r_c the calibration's ``clutch.CL/CH.speed_ratio_m`` (m/s per rad/s). The clutch
+*input* speed is never compared: it differs from the outputs by the slip, legitimately.
+
+**Tolerance.** Two measures a, b of the vehicle speed (in m/s) differ, without a sensor fault, by at most
+
+    tol = q_a + q_b + REL_TOL * max(|a|, |b|)                         (:func:`tolerance_mps`)
+
+plus what the driveline's torsional compliance adds while a torque changes:
+
+* q: half a DBC step of each signal (its resolution): VehicleSpeed 0.001 m/s -> 0.5 mm/s; a shaft speed
+  0.1 r/min -> 0.05 r/min x pi/30 x r_c = 0.18 mm/s (CL), 0.31 mm/s (CH).
+* ``REL_TOL`` = 3 %: the speed ratios are identified (median of v / omega, 0.04-0.07 % off Table I here), but a
+  real wheel's rolling radius changes by about 3 % between a new and a worn tyre and with load and inflation.
+* Compliance: the shafts between a clutch output and the wheel are springs, so while a torque changes their speeds
+  differ by the twist rates (modes near 90 Hz, lightly damped): a twist *rate* has no bound worth using, but the
+  twist has, so the check bounds the *distance* the two measures travel apart. Over any interval, without a
+  sensor fault,
+
+      integral of (a - b - tol) dt  <=  TWIST_M + SKEW_M = 40 mm   (and with a, b swapped; :data:`DISTANCE_M`)
+
+  ``TWIST_M`` = 30 mm, the largest change of the driveline's twist as distance at the wheel (Table I): the
+  wheel-side stiffnesses are k_a3 = K_a3 (i_b / r_w)^2 = 65114 x (3.818 / 0.1935)^2 = 2.54e7 N/m (shaft III) and
+  k_a2 = K_a2 (i_b i_1 / r_w)^2 = 110088 x (3.818 x 0.925 / 0.1935)^2 = 3.67e7 N/m (each output's gear pair); the
+  largest wheel forces of the clutches, mu k_geom P_max / r_c with mu <= 0.07 (the friction map), k_geom =
+  0.027337 m^3 and P_max = 1.5 MPa (the DBC's command range), are CL 83.3 kN and CH 48.2 kN; so the CL path twists
+  by at most (83.3 + 48.2) kN / k_a3 + 83.3 kN / k_a2 = 5.2 + 2.3 = 7.5 mm (the CH path less); a torque step may
+  overshoot that by 2x and the twist swing from one sign to the other: 4 x 7.5 mm = 30 mm. ``SKEW_M`` = 10 mm:
+  in real time the TCU holds PLANT_SPEEDS and PLANT_VEHICLE from frames up to one cycle (10 ms) apart, which
+  shifts the travelled distances apart by at most 10 ms x the speed change over the interval, 1 m/s at creep
+  speeds (in lock-step both are sampled at the same instant: 0).
+
+  This integral is the debounce (:class:`PairCheck`: its largest value over the intervals ending now, a
+  one-sided CUSUM per sign): a pair is *disagreeing* once it passes :data:`DISTANCE_M`; a stuck-at-zero
+  VehicleSpeed at 0.37 m/s does so in about 0.11 s, one 10 mm/s over the tolerance in 4 s; an intermittent fault
+  adds up. A cycle counts at most :data:`MAX_DT_S` (the DBC's 3-cycle receive timeout): after a gap in the frames
+  the values held do not describe it.
+
+**Reaction** (:class:`SpeedVoter`), a 2-out-of-3 vote as a real DCT does with its redundant speed sensors:
+
+* VehicleSpeed is not disagreeing with at least one output speed: it is used as it is (``OK``; nothing changes).
+* It disagrees with both, and the two output speeds do not disagree with each other: VehicleSpeed is faulty and
+  replaced by the mean of the two shaft-derived speeds (``SUBSTITUTED``). The vehicle stays controlled on two
+  plausible sensors; stopping it on a grade or in traffic would be a hazard of its own.
+* All three pairs disagree: no speed can be trusted (``FAULT``): the TCU goes to its FAULT state (both clutches
+  open, the brake requested), as for missing frames.
+
+A pair stays disagreeing for :data:`HEAL_S` = 2 s after its distance last passed the bound (its integrals then
+start afresh): a fault that persists passes it again sooner unless it is within 20 mm/s of the tolerance
+(40 mm / 2 s), so such a sensor stays replaced, and a repaired one is trusted again 2 s later. A run without a
+sensor fault never reaches the bound, so it gives the very same inputs, and frames, as without the check.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+__all__ = ["DISTANCE_M", "HEAL_S", "MAX_DT_S", "REL_TOL", "SKEW_M", "TWIST_M", "PairCheck", "SpeedVoter", "Verdict",
+           "shaft_speed_mps", "tolerance_mps"]
+
+TWIST_M = 0.030  # largest change of the driveline's twist, as distance at the wheel [m] (module docstring)
+SKEW_M = 0.010  # real time: PLANT_SPEEDS and PLANT_VEHICLE up to one 10-ms cycle apart, 1 m/s of speed change [m]
+DISTANCE_M = TWIST_M + SKEW_M  # what compliance and skew can put between two measures' travelled distances [m]
+REL_TOL = 0.03  # rolling radius of a real tyre (wear, load, inflation) and the identified speed ratios [1]
+HEAL_S = 2.0  # a pair is disagreeing this long after its distance last passed DISTANCE_M [s]
+MAX_DT_S = 0.03  # a cycle counts at most the DBC's receive timeout (3 cycles of 10 ms) [s]
+_RPM_TO_RAD_S = math.pi / 30.0
+_EPS_S = 1e-9  # times are sums of float cycle times: 50 x 10 ms may come out a hair under 0.5 s
+
+
+class Verdict(Enum):
+    """The reaction: use VehicleSpeed, use the shaft-derived speed instead, or a sensor fault."""
+
+    OK = "ok"
+    SUBSTITUTED = "substituted"
+    FAULT = "fault"
+
+
+def shaft_speed_mps(out_rpm: float, speed_ratio_m: float) -> float:
+    """Vehicle speed [m/s] from a clutch output speed [r/min]: v = r_c omega_c (r_c in m/s per rad/s)."""
+    return speed_ratio_m * out_rpm * _RPM_TO_RAD_S
+
+
+def tolerance_mps(a: float, b: float, q_a: float, q_b: float) -> float:
+    """Largest steady difference [m/s] of two measures ``a``, ``b`` of the vehicle speed without a sensor fault:
+    half-step resolutions ``q_a`` + ``q_b`` and :data:`REL_TOL` of the larger speed (module docstring)."""
+    return q_a + q_b + REL_TOL * max(abs(a), abs(b))
+
+
+@dataclass(slots=True)
+class PairCheck:
+    """Two measures of the vehicle speed with half-step resolutions ``q_a``, ``q_b`` [m/s], as two one-sided CUSUMs
+    of their difference beyond the tolerance: ``over_m[0]`` = the largest integral of (a - b - tol) over any
+    interval ending now, ``over_m[1]`` the same of (b - a - tol) (each is the bound's left-hand side, so a pair
+    without a sensor fault keeps both within :data:`DISTANCE_M`). Passing it sets ``last_over`` and starts both
+    afresh; the pair is :meth:`disagreeing` for :data:`HEAL_S` after that."""
+
+    q_a: float
+    q_b: float
+    over_m: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    last_over: float | None = None  # when the distance last passed DISTANCE_M [s]
+
+    def update(self, a: float, b: float, dt: float, now: float) -> bool:
+        """One cycle ``dt`` [s] long, ending at ``now`` [s]; returns :meth:`disagreeing`."""
+        tol, over = tolerance_mps(a, b, self.q_a, self.q_b), self.over_m
+        over[0] = max(0.0, over[0] + (a - b - tol) * dt)
+        over[1] = max(0.0, over[1] + (b - a - tol) * dt)
+        if over[0] > DISTANCE_M or over[1] > DISTANCE_M:
+            self.last_over, over[0], over[1] = now, 0.0, 0.0
+        return self.disagreeing(now)
+
+    def disagreeing(self, now: float) -> bool:
+        """The distance passed :data:`DISTANCE_M` less than :data:`HEAL_S` ago."""
+        return self.last_over is not None and now - self.last_over < HEAL_S - _EPS_S
+
+
+@dataclass(slots=True)
+class SpeedVoter:
+    """The 2-out-of-3 vote over time (module docstring): :meth:`update` each control cycle with the decoded speeds
+    gives the :class:`Verdict` and the vehicle speed to use. ``speed_ratio_*_m``: the calibration's
+    ``clutch.CL/CH.speed_ratio_m``; ``v_step_mps``, ``shaft_step_rpm``: the DBC's scale of VehicleSpeed and of the
+    output speeds."""
+
+    speed_ratio_cl_m: float
+    speed_ratio_ch_m: float
+    v_step_mps: float
+    shaft_step_rpm: float
+    verdict: Verdict = Verdict.OK
+    last_now: float | None = None
+    pairs: tuple[PairCheck, PairCheck, PairCheck] = field(init=False)  # (v, CL), (v, CH), (CL, CH)
+
+    def __post_init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the history (a restarted run)."""
+        half = 0.5 * self.shaft_step_rpm * _RPM_TO_RAD_S
+        q_v, q_cl, q_ch = 0.5 * self.v_step_mps, half * self.speed_ratio_cl_m, half * self.speed_ratio_ch_m
+        self.pairs = (PairCheck(q_v, q_cl), PairCheck(q_v, q_ch), PairCheck(q_cl, q_ch))
+        self.verdict, self.last_now = Verdict.OK, None
+
+    def update(self, v_mps: float, cl_out_rpm: float, ch_out_rpm: float, now: float) -> tuple[Verdict, float]:
+        """One cycle at ``now`` [s]: (verdict, the vehicle speed to use [m/s]): ``v_mps`` itself unless the verdict
+        is SUBSTITUTED (then the mean of the two shaft-derived speeds). The cycle's length counts up to
+        :data:`MAX_DT_S` (after a longer gap, e.g. FAULT on missing frames, the values held did not describe it)."""
+        dt = 0.0 if self.last_now is None else min(now - self.last_now, MAX_DT_S)
+        self.last_now = now
+        v_cl = shaft_speed_mps(cl_out_rpm, self.speed_ratio_cl_m)
+        v_ch = shaft_speed_mps(ch_out_rpm, self.speed_ratio_ch_m)
+        with_cl, with_ch, shafts = self.pairs
+        off_cl, off_ch = with_cl.update(v_mps, v_cl, dt, now), with_ch.update(v_mps, v_ch, dt, now)
+        off_shafts = shafts.update(v_cl, v_ch, dt, now)
+        if not (off_cl and off_ch):
+            self.verdict = Verdict.OK
+            return self.verdict, v_mps
+        if off_shafts:
+            self.verdict = Verdict.FAULT
+            return self.verdict, v_mps
+        self.verdict = Verdict.SUBSTITUTED
+        return self.verdict, 0.5 * (v_cl + v_ch)

@@ -1,0 +1,68 @@
+"""``ecu-stub --quiet``, as ``dsg-hil run -q``: errors only while it serves (no 'listening' line, no warnings),
+the frame counts at the end, which count what the warnings said (issue 20, item 6)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+
+import pytest
+
+from ecu_stub.cli import _parse_args
+from tests.cli.test_cli_run_ends import DSG_HIL, ECU_STUB, udp_bus
+
+FAULT = "corrupt_crc:PLANT_ENGINE@0.5-0.6"  # plant frames the TCU rejects: a warning each, counted as crc
+
+
+def serve(bus: list[str], *extra: str) -> str:
+    """ecu-stub's stderr for a 1-s lockstep run of the plant with FAULT (the plant waits for it to answer)."""
+    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2", *extra], stderr=subprocess.PIPE, text=True)
+    try:
+        plant = subprocess.run([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", "1", "--fault", FAULT,
+                                "-q"], capture_output=True, text=True, timeout=600)
+        err = tcu.communicate(timeout=120)[1]
+    finally:
+        if tcu.poll() is None:
+            tcu.kill()
+    assert plant.returncode == 0, plant.stderr
+    assert tcu.returncode == 0, err
+    return err
+
+
+def rejected_by_crc(err: str) -> int:
+    match = re.search(r"^ecu-stub: sent \d+ frames .*rejected (\d+) \(crc \1\)", err, re.MULTILINE)
+    assert match, err
+    return int(match.group(1))
+
+
+def test_quiet_prints_the_counts_alone():
+    bus = udp_bus()
+    loud = serve(bus)
+    assert "ecu-stub: listening on udp_multicast" in loud and "WARNING" in loud and rejected_by_crc(loud) > 0
+    quiet = serve(bus, "--quiet")
+    lines = quiet.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ecu-stub: sent"), quiet  # no injector on the TCU's side
+    assert rejected_by_crc(quiet) == rejected_by_crc(loud)  # the same run: the counts say what the warnings did
+
+
+def test_dsg_hil_run_quiet_passes_it_to_the_ecu_stub_it_starts(tmp_path):
+    """Two processes over udp_multicast: 'dsg-hil run -q' prints nothing of its own, its ecu-stub the counts alone
+    (it printed its 'listening' line too)."""
+    udp_bus()  # skips where this machine cannot do UDP multicast
+    run = subprocess.run([*DSG_HIL, "run", "-q", "-i", "udp_multicast", "--duration", "1"], capture_output=True,
+                         text=True, timeout=600, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ecu-stub: sent"), run.stderr
+
+
+def test_quiet_and_verbose_exclude_each_other(capsys):
+    with pytest.raises(SystemExit) as exc:
+        _parse_args(["-i", "virtual", "-q", "-v"])
+    assert exc.value.code == 2 and "not allowed with argument" in capsys.readouterr().err
+
+
+def test_help_documents_quiet(capsys):
+    with pytest.raises(SystemExit):
+        _parse_args(["--help"])
+    assert "-q, --quiet" in capsys.readouterr().out

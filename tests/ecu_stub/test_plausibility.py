@@ -1,0 +1,215 @@
+"""The vehicle-speed plausibility vote (ecu_stub/plausibility.py) on hand cases: consistent speeds, VehicleSpeed
+stuck at 0 or offset, standstill, the driveline's twist while a torque changes, no two speeds agreeing; and in the
+runner: a stuck VehicleSpeed replaced by the shafts' speed (fault bit 4, counted), slip left alone."""
+
+from __future__ import annotations
+
+import math
+
+import can
+import pytest
+
+from dsg_hil.protocol import Codec, TxScheduler, load_dbc
+from dsg_hil.sim.plant_io import PLANT_USES
+from ecu_stub.plausibility import DISTANCE_M, HEAL_S, TWIST_M, SpeedVoter, Verdict, shaft_speed_mps, tolerance_mps
+from ecu_stub.runner import FAULT_IMPLAUSIBLE, TCU_USES, TcuRunner
+
+R_CL, R_CH = 0.034443, 0.059517  # the shipped calibration's speed ratios [m/s per rad/s]
+DT = 0.01  # TCU_CMD cycle [s]
+
+
+def rpm(v_mps: float, ratio: float) -> float:
+    """The output speed [r/min] that turns at vehicle speed v."""
+    return v_mps / ratio * 30.0 / math.pi
+
+
+def voter() -> SpeedVoter:
+    return SpeedVoter(R_CL, R_CH, 0.001, 0.1)  # the DBC's steps of VehicleSpeed and of the output speeds
+
+
+def run(check: SpeedVoter, cycles, t0: float = 0.0) -> list[tuple[Verdict, float]]:
+    """``cycles``: (VehicleSpeed, CL speed, CH speed) in m/s, one per 10-ms cycle from t0."""
+    return [check.update(v, rpm(v_cl, R_CL), rpm(v_ch, R_CH), t0 + k * DT) for k, (v, v_cl, v_ch) in enumerate(cycles)]
+
+
+def test_shaft_speed_and_tolerance_by_hand():
+    assert shaft_speed_mps(rpm(0.37, R_CL), R_CL) == pytest.approx(0.37, abs=1e-12)
+    assert shaft_speed_mps(100.0, R_CL) == pytest.approx(0.034443 * 100.0 * math.pi / 30.0)  # 0.3607 m/s
+    # half steps: 0.5 mm/s + 0.05 r/min x pi/30 x 0.034443 = 0.18 mm/s; 3 % of 0.37 m/s = 11.1 mm/s
+    assert tolerance_mps(0.0, 0.37, 0.0005, 0.05 * math.pi / 30 * R_CL) == pytest.approx(0.0005 + 0.00018 + 0.0111,
+                                                                                         abs=2e-6)
+
+
+def test_the_twist_bound_is_the_driveline_compliance_of_table_i():
+    """4 x (both clutches' largest wheel forces over shaft III's stiffness + CL's over its gear pair's), at the
+    wheel: the number in the module docstring, recomputed from Table I and the calibration."""
+    r_w, i_b, i_1, K_a2, K_a3 = 0.1935, 3.818, 0.925, 110088.0, 65114.0
+    k_a3, k_a2 = K_a3 * (i_b / r_w) ** 2, K_a2 * (i_b * i_1 / r_w) ** 2
+    F_cl, F_ch = 0.07 * 0.027337 * 1.5e6 / R_CL, 0.07 * 0.027337 * 1.5e6 / R_CH
+    assert (k_a3, k_a2, F_cl, F_ch) == pytest.approx((2.535e7, 3.667e7, 83.34e3, 48.23e3), rel=1e-3)
+    static = (F_cl + F_ch) / k_a3 + F_cl / k_a2
+    assert static == pytest.approx(0.00746, abs=1e-5) and 4 * static <= TWIST_M
+    assert DISTANCE_M == pytest.approx(0.040)
+
+
+def test_consistent_speeds_pass_unchanged():
+    check = voter()
+    cycles = [(0.2 + 0.001 * k, 0.2 + 0.001 * k + 0.0004, 0.2 + 0.001 * k - 0.0003) for k in range(500)]
+    assert run(check, cycles) == [(Verdict.OK, v) for v, _, _ in cycles]
+
+
+def test_vehicle_speed_stuck_at_zero_is_replaced_by_the_shafts_speed_after_40_mm():
+    """Creeping at 0.37 m/s, VehicleSpeed reads 0: beyond the tolerance by 0.37 - 0.01178 = 0.35822 m/s, i.e.
+    3.5822 mm per cycle: past 40 mm after 12 cycles (42.99 mm; 39.40 mm after 11)."""
+    check = voter()
+    out = run(check, [(0.0, 0.37, 0.37)] * 20)
+    assert all(verdict is Verdict.OK and v == 0.0 for verdict, v in out[:12])  # cycles 0 (no dt yet) .. 11
+    assert out[12][0] is Verdict.SUBSTITUTED and out[12][1] == pytest.approx(0.37, abs=1e-12)
+    assert all(verdict is Verdict.SUBSTITUTED for verdict, _ in out[12:])
+    assert check.pairs[0].last_over == pytest.approx(0.12)  # then afresh: 7 more cycles
+    assert check.pairs[0].over_m == [0.0, pytest.approx(0.0035822 * 7, abs=1e-6)]
+    # the sensor comes back at 0.2 s: trusted again HEAL_S (2 s) after the bound was last passed (0.12 s), the
+    # shafts' speed used meanwhile
+    back = run(check, [(0.37, 0.37, 0.37)] * 300, t0=0.2)
+    first_ok = next(k for k, (verdict, _) in enumerate(back) if verdict is Verdict.OK)
+    assert first_ok == round((0.12 + HEAL_S - 0.2) / DT) == 192
+    assert all(r == (Verdict.SUBSTITUTED, pytest.approx(0.37)) for r in back[:first_ok])
+    assert all(r == (Verdict.OK, 0.37) for r in back[first_ok:])
+
+
+def test_an_intermittent_stuck_zero_adds_up():
+    """Stuck for 9 cycles in 10 at 0.3 m/s: each good cycle takes back only tol x 10 ms (0.1 mm), so the 9 x 2.9 mm
+    of the stuck ones add up: caught in the second burst."""
+    check = voter()
+    cycles = [(0.3 if k % 10 == 9 else 0.0, 0.3, 0.3) for k in range(40)]
+    out = run(check, cycles)
+    first = next(k for k, (verdict, _) in enumerate(out) if verdict is not Verdict.OK)
+    assert 10 < first < 20 and all(verdict is Verdict.SUBSTITUTED for verdict, _ in out[first:])
+
+
+def test_a_gap_in_the_frames_counts_one_timeout_at_most():
+    """After 2 s without valid frames (FAULT), the first cycle counts 30 ms (MAX_DT_S), not 2 s."""
+    check = voter()
+    assert check.update(0.2, rpm(0.2, R_CL), rpm(0.2, R_CH), 0.0) == (Verdict.OK, 0.2)
+    assert check.update(0.0, rpm(0.5, R_CL), rpm(0.5, R_CH), 2.0) == (Verdict.OK, 0.0)  # 0.5 m/s x 30 ms = 15 mm
+    assert check.pairs[0].over_m[1] == pytest.approx((0.5 - 0.0005 - 0.05 * math.pi / 30 * R_CL - 0.015) * 0.03)
+
+
+def test_an_offset_vehicle_speed_is_caught_when_its_distance_passes_the_bound_and_not_within_the_tolerance():
+    # +0.1 m/s at 0.2 m/s: beyond tol (0.68 mm/s + 3 % of 0.3 m/s = 9.68 mm/s) by 90.32 mm/s: 44.3 cycles
+    check = voter()
+    out = run(check, [(0.3, 0.2, 0.2)] * 60)
+    first = next(k for k, (verdict, _) in enumerate(out) if verdict is not Verdict.OK)
+    assert first == 45 and out[first] == (Verdict.SUBSTITUTED, pytest.approx(0.2))
+    # +5 mm/s at 0.2 m/s is within the tolerance (6.7 mm/s + 0.68 mm/s): never, however long
+    check = voter()
+    assert all(verdict is Verdict.OK for verdict, _ in run(check, [(0.205, 0.2, 0.2)] * 3000))
+
+
+def test_at_standstill_a_stuck_zero_is_plausible_and_harmless():
+    check = voter()
+    assert all(r == (Verdict.OK, 0.0) for r in run(check, [(0.0, 0.0, 0.0)] * 200))
+    assert all(r == (Verdict.OK, 0.0005) for r in run(check, [(0.0005, -0.0001, 0.0002)] * 200, t0=2.0))
+
+
+def test_one_output_speed_off_leaves_vehicle_speed_in_use():
+    """VehicleSpeed agrees with CH: used as it is (CL's output speed alone is off: 2 of 3 still agree)."""
+    check = voter()
+    assert all(r == (Verdict.OK, 0.3) for r in run(check, [(0.3, 0.0, 0.3)] * 300))
+
+
+def test_twist_while_a_torque_changes_is_no_fault():
+    """During slip the clutch input turns faster than the outputs, which the vote does not look at; but the
+    outputs' speeds also differ from the wheel's while the shafts wind up: a 88-Hz ringing of +-0.15 m/s sampled
+    every 10 ms, and a wind-up that puts 30 mm (TWIST_M) between them at 0.3 m/s over 0.1 s, pass; 60 mm does not."""
+    check = voter()
+    ringing = [(0.2, 0.2 + 0.15 * math.sin(2 * math.pi * 88.0 * k * DT), 0.2) for k in range(1000)]
+    assert all(verdict is Verdict.OK for verdict, _ in run(check, ringing))
+    check = voter()
+    wind_up = [(0.2, 0.2 + 0.3 + 0.0157, 0.2 + 0.3 + 0.0157)] * 11 + [(0.2, 0.2, 0.2)] * 50  # 10 dt x 0.3 m/s
+    assert all(verdict is Verdict.OK for verdict, _ in run(check, wind_up))
+    check = voter()
+    twice = [(0.2, 0.2 + 0.6 + 0.025, 0.2 + 0.6 + 0.025)] * 11  # 10 dt x 0.6 m/s: 60 mm
+    assert run(check, twice)[-1][0] is Verdict.SUBSTITUTED
+
+
+def test_a_disagreement_that_changes_sides_starts_again():
+    """0.3 m/s apart, the side swapped every 8 cycles (24 mm each way): never 40 mm on one side."""
+    check = voter()
+    cycles = [(0.2, 0.2 + (0.3 if (k // 8) % 2 else -0.3), 0.2 + (0.3 if (k // 8) % 2 else -0.3)) for k in range(400)]
+    assert all(verdict is Verdict.OK for verdict, _ in run(check, cycles))
+
+
+def test_no_two_speeds_agreeing_is_a_fault():
+    check = voter()
+    out = run(check, [(0.0, 0.3, 0.6)] * 40)
+    assert out[-1] == (Verdict.FAULT, 0.0) and out[0] == (Verdict.OK, 0.0)
+    check.reset()
+    assert check.update(0.0, 0.0, 0.0, 10.0) == (Verdict.OK, 0.0)
+
+
+# ---- in the runner ------------------------------------------------------------------------------------------
+
+@pytest.fixture()
+def bus():
+    null = _NullBus()
+    yield null
+    null.shutdown()
+
+
+def tcu_with(speeds: dict, vehicle: dict, now: float, tcu: TcuRunner | can.BusABC,
+             plant: TxScheduler | None = None) -> tuple[TcuRunner, TxScheduler]:
+    """Given a bus: a TCU on it (real time), given one set of plant frames at ``now``; given that TCU and its plant
+    schedule, the next set of frames."""
+    if not isinstance(tcu, TcuRunner):
+        tcu = TcuRunner(Codec(load_dbc(), TCU_USES), tcu)
+        plant = TxScheduler(Codec(load_dbc(), PLANT_USES), ["PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE",
+                                                            "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"])
+    assert plant is not None
+    values = {"PLANT_SPEEDS": speeds, "PLANT_VEHICLE": vehicle}
+    for name in ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"):
+        tcu.handle(plant.frame(name, values.get(name, {})), now)
+    return tcu, plant
+
+
+class _NullBus(can.BusABC):
+    """Nothing to receive; what is sent is dropped."""
+
+    def __init__(self) -> None:
+        super().__init__(channel="null")
+
+    def send(self, msg, timeout=None):
+        pass
+
+    def _recv_internal(self, timeout):
+        return None, False
+
+
+def test_runner_keeps_vehicle_speed_through_slip_and_replaces_a_stuck_one(bus):
+    v = 0.2
+    slipping = {"ClutchInputSpeed": 149.3, "CLOutputSpeed": round(rpm(v, R_CL), 1), "CHOutputSpeed":
+                round(rpm(v, R_CH), 1)}  # CL slips 93.8 r/min, CH 117.2 r/min
+    tcu, plant = tcu_with(slipping, {"TransOutputSpeed": 41.2, "VehicleSpeed": v}, 0.0, bus)
+    for k in range(1, 100):
+        inp = tcu.inputs(k * DT)
+        tcu_with(slipping, {"TransOutputSpeed": 41.2, "VehicleSpeed": v}, k * DT, tcu, plant)
+        assert inp.plant_valid and inp.v_mps == v and inp.fault_bits == 0
+    assert tcu.frame_counts()["implausible"] == {"VehicleSpeed": 0, "speeds": 0}
+    got = []
+    for k in range(100, 140):  # VehicleSpeed stuck at 0 (CRC and counter valid)
+        tcu_with(slipping, {"TransOutputSpeed": 41.2, "VehicleSpeed": 0.0}, k * DT, tcu, plant)
+        got.append(tcu.inputs(k * DT))
+    assert got[0].v_mps == 0.0 and got[0].fault_bits == 0  # not yet: 40 mm at 0.2 m/s take 22 cycles
+    assert got[-1].plant_valid and got[-1].v_mps == pytest.approx(v, abs=0.001)
+    assert got[-1].fault_bits == FAULT_IMPLAUSIBLE
+    assert 0 < tcu.frame_counts()["implausible"]["VehicleSpeed"] < 40
+
+
+def test_runner_goes_to_fault_when_no_speed_can_be_trusted(bus):
+    tcu, plant = tcu_with({"CLOutputSpeed": 0.0, "CHOutputSpeed": 100.0}, {"VehicleSpeed": 0.3}, 0.0, bus)
+    inp = None
+    for k in range(1, 60):
+        tcu_with({"CLOutputSpeed": 0.0, "CHOutputSpeed": 100.0}, {"VehicleSpeed": 0.3}, k * DT, tcu, plant)
+        inp = tcu.inputs(k * DT)
+    assert inp is not None and not inp.plant_valid and inp.fault_bits == FAULT_IMPLAUSIBLE
+    assert tcu.frame_counts()["implausible"]["speeds"] > 0

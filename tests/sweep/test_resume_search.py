@@ -1,0 +1,160 @@
+"""Results are never lost: a sweep killed midway resumes with nothing repeated and nothing lost; --resume with a
+larger --n extends a Sobol sweep by the missing runs and refuses what would mix sweeps. The search finds a
+planted violation (a controller that holds CL slipping against the brake) within its budget and writes it as a
+runnable scenario."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from dsg_hil.sim.scenario import load_scenario
+from dsg_hil.sweep.results import read_table
+from dsg_hil.sweep.space import load_space
+from dsg_hil.testing import run_plant
+
+from .conftest import REPO, SMALL, sweep, sweep_env
+from .unsafe import Slipper
+
+
+def test_a_sweep_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tmp_path):
+    space = tmp_path / "small.toml"
+    space.write_text(SMALL, encoding="utf-8")
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "dsg_hil", "sweep", str(space), "--out", str(out), "--workers", "1"]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=sweep_env(), cwd=REPO,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240.0
+        while len(list((out / "runs").glob("*.json"))) < 3 and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the sweep and its cluster, at once: no clean-up
+        proc.wait()
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
+    assert 3 <= len(before) < 12, "the sweep was to be killed midway"
+    again = sweep(str(space), "--out", str(out), "--workers", "1", "--resume")
+    assert again.returncode in (0, 3), again.stderr[-3000:]
+    assert f"{len(before)} of 12 runs already in {out} (--resume): skipped" in again.stderr
+    assert f"sweep: 12/{12 - len(before)} runs" not in again.stderr
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
+    assert len(after) == 12 and all(after[name] == mtime for name, mtime in before.items())  # none run again
+    ids = read_table(out).column("run_id").to_pylist()
+    assert sorted(ids) == sorted(name.removesuffix(".json") for name in after)  # each once, none lost
+
+
+def _error_line(proc: subprocess.CompletedProcess[str]) -> str:
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    return lines[0]
+
+
+def test_resume_with_a_larger_n_extends_a_sobol_sweep_with_only_the_missing_runs(tmp_path):
+    space = tmp_path / "sobol.toml"
+    space.write_text(SMALL.replace("seed = 7", 'seed = 7\nsampler = "sobol"'), encoding="utf-8")
+    out = tmp_path / "out"
+    first = sweep(str(space), "--out", str(out), "--workers", "1", "--n", "3")
+    assert first.returncode in (0, 3), first.stderr[-3000:]
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
+    assert len(before) == 3
+    fewer = _error_line(sweep(str(space), "--out", str(out), "--resume", "--n", "2"))
+    assert "--n 2" in fewer and "--n 3 or more" in fewer
+    more = sweep(str(space), "--out", str(out), "--workers", "1", "--resume", "--n", "5")
+    assert more.returncode in (0, 3), more.stderr[-3000:]
+    assert f"3 of 5 runs already in {out} (--resume): skipped" in more.stderr and "sweep: 2/2 runs" in more.stderr
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
+    assert all(after[name] == mtime for name, mtime in before.items())  # none run again
+    ids = read_table(out).column("run_id").to_pylist()
+    assert sorted(ids) == sorted(t["run_id"] for t in load_space(space).tasks(5))  # the sweep of 5, each once
+    again = sweep(str(space), "--out", str(out), "--resume")  # no --n: the sweep's own (now 5)
+    assert again.returncode in (0, 3) and f"5 of 5 runs already in {out}" in again.stderr, again.stderr[-3000:]
+    assert len(read_table(out)) == 5
+
+
+def test_resume_refuses_another_n_of_a_latin_hypercube_and_another_space_and_writes_nothing(tmp_path):
+    space = tmp_path / "small.toml"
+    space.write_text(SMALL, encoding="utf-8")
+    out = tmp_path / "out"
+    first = sweep(str(space), "--out", str(out), "--workers", "1", "--n", "2")
+    assert first.returncode in (0, 3), first.stderr[-3000:]
+    state = sorted((p.name, p.stat().st_mtime_ns) for p in out.rglob("*"))
+    other_n = _error_line(sweep(str(space), "--out", str(out), "--resume", "--n", "4"))
+    assert "--n 4" in other_n and "Latin hypercube sweep of --n 2" in other_n and "--resume needs --n 2" in other_n
+    space.write_text(SMALL.replace("seed = 7", "seed = 8"), encoding="utf-8")
+    other_space = _error_line(sweep(str(space), "--out", str(out), "--resume"))
+    assert f"{out} holds a sweep of another space than {space}" in other_space
+    assert sorted((p.name, p.stat().st_mtime_ns) for p in out.rglob("*")) == state
+
+
+SEARCH = """
+name = "planted"
+seed = 3
+n = 40
+duration_s = 4.0
+[inputs]
+"initial.T_clutch_c" = {uniform = [100, 210]}  # above ~200 degC: CL passes 250 degC in 4 s
+grade_rad = {uniform = [0.0, 0.2]}
+"params.vehicle.m" = {uniform = [6000, 9000]}
+"driver.brake_s" = 100.0         # the brake held all the run: the clutch CL slips at the engine's speed
+[controller]
+kind = "python"
+target = "tests.sweep.unsafe:Slipper"
+"""
+
+
+def test_the_search_finds_a_planted_violation_within_its_budget(tmp_path):
+    space = tmp_path / "planted.toml"
+    space.write_text(SEARCH, encoding="utf-8")
+    out = tmp_path / "out"
+    proc = sweep(str(space), "--out", str(out), "--workers", "2", "--search", "--n", "20")
+    assert proc.returncode == 3, proc.stderr[-3000:]
+    rows = read_table(out).to_pylist()
+    violating = [r for r in rows if r["verdict"] == "violation"]
+    assert len(violating) == 1 and len(rows) < 20  # stopped at the first violation
+    assert violating[0]["violations"] == "plate" and violating[0]["max_plate_temp_c"] > 250.0
+    assert "search: counterexample" in proc.stderr
+    logs = sorted(p.name for p in (out / "runs").glob("*.log.gz"))
+    assert logs == [f"{violating[0]['run_id']}.log.gz"]  # the violating run's log is kept, no other
+    counterexample = out / "counterexample" / "scenario.toml"
+    command = (out / "counterexample" / "command.sh").read_text(encoding="utf-8")
+    assert command.startswith("dsg-hil run --scenario counterexample/scenario.toml --params counterexample/params.toml")
+    rerun = run_plant(Slipper(), scenario=load_scenario(counterexample), params=out / "counterexample" / "params.toml",
+                      log=None)  # runnable, and it violates again
+    assert max(rerun.summary["max_plate_temp_c"].values()) == violating[0]["max_plate_temp_c"]
+    assert "## Search" in (out / "sweep.md").read_text(encoding="utf-8")
+
+
+def test_the_planted_violation_is_not_everywhere(tmp_path):
+    """The search had something to find: most of the space is safe for the same controller."""
+    rerun = run_plant(Slipper(), scenario=_scenario(tmp_path, 150.0), log=None)
+    assert max(rerun.summary["max_plate_temp_c"].values()) < 230.0  # mid-range: far from 250 degC
+
+
+def _scenario(tmp_path: Path, T_clutch_c: float) -> Path:
+    path = tmp_path / "cool.toml"
+    path.write_text(f"duration_s = 4.0\n[initial]\nT_clutch_c = {T_clutch_c}\nT_oil_c = 100.0\n[[driver]]\nt_s = 0.0\n"
+                    "creep_request = false\nbrake = 1.0\n", encoding="utf-8")
+    return path
+
+
+def test_the_table_reads_as_one_dataset_when_a_batch_has_a_column_without_values(tmp_path):
+    """A first batch of runs that all lack a value (no stop, no error) and a later one that has it: pyarrow and
+    pandas read OUT/table as one table (a 200-run sweep's could not: 'Unsupported cast from double to null')."""
+    import pyarrow.parquet as pq
+
+    from dsg_hil.sweep.results import ResultStore, read_table
+
+    store = ResultStore(tmp_path / "out", batch_s=0.0)
+    for i, (stop, error) in enumerate([(None, None), (None, None), (12.5, None), (None, "RunError: boom")]):
+        store.add({"run_id": f"r{i}", "row": {"run_id": f"r{i}", "brake_at_stop": stop, "error": error},
+                   "summary": None, "log": None, "traceback": None, "task": {}})
+        store.flush()
+    table = pq.read_table(tmp_path / "out" / "table")
+    assert table.num_rows == 4 and table.column("brake_at_stop").to_pylist() == [None, None, 12.5, None]
+    assert table.column("error").to_pylist()[3] == "RunError: boom"
+    assert read_table(tmp_path / "out").num_rows == 4
