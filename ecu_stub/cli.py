@@ -136,7 +136,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
 def _print_counts(tcu: Any, injector: Any) -> None:
     c = tcu.frame_counts()
     print(f"ecu-stub: sent {c['sent']} frames ({c['answers_resent']} lock-step answers re-sent, "
-          f"{c['incomplete_answers']} on incomplete plant frames); received "
+          f"{c['incomplete_answers']} on incomplete plant frames, {c['ticks_missed']} ticks never seen); received "
           f"{c['received']}, rejected {c['rejected']}{by_cause(tcu.rx.rejected)}, lost {c['lost']}, "
           f"duplicates {c['duplicates']}", file=sys.stderr, flush=True)
     if injector is not None:

@@ -14,7 +14,8 @@ counters), without stepping again. Repeats of frames it already has are duplicat
 errors. A tick whose plant frames are incomplete (the lock-step plant sends every message due at the tick's time,
 each on its DBC cycle from t = 0) waits for them: it is answered when the last one comes (delivered after the tick,
 as several CPUs may deliver, or re-sent with the period); only the third sight of the same tick is answered with
-what the TCU has (counted as ``incomplete_answers``).
+what the TCU has (counted as ``incomplete_answers``). A plant frame belongs to the tick its counter says; a tick
+that does not follow the last answered one (ticks the TCU never saw) waits for the next to confirm it.
 
 Before the controller sees the plant's values, VehicleSpeed is voted against the clutch-output speeds
 (:mod:`ecu_stub.plausibility`): replaced by theirs when it alone is implausible, FAULT when no two agree.
@@ -235,11 +236,13 @@ class TcuRunner:
 
     def frame_counts(self) -> dict:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost
-        (counter gaps) and duplicates; and the control cycles with implausible speeds, by cause (``implausible``:
-        VehicleSpeed replaced by the shafts' speed, or no speed trusted)."""
+        (counter gaps) and duplicates; lock-step ticks the plant went on from without the TCU (``ticks_missed``,
+        see :class:`LockstepResponder`); and the control cycles with implausible speeds, by cause
+        (``implausible``: VehicleSpeed replaced by the shafts' speed, or no speed trusted)."""
         rx = self.rx.counts()
         return {"sent": self.sent, "answers_resent": self.answers_resent, "implausible": dict(self.implausible),
-                "incomplete_answers": self.incomplete_answers, "received": self.rx.received,
+                "incomplete_answers": self.incomplete_answers, "ticks_missed": self.link.ticks_missed,
+                "received": self.rx.received,
                 "rejected": self.rx.rejected_total, "lost": sum(m["lost"] for m in rx.values()),
                 "duplicates": sum(m["duplicates"] for m in rx.values()), "by_message": rx}
 

@@ -176,8 +176,10 @@ def test_flood_neither_process_fails(flood):
     injected = sum(run["injected"] for run in flood)
     assert injected >= FLOOD_FRAMES, f"only {injected} random frames in {len(flood)} creeps"
     for run in flood:
-        assert run["plant_rc"] == 0, run["plant_err"]
-        assert run["tcu_rc"] == 0, run["tcu_err"]
+        both = f"{run['plant_err']}\n--- the TCU's stderr, last 40 lines ---\n" + \
+               "\n".join(run["tcu_err"].splitlines()[-40:])
+        assert run["plant_rc"] == 0, both
+        assert run["tcu_rc"] == 0, both
         frames = run["summary"]["frames"]
         print(f"{run['name']}: {run['injected']} random frames injected; "
               f"{frames['by_message']['SIM_SYNC']['sent']} ticks, {frames['unanswered_ticks']} "

@@ -317,7 +317,12 @@ class LockstepResponder:
 
     Lock-step is decided by the plant: ``lockstep`` is set by the first tick or probe. In lock-step, time is the
     plant's: frames arriving before a tick belong to it (their time the previous tick's + one cycle), so validity
-    and controller time never depend on the wall clock."""
+    and controller time never depend on the wall clock. A plant frame completes the tick its counter says (the
+    plant's counters restart at tick 0, one frame per cycle), however late or early it came. The TCU may miss
+    ticks the plant goes on from (every copy lost: a flood overruns its receive queue): a tick that is not the
+    one after the last answered (nor after the one waiting) is held until the next tick confirms it, so the TCU
+    goes on at the plant's tick (``ticks_missed`` counts what it skipped) and a random frame that passed CRC and
+    counter cannot set its time ahead of the plant's, where every real tick would look old."""
 
     def __init__(self, codec: Codec, receives: Iterable[str], sends: Iterable[str], required: Iterable[str], *,
                  step: Callable[[float, int], Frames], restart: Callable[[float], None],
@@ -348,7 +353,9 @@ class LockstepResponder:
             every, rest = divmod(codec.cycle_time_ms(name), codec.cycle_time_ms(CMD))
             if not rest:
                 self._due_every[name] = every
-        self._taken_in: dict[str, int] = {}  # by plant message: the tick whose period its last new frame was in
+        self._taken_in: dict[str, int] = {}  # by plant message: its last new frame came after tick n - 1's answer
+        self._unconfirmed: int | None = None  # a tick that did not follow the last one answered, held (see handle)
+        self.ticks_missed = 0  # ticks the TCU never saw (it went on from a later tick of the plant's)
 
     @property
     def tick_time(self) -> float:
@@ -410,6 +417,9 @@ class LockstepResponder:
             return True  # a repeat of an older tick: answered long ago
         if status == DUPLICATE and tick != self._pending:
             return True
+        if self._answered is not None and tick != self.tick + 1 and self._pending not in (tick, tick - 1) \
+                and not self._confirmed(tick):
+            return True
         if self._answered is not None and not self._complete(tick):
             return True  # answered when the missing frames come (late, or with the plant's re-send)
         self._answer_tick(tick)
@@ -417,26 +427,49 @@ class LockstepResponder:
 
     def _answer_tick(self, tick: int) -> None:
         """Run the control step of ``tick`` and send its answer (kept for the tick's repeats)."""
-        self._pending, self._answered_early = None, False
+        self._pending, self._answered_early, self._unconfirmed = None, False, None
+        if self.lockstep and tick > self.tick + 1:  # ticks missed: the frames taken since are this tick's period's
+            since, now = self.tick_time, tick * self.cycle
+            for state in self.rx.states.values():
+                if state.last_time is not None and state.last_time > since:
+                    state.last_time = now
         self.tick = tick
         if not self.lockstep:  # a tick with no probe before it: the plant's time base from now on
             log.info("SIM_SYNC seen: lock-step, answering each tick")
             self.lockstep = True
             self._restart(self.tick_time)
             self.tx.next_due_ms = dict.fromkeys(self.tx.next_due_ms, self.tick * self.codec.cycle_time_ms(CMD))
+            self._taken_in = dict.fromkeys(self._taken_in, tick)
             for state in self.rx.states.values():
                 if state.last_time is not None:
                     state.last_time = self.tick_time
-            self._taken_in = dict.fromkeys(self._taken_in, tick)
         self._answer = self._step(self.tick_time, tick & 0xFF)
         for frame_id, data in self._answer:
             self._send(frame_id, data)
         self._answered, self._answer_sends = tick, 1
 
+    def _confirmed(self, tick: int) -> bool:
+        """Whether ``tick``, new and not the one after the last answered, may be answered: only when the tick before
+        it came too (the plant went on while the TCU missed its ticks, e.g. under a flood that overran its receive
+        queue). A single such tick is held: it may be a random frame that passed CRC and counter (the protection's
+        residual error), which answered would make every tick of the plant's look old, and stop the run."""
+        if self._unconfirmed != tick - 1:
+            self._unconfirmed = tick
+            log.info("tick %d after tick %d: held until the next tick confirms it", tick, self.tick)
+            return False
+        log.warning("tick %d after tick %d: %d tick(s) of the plant's never seen; going on from the plant's tick",
+                    tick, self.tick, tick - self.tick - 1)
+        self.ticks_missed += tick - self.tick - 1
+        return True
+
     def _missing(self, tick: int) -> list[str]:
-        """The plant messages due at ``tick`` (each on its DBC cycle from tick 0) not yet taken in its period."""
-        taken_in = self._taken_in
-        return [name for name, every in self._due_every.items() if tick % every == 0 and taken_in.get(name) != tick]
+        """The plant messages due at ``tick`` (each on its DBC cycle from tick 0) whose frame of that tick has not
+        come since the last tick answered: the one whose counter is the tick's (counters restart at tick 0, +1 per
+        frame), so a frame is placed in its period whatever ticks the TCU missed or saw late (and an old frame
+        whose counter the tick's has come round to again is not taken for it)."""
+        states, taken_in, since = self.rx.states, self._taken_in, self.tick + 1
+        return [name for name, every in self._due_every.items() if tick % every == 0 and (
+            taken_in.get(name) != since or states[name].last_counter != (tick // every) % states[name].counter_modulus)]
 
     def _complete(self, tick: int) -> bool:
         """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen
@@ -475,7 +508,7 @@ class LockstepResponder:
         self.rx = RxMonitor(self.codec, self._receives)
         self.tx = TxScheduler(self.codec, self._sends)
         self.tick = -1  # the next tick is tick 0
-        self._taken_in = {}
+        self._taken_in, self._unconfirmed = {}, None
         self._restart(self.tick_time)
         self._answer = [(self.tx.ids[CMD], self.tx.data(CMD, {ECHO: self.probe & 0xFF}))]
         self._answered, self._answer_sends = self.probe, 0

@@ -275,3 +275,65 @@ def test_a_command_answering_no_tick_waiting_is_rejected_as_echo(codec, clean):
     plant.run(TICKS, pump)
     assert plant.link.rx.rejected == {"echo": 1} and plant.link.unanswered_ticks == 0
     assert plant.used == clean[0].used
+
+
+def tick_of(data: bytes) -> int:
+    return int.from_bytes(data[:4], "little")  # SIM_SYNC's Tick: bits 0-31, little endian (the DBC)
+
+
+def commands(plant: Plant) -> dict[int, float]:
+    """The commands the plant took, by the tick they answer: P_CL_Cmd (the TCU's copy of that tick's speed)."""
+    return {int(v["SyncEcho"]): v["P_CL_Cmd"] for _, name, v in plant.used if name == "TCU_CMD"}
+
+
+def test_a_tick_the_tcu_never_sees_costs_it_and_the_next_not_the_run(codec):
+    """Every copy of tick 6's SIM_SYNC is lost (a receive queue overrun by a flood): the TCU, waiting for tick 6,
+    hears tick 7, holds it (a lone out-of-turn tick may be a random frame), and goes on from tick 8, which
+    confirms it. Every later tick is answered from its own period's frames: the frames are placed by their
+    counters, not by when they came (the plant went on without the TCU for two ticks)."""
+    sync = codec.frame_id("SIM_SYNC")
+    plant, tcu, _ = pair(codec, plant_drop=lambda i, d: i == sync and tick_of(d) == 6)
+    answered = plant.run(TICKS, tcu.link.pump, reply_timeout=60.0)
+    assert answered == [True] * 6 + [False, False] + [True] * (TICKS - 8)
+    assert tcu.link.ticks_missed == 2 and tcu.link.incomplete_answers == 0
+    taken = commands(plant)
+    assert sorted(taken) == [k for k in range(TICKS) if k not in (6, 7)]
+    assert all(p == pytest.approx(0.01 * k) for k, p in taken.items())  # tick k's command from tick k's speed
+    assert tcu.steps[6:] == [k * plant.link.period for k in range(8, TICKS)]  # the TCU's time is the plant's
+
+
+def test_a_random_tick_that_passes_every_check_does_not_stop_the_run(codec, clean):
+    """A random SIM_SYNC that passes CRC and counter (1 in 256 x 7/16 of random frames on its ID) says tick
+    1,000,000 right after tick 6. Answered, it would make every later tick of the plant's look old and the TCU
+    fall silent. Held, it costs the plant's next ticks whose counter it took (until the plant's counter passes it
+    again: tick 7 here) and one tick to confirm the plant's going on; the run goes on on the plant's time."""
+    sync = codec.frame_id("SIM_SYNC")
+    forge = codec.expression_encoder("SIM_SYNC", ("tick",), {"Tick": "tick"})
+    forged = forge(1_000_000, 7)  # the counter of tick 7's frame, which follows tick 6's (counters from tick 0)
+    plant, tcu, _ = pair(codec)
+
+    def pump() -> None:
+        if plant.link.tick == 6 and not tcu.link.rx.states["SIM_SYNC"].rejected:
+            plant.bus.send_data(sync, forged)
+        tcu.link.pump()
+
+    answered = plant.run(TICKS, pump, reply_timeout=60.0)
+    assert answered == [True] * 7 + [False, False] + [True] * (TICKS - 9)
+    assert tcu.link.rx.states["SIM_SYNC"].rejected == {"counter": 7}  # tick 7, sent 7 times: repeats the counter
+    assert max(tcu.steps) == (TICKS - 1) * plant.link.period and tcu.link.ticks_missed == 2
+    assert all(p == pytest.approx(0.01 * k) for k, p in commands(plant).items())
+
+
+def test_a_tick_left_waiting_does_not_leave_the_tcu_a_tick_behind(codec, clean):
+    """In a run of ticks given up the plant sends each tick twice. Tick 6's answers are all lost (tick 7 is then
+    the second tick in a row given up), and every copy of tick 7's PLANT_SPEEDS is lost too: tick 7 stays waiting
+    for its frame. The next frames are tick 8's, placed in tick 8 by their counter (not taken for tick 7's, which
+    would answer every later tick one tick late, a tick after the plant has given it up); tick 8 is answered."""
+    cmd_id, speeds = codec.frame_id("TCU_CMD"), codec.frame_id(PLANT_DATA)
+    lost_answer = nth(cmd_id, {8, 9, 10, 11, 12, 13, 14})  # tick 6's answer and its 6 repeats
+    tick_7 = (700).to_bytes(2, "little")  # ClutchInputSpeed 70 rpm (10 x tick), 0.1 rpm per bit
+    plant, tcu, _ = pair(codec, plant_drop=lambda i, d: i == speeds and d[:2] == tick_7, tcu_drop=lost_answer)
+    answered = plant.run(TICKS, tcu.link.pump, reply_timeout=60.0)
+    assert answered == [True] * 6 + [False, False] + [True] * (TICKS - 8)
+    assert tcu.link.ticks_missed == 0 and tcu.link.incomplete_answers == 0
+    assert all(p == pytest.approx(0.01 * k) for k, p in commands(plant).items() if k != 6)
