@@ -1,11 +1,12 @@
 """``dsg-hil sweep``: many runs over a space of scenarios on Dask distributed (or a search for a violation), a
-Parquet table, a page with figures, and the verdict (exit 3 when a run violates)."""
+Parquet table, a page with figures, and the verdict (exit 3 when a run violates, 1 when none does but a run could
+not be judged: it failed)."""
 
 from __future__ import annotations
 
 import argparse
 
-from ..common.errors import EXIT_OK, EXIT_OUT_OF_BAND
+from ..common.errors import EXIT_OK, EXIT_OUT_OF_BAND, EXIT_RUN_FAILED
 from ..common.files import check_output_path
 from . import command_help
 from .common import non_negative_int, progress, set_overrides
@@ -22,7 +23,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                     "an existing cluster (--scheduler, DASK_SCHEDULER_ADDRESS). Each run is judged on the plant's "
                     "truth (plate temperature, roll-back, overspeed, FAULT, standstill while creep requested). "
                     "Writes OUT/table/*.parquet, OUT/runs/*.json, OUT/sweep.md with figures and the 'dsg-hil run' "
-                    "reproducing each violation. Exit 3 when a run violates. Needs pip install 'dsg-hil[sweep]'.")
+                    "reproducing each violation. Exit 3 when a run violates; 1 when none does but some runs failed "
+                    "(an error in the run or the controller: not judged, so not a pass; each row's 'error' says "
+                    "why); 0 when every run was judged and none violates. Needs pip install 'dsg-hil[sweep]'.")
     parser.add_argument("space", metavar="SPACE", help="the space file (TOML), e.g. dsg_hil/data/sweeps/safety.toml")
     parser.add_argument("--out", metavar="DIR", help="results directory (default: ./sweep-<space name>)")
     parser.add_argument("--n", type=non_negative_int, metavar="N", help="runs (--search: its budget); "
@@ -66,8 +69,12 @@ def _do_sweep(args: argparse.Namespace) -> int:
         result = run_sweep(space, out, n=args.n, **options)
     page = write_page(space, result, ResultStore(out, resume=True).record)
     progress(f"wrote {page}, {out}/table ({len(result.rows)} rows)")
-    violating = result.violations
+    violating, failed = result.violations, [r for r in result.rows if r.get("verdict") == "error"]
     progress(f"verdict: {len(violating)} of {len(result.rows)} runs violate"
              + (f" ({', '.join(sorted({v for r in violating for v in r['violations'].split(',')}))})"
-                if violating else "") + f"; {result.wall_s:.0f} s wall")
-    return EXIT_OUT_OF_BAND if violating else EXIT_OK
+                if violating else "")
+             + (f"; {len(failed)} failed, not judged (first: {failed[0].get('error')})" if failed else "")
+             + f"; {result.wall_s:.0f} s wall")
+    if violating:
+        return EXIT_OUT_OF_BAND
+    return EXIT_RUN_FAILED if failed else EXIT_OK

@@ -158,3 +158,19 @@ def test_the_table_reads_as_one_dataset_when_a_batch_has_a_column_without_values
     assert table.num_rows == 4 and table.column("brake_at_stop").to_pylist() == [None, None, 12.5, None]
     assert table.column("error").to_pylist()[3] == "RunError: boom"
     assert read_table(tmp_path / "out").num_rows == 4
+
+
+def test_a_sweep_whose_runs_all_fail_is_not_a_pass(tmp_path):
+    """Runs that fail (here the controller under test raises) are not judged: no violation, but no pass either.
+    Exit 1, the verdict line counts them and names the first error; each row keeps its error."""
+    space = tmp_path / "broken.toml"
+    space.write_text(SEARCH.replace('name = "planted"', 'name = "broken"').replace("n = 40", "n = 3")
+                     .replace("unsafe:Slipper", "unsafe:Crasher"), encoding="utf-8")
+    out = tmp_path / "out"
+    proc = sweep(str(space), "--out", str(out), "--workers", "1")
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    rows = read_table(out).to_pylist()
+    assert len(rows) == 3 and all(r["verdict"] == "error" for r in rows), rows
+    assert all("the controller under test crashed" in r["error"] for r in rows), rows
+    verdict = [line for line in proc.stderr.splitlines() if line.startswith("verdict:")]
+    assert len(verdict) == 1 and "0 of 3 runs violate; 3 failed, not judged" in verdict[0], proc.stderr[-3000:]
