@@ -162,6 +162,8 @@ STUCK = {  # signal -> (the fault's target, the value held)
     "T_OilCL": ("PLANT_OIL_TEMP.T_OilCL", 40.0),
     "P_CL": ("PLANT_PRESSURE.P_CL", 0.0),
     "ClutchInputSpeed": ("PLANT_SPEEDS.ClutchInputSpeed", 0.0),
+    "T_OilCH": ("PLANT_OIL_TEMP.T_OilCH", 40.0),
+    "P_CH": ("PLANT_PRESSURE.P_CH", 0.0),
 }
 
 
@@ -193,8 +195,9 @@ def test_without_a_sensor_fault_no_check_trips():
 @pytest.mark.parametrize("signal", sorted(STUCK))
 def test_a_stuck_thermal_input_keeps_the_true_plate_under_t_safe(signal):
     """Before the checks: T_OilCL stuck at 40 degC took CL's true plate to 300.1 degC, P_CL stuck at 0 to 253.0 degC,
-    ClutchInputSpeed stuck at 0 to 249.8 degC (with no fault: 245.4 degC)."""
+    ClutchInputSpeed stuck at 0 to 249.8 degC, T_OilCH at 40 degC CH's to 250.01 degC, P_CH at 0 to 250.06 degC
+    (with no fault: CL 245.4, CH 245.0 degC)."""
     summary, counts = hot_creep(signal)
-    assert summary["max_plate_temp_c"]["CL"] <= 250.0 and summary["time_above_limit_s"]["CL"] == 0.0
+    assert max(summary["max_plate_temp_c"].values()) <= 250.0 and set(summary["time_above_limit_s"].values()) == {0.0}
     assert counts["implausible"][signal] > 0
     assert all(n == 0 for name, n in counts["implausible"].items() if name != signal)
