@@ -131,7 +131,8 @@ class TcuRunner:
                 cal.strategy.hydraulic_lag_s, 0.5 * (scale("PLANT_PRESSURE", "P_CL") + scale("TCU_CMD", "P_CL_Cmd")),
                 cal.vehicle.input_ratio,
                 0.5 * (scale("PLANT_SPEEDS", "ClutchInputSpeed") + scale("PLANT_ENGINE", "EngineSpeed")
-                       / cal.vehicle.input_ratio))
+                       / cal.vehicle.input_ratio),
+                {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))})
         # cycles whose thermal input a check replaced, by signal (ecu_stub.sensor_checks)
         self.implausible = {"VehicleSpeed": 0, "speeds": 0, **dict.fromkeys(CHECKED, 0)}
         self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
@@ -186,6 +187,7 @@ class TcuRunner:
                 return TcuInputs(plant_valid=False, fault_bits=faults)  # FAULT: clutches open, brake requested
             self.implausible["VehicleSpeed"] += 1
         clutch_in, P_CL, P_CH, T_CL, T_CH = s["ClutchInputSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"]
+        trusted = True
         if (checks := self.sensor_checks) is not None:
             values = {"P_CL": P_CL, "P_CH": P_CH, "ClutchInputSpeed": clutch_in, "EngineSpeed": e["EngineSpeed"],
                       "T_OilCL": T_CL, "T_OilCH": T_CH, "T_Sump": o["T_Sump"]}
@@ -196,9 +198,10 @@ class TcuRunner:
                     self.implausible[name] += 1
                 clutch_in, P_CL, P_CH = values["ClutchInputSpeed"], values["P_CL"], values["P_CH"]
                 T_CL, T_CH = values["T_OilCL"], values["T_OilCH"]
+                trusted = "P_CL" not in failing and "P_CH" not in failing
         return TcuInputs(True, e["EngineSpeed"], clutch_in, s["CLOutputSpeed"], s["CHOutputSpeed"],
                          v_mps, P_CL, P_CH, T_CL, T_CH, o["T_Sump"],
-                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults)
+                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults, trusted)
 
     def control(self, now: float, echo: int = 0) -> Frames:
         """One controller cycle at ``now``, its frames sent (see :meth:`_step`); returns them, as (ID, data)."""

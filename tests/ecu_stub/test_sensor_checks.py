@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from dsg_hil.physics.params import load_params
+from dsg_hil.physics.params import load_params, with_overrides
 from dsg_hil.protocol import Codec
 from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.sim.scenario import parse_scenario
@@ -23,6 +23,7 @@ LAG = 0.05  # strategy.hydraulic_lag_s [s]
 Q_P = 0.0001  # half a DBC step of P_CL plus of P_CL_Cmd [MPa]
 I_A = 5.3585  # Table I's i_a
 Q_N = 0.05 + 0.125 / I_A  # half a DBC step of ClutchInputSpeed plus of EngineSpeed / i_a [r/min]
+SHARE = {"CL": 3.42 / (918.66 + 3.42), "CH": 74.98 / (914.57 + 74.98)}  # cooling / (K + cooling), calibration
 
 
 def first_failing(results) -> int | None:
@@ -103,27 +104,53 @@ def test_the_calibrations_input_ratio_is_the_gearboxs():
     assert load_calibration().vehicle.input_ratio == load_params().powertrain.i_a
 
 
-# ---- 3. oil leaving a clutch vs sump and plate -----------------------------------------------------------------
+# ---- 3. oil leaving a clutch vs its balance with plate and sump ----------------------------------------------
+
+def balance(plate: float, sump: float, clutch: str = "CL") -> float:
+    return plate + SHARE[clutch] * (sump - plate)
+
+
+def test_the_balance_is_the_start_up_observers_inverted():
+    """The observer's plate from the oil, T_out + cooling / K (T_out - T_sump), put back into the balance."""
+    cal = load_calibration()
+    for clutch in ("CL", "CH"):
+        c = cal.clutch(clutch)
+        T_out, sump = 180.0, 130.0
+        plate = T_out + c.cooling_w_k / c.K_plate_oil_w_k * (T_out - sump)
+        assert balance(plate, sump, clutch) == pytest.approx(T_out)
+        assert c.cooling_w_k / (c.K_plate_oil_w_k + c.cooling_w_k) == pytest.approx(SHARE[clutch])
+
 
 def test_oil_cooled_by_a_cold_plate_below_the_sump_never_trips():
-    check = OilCheck()
-    # a cold pack (plate 40 degC) in hot oil (sump 150 degC): its oil leaves near the plate's temperature
-    out = [check.update(41.0 + 0.01 * k, 150.0, 40.0 + 0.01 * k, DT, k * DT) for k in range(2000)]
+    check = OilCheck(SHARE["CL"])
+    # a cold pack (plate 40 degC, heating) in hot oil (sump 150 degC): its oil leaves near the plate's temperature
+    out = [check.update(balance(40.0 + 0.05 * k, 150.0) - 0.5, 150.0, 40.0 + 0.05 * k, DT, k * DT)
+           for k in range(2000)]
     assert first_failing(out) is None and check.check.largest == 0.0
-    out = [check.update(120.0 - OIL_TOL_K + 0.1, 120.0, 230.0, DT, k * DT) for k in range(2000)]  # just within
+    out = [check.update(balance(230.0, 120.0) - OIL_TOL_K + 0.1, 120.0, 230.0, DT, k * DT)
+           for k in range(2000)]  # just within the tolerance, for 20 s
     assert first_failing(out) is None
+    hotter = OilCheck(SHARE["CH"])  # oil hotter than the balance: on the safe side, never implausible
+    assert first_failing([hotter.update(300.0, 130.0, 150.0, DT, k * DT) for k in range(500)]) is None
 
 
 def test_oil_stuck_cold_trips_within_the_derived_time_and_the_hottest_credible_value_is_used():
-    check = OilCheck()
+    check = OilCheck(SHARE["CL"])
     out = [check.update(40.0, 130.0, 228.0, DT, k * DT) for k in range(20)]
-    # deficit 130 - 10 - 40 = 80 K: 5 K s in 0.0625 s, the 7th cycle
-    assert first_failing(out) == math.ceil(OIL_KS / (130.0 - OIL_TOL_K - 40.0) / DT) - 1 == 6
+    # deficit 227.65 - 10 - 40 = 177.65 K beyond the tolerance: 2 K s in 0.0113 s, the 2nd cycle
+    deficit = balance(228.0, 130.0) - OIL_TOL_K - 40.0
+    assert deficit == pytest.approx(177.64, abs=0.01)
+    assert first_failing(out) == math.ceil(OIL_KS / deficit / DT) - 1 == 1
     assert out[-1] == (True, 228.0)  # the plate's own estimate: no cooling assumed
 
 
+def test_no_oil_check_before_the_tcu_has_a_plate_estimate():
+    check = OilCheck(SHARE["CL"])
+    assert first_failing([check.update(40.0, 130.0, None, DT, k * DT) for k in range(100)]) is None
+
+
 def test_a_repaired_sensor_is_trusted_again_after_the_heal_time():
-    check = OilCheck()
+    check = OilCheck(SHARE["CL"])
     t = 0.0
     for _ in range(20):
         t += DT
@@ -137,7 +164,7 @@ def test_a_repaired_sensor_is_trusted_again_after_the_heal_time():
 
 
 def test_sensor_checks_replace_only_the_failing_values_and_name_them():
-    checks = SensorChecks(LAG, Q_P, I_A, Q_N)
+    checks = SensorChecks(LAG, Q_P, I_A, Q_N, SHARE)
     good = {"P_CL": 0.3, "P_CH": 0.0, "ClutchInputSpeed": 149.3, "EngineSpeed": 800.0, "T_OilCL": 228.0,
             "T_OilCH": 200.0, "T_Sump": 130.0}
     plate = {"CL": 228.5, "CH": 201.0}
@@ -167,15 +194,15 @@ STUCK = {  # signal -> (the fault's target, the value held)
 }
 
 
-def hot_creep(fault: str = ""):
-    """20-s creep from CL 228 / CH 245 / oil 130 degC on Table I's grade, the fault from 2 s to the end: summary
-    and the TCU's counts."""
+def hot_creep(fault: str = "", stuck: tuple[str, float] | None = None):
+    """20-s creep from CL 228 / CH 245 / oil 130 degC on Table I's grade, the signal ``fault`` (of :data:`STUCK`), or
+    ``stuck`` = (MESSAGE.Signal, value), stuck from 2 s to the end: summary and the TCU's counts."""
     text = ('name = "hot creep"\nduration_s = 20.0\ngrade_rad = 0.174\nengine_speed_rpm = 800.0\n'
             "[initial]\nT_CL_c = 228.0\nT_CH_c = 245.0\nT_clutch_c = 228.0\nT_oil_c = 130.0\nv_mps = 0.0\n"
             "[[driver]]\nt_s = 0.0\ncreep_request = false\nbrake = 1.0\ndesired_speed_mps = 0.0\n"
             "[[driver]]\nt_s = 1.0\ncreep_request = true\nbrake = 0.0\ndesired_speed_mps = 0.206\n")
-    if fault:
-        target, value = STUCK[fault]
+    if fault or stuck:
+        target, value = stuck or STUCK[fault]
         text += f'[[fault]]\nkind = "stuck"\ntarget = "{target}"\nvalue = {value}\nstart_s = 2.0\nend_s = 20.0\n'
     tcus: list[TcuRunner] = []
 
@@ -201,3 +228,22 @@ def test_a_stuck_thermal_input_keeps_the_true_plate_under_t_safe(signal):
     assert max(summary["max_plate_temp_c"].values()) <= 250.0 and set(summary["time_above_limit_s"].values()) == {0.0}
     assert counts["implausible"][signal] > 0
     assert all(n == 0 for name, n in counts["implausible"].items() if name != signal)
+
+
+def test_a_valve_that_builds_no_pressure_keeps_the_launch_on_the_brake():
+    """A real hydraulic failure (the plant's valve reaches 1 kPa at most): the measured pressure is right and the
+    check finds it implausible against the command; the prediction then uses the command's model (the larger),
+    but the launch's brake is not released on it: the vehicle stays held on Table I's grade."""
+    text = ('name = "dead valve"\nduration_s = 6.0\ngrade_rad = 0.174\nengine_speed_rpm = 800.0\n'
+            "[initial]\nT_CL_c = 100.0\nT_CH_c = 100.0\nT_clutch_c = 100.0\nT_oil_c = 100.0\nv_mps = 0.0\n"
+            "[[driver]]\nt_s = 0.0\ncreep_request = false\nbrake = 1.0\ndesired_speed_mps = 0.0\n"
+            "[[driver]]\nt_s = 1.0\ncreep_request = true\nbrake = 0.0\ndesired_speed_mps = 0.206\n")
+    tcus: list[TcuRunner] = []
+
+    def factory(db, bus):
+        tcus.append(TcuRunner(Codec(db, TCU_USES), bus))
+        return tcus[0]
+    params = with_overrides(load_params(), {"hydraulics.P_max": 1000.0})
+    summary = run_closed_loop(parse_scenario(text, "dead valve"), params, tcu_factory=factory).summary
+    assert tcus[0].frame_counts()["implausible"]["P_CL"] > 0
+    assert summary["rollback_m"] <= 0.005 and summary["creep_time_s"] == 0.0
