@@ -84,6 +84,7 @@ class Vehicle:
     m_kg: float = c("kg", 100.0, 1e5)
     delta: float = c("1", 1.0, 3.0)  # rotating-mass factor
     eta: float = c("1", 0.5, 1.0)  # clutch-to-wheel torque efficiency
+    input_ratio: float = c("1", 0.1, 20.0)  # engine speed / clutch input speed (i_a): the input speed check
 
 
 @dataclass(frozen=True)

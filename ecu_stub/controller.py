@@ -7,7 +7,8 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   vehicle to the driver's brake only. The hold ends when a launch's pre-fill carries the vehicle.
 * ENGAGE: on the creep request, the on-coming clutch (CL first) is filled at once to the pressure that carries
   ``launch.F_prefill_n`` at the wheel (enough to hold the heaviest vehicle on the steepest documented grade, with
-  rolling resistance); the brake request is dropped when the measured pressure has reached it.
+  rolling resistance); the brake request is dropped when the measured pressure has reached it (never on a pressure
+  the runner's plausibility check found implausible: :mod:`ecu_stub.sensor_checks`).
 * CREEP: a PI controller on vehicle speed sets the wheel force (its reference reaches the desired speed along a
   ramp of ``launch.accel_mps2``, so a launch or a new desired speed is no step); the active clutch's pressure
   follows from the TCU's model of that clutch (torque = mu(T, slip, P) k_geom P, the speed ratio to the wheel,
@@ -76,6 +77,9 @@ class TcuInputs:
     brake_pct: float = 0.0
     desired_speed_mps: float = 0.0
     fault_bits: int = 0  # protocol faults seen by the runner (CRC, counter, range)
+    # False while a measured pressure is implausible (ecu_stub.sensor_checks: P_CL/P_CH then hold the larger of the
+    # measured and the modelled pressure): a launch's brake is not released on a pressure nobody measured
+    pressure_trusted: bool = True
 
     def slip_rpm(self, clutch: str) -> float:
         return self.clutch_in_rpm - (self.cl_out_rpm if clutch == "CL" else self.ch_out_rpm)
@@ -283,7 +287,7 @@ class CreepController:
         v_err = self.v_ref - inp.v_mps
         if self.state == "ENGAGE":
             P = self.P_cmd[self.active] = self.pressure_for(self.active, self.F_cmd, inp)
-            if inp.pressure_mpa(self.active) >= self.cal.launch.prefill_ready_fraction * P:
+            if inp.pressure_trusted and inp.pressure_mpa(self.active) >= self.cal.launch.prefill_ready_fraction * P:
                 self.state, self.brake_request = "CREEP", False
                 self.pid.reset(self.F_cmd)
                 self.v_ref = max(inp.v_mps, 0.0)

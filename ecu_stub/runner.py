@@ -18,7 +18,10 @@ what the TCU has (counted as ``incomplete_answers``). A plant frame belongs to t
 that does not follow the last answered one (ticks the TCU never saw) waits for the next to confirm it.
 
 Before the controller sees the plant's values, VehicleSpeed is voted against the clutch-output speeds
-(:mod:`ecu_stub.plausibility`): replaced by theirs when it alone is implausible, FAULT when no two agree.
+(:mod:`ecu_stub.plausibility`): replaced by theirs when it alone is implausible, FAULT when no two agree; and the
+thermal inputs (measured pressures, clutch input speed, oil leaving each clutch) are checked against the TCU's own
+command, the engine speed and the sump / plate estimate (:mod:`ecu_stub.sensor_checks`): replaced by a
+conservative value when implausible.
 
 Listeners (``--log``) get every frame the TCU took (new, valid) and every frame it sent, first transmissions
 only (neither the presence handshake nor re-sent answers), as the plant logs its side: in lock-step stamped with
@@ -42,6 +45,7 @@ from dsg_hil.protocol.validity import RxState, all_valid
 from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
 from .plausibility import SpeedVoter, Verdict
+from .sensor_checks import SensorChecks
 
 __all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
 
@@ -70,7 +74,8 @@ TX_VALUES = {  # by message sent, in the order of an answer (TCU_CMD last), each
 }
 REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
-FAULT_IMPLAUSIBLE = 0x10  # TCU_STATUS.FaultBits bit 4: a valid frame's speed failed the plausibility vote
+FAULT_IMPLAUSIBLE = 0x10  # TCU_STATUS.FaultBits bit 4: a valid frame's value failed a plausibility check
+CHECKED = ("P_CL", "P_CH", "ClutchInputSpeed", "T_OilCL", "T_OilCH")  # ecu_stub.sensor_checks
 SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
 DRAIN_MAX = 256  # real time: frames already waiting taken before a control cycle, at most (a busy bus: go on)
 
@@ -112,6 +117,7 @@ class TcuRunner:
         # ratios; none for a controller without a TcuCalibration (an FMU: it brings its own checks). Control cycles
         # whose VehicleSpeed the vote replaced ("VehicleSpeed") or whose speeds it found all implausible ("speeds")
         self.speed_vote: SpeedVoter | None = None
+        self.sensor_checks: SensorChecks | None = None
         cal = getattr(self.controller, "cal", None)
         if isinstance(cal, TcuCalibration):
             def scale(message: str, signal: str) -> float:
@@ -121,7 +127,14 @@ class TcuRunner:
                                          scale("PLANT_VEHICLE", "VehicleSpeed"),
                                          max(scale("PLANT_SPEEDS", "CLOutputSpeed"),
                                              scale("PLANT_SPEEDS", "CHOutputSpeed")))
-        self.implausible = {"VehicleSpeed": 0, "speeds": 0}
+            self.sensor_checks = SensorChecks(
+                cal.strategy.hydraulic_lag_s, 0.5 * (scale("PLANT_PRESSURE", "P_CL") + scale("TCU_CMD", "P_CL_Cmd")),
+                cal.vehicle.input_ratio,
+                0.5 * (scale("PLANT_SPEEDS", "ClutchInputSpeed") + scale("PLANT_ENGINE", "EngineSpeed")
+                       / cal.vehicle.input_ratio),
+                {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))})
+        # cycles whose thermal input a check replaced, by signal (ecu_stub.sensor_checks)
+        self.implausible = {"VehicleSpeed": 0, "speeds": 0, **dict.fromkeys(CHECKED, 0)}
         self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
                                       send=self._send_one, recv=recv, on_taken=self._taken if listeners else None)
 
@@ -173,9 +186,22 @@ class TcuRunner:
                 self.implausible["speeds"] += 1
                 return TcuInputs(plant_valid=False, fault_bits=faults)  # FAULT: clutches open, brake requested
             self.implausible["VehicleSpeed"] += 1
-        return TcuInputs(True, e["EngineSpeed"], s["ClutchInputSpeed"], s["CLOutputSpeed"], s["CHOutputSpeed"],
-                         v_mps, p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"], o["T_Sump"],
-                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults)
+        clutch_in, P_CL, P_CH, T_CL, T_CH = s["ClutchInputSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"]
+        trusted = True
+        if (checks := self.sensor_checks) is not None:
+            values = {"P_CL": P_CL, "P_CH": P_CH, "ClutchInputSpeed": clutch_in, "EngineSpeed": e["EngineSpeed"],
+                      "T_OilCL": T_CL, "T_OilCH": T_CH, "T_Sump": o["T_Sump"]}
+            failing = checks.update(values, getattr(self.controller, "T_pred", None), now)
+            if failing:  # a sensor fault: the value replaced by a conservative one
+                faults |= FAULT_IMPLAUSIBLE
+                for name in failing:
+                    self.implausible[name] += 1
+                clutch_in, P_CL, P_CH = values["ClutchInputSpeed"], values["P_CL"], values["P_CH"]
+                T_CL, T_CH = values["T_OilCL"], values["T_OilCH"]
+                trusted = "P_CL" not in failing and "P_CH" not in failing
+        return TcuInputs(True, e["EngineSpeed"], clutch_in, s["CLOutputSpeed"], s["CHOutputSpeed"],
+                         v_mps, P_CL, P_CH, T_CL, T_CH, o["T_Sump"],
+                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults, trusted)
 
     def control(self, now: float, echo: int = 0) -> Frames:
         """One controller cycle at ``now``, its frames sent (see :meth:`_step`); returns them, as (ID, data)."""
@@ -191,6 +217,8 @@ class TcuRunner:
         self.now = tick_ms / CV.S_TO_MS if lockstep else now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
+        if self.sensor_checks is not None:
+            self.sensor_checks.commanded(out.P_CL_cmd_mpa, out.P_CH_cmd_mpa)
         tx, frames = link.tx, []
         due = tx.due_ms(tick_ms) if lockstep else tx.due(now)  # lock-step: whole ms
         for name in TX_VALUES:  # TCU_STATUS, then TCU_CMD
@@ -206,6 +234,8 @@ class TcuRunner:
         self.controller = type(self.controller)(self.controller.cal)
         if self.speed_vote is not None:
             self.speed_vote.reset()
+        if self.sensor_checks is not None:
+            self.sensor_checks.reset()
         self.now = now
 
     def _taken(self, frame_id: int, data: bytes, stamp: float) -> None:
@@ -238,7 +268,8 @@ class TcuRunner:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost
         (counter gaps) and duplicates; lock-step ticks the plant went on from without the TCU (``ticks_missed``,
         see :class:`LockstepResponder`); and the control cycles with implausible speeds, by cause
-        (``implausible``: VehicleSpeed replaced by the shafts' speed, or no speed trusted)."""
+        (``implausible``: VehicleSpeed replaced by the shafts' speed, or no speed trusted; and by signal the cycles
+        whose P_CL, P_CH, ClutchInputSpeed, T_OilCL or T_OilCH a check of :mod:`ecu_stub.sensor_checks` replaced)."""
         rx = self.rx.counts()
         return {"sent": self.sent, "answers_resent": self.answers_resent, "implausible": dict(self.implausible),
                 "incomplete_answers": self.incomplete_answers, "ticks_missed": self.link.ticks_missed,

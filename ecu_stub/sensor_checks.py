@@ -1,0 +1,253 @@
+"""Plausibility of the TCU's thermal inputs: the measured pressures, the clutch input speed and the oil leaving each
+clutch, each checked against redundant information the TCU has (issue 18).
+
+The plate prediction (:mod:`ecu_stub.clutch_model`) and the thermal monitor use ``P_CL/P_CH`` (the heat is
+mu k_geom P |slip|), ``ClutchInputSpeed`` (the slip) and ``T_OilCL/T_OilCH`` (the plate cools towards them). A
+frame with a valid CRC and counter can carry a wrong value: on a 20-s creep from CL 228 degC / CH 245 degC / oil
+130 degC on Table I's grade (docs/safety.md, section 4) ``T_OilCL`` stuck at 40 degC took CL's true plate to
+300 degC, ``P_CL`` stuck at 0 to 253 degC. Each check below is debounced as the speed vote
+(:mod:`ecu_stub.plausibility`): a one-sided CUSUM of the excess beyond a tolerance, failing once it passes a bound
+that a sensor without a fault cannot reach, and for :data:`~ecu_stub.plausibility.HEAL_S` after (a cycle counts at
+most :data:`~ecu_stub.plausibility.MAX_DT_S`). A run without a sensor fault never reaches a bound, so the TCU gets
+the very same inputs, and sends the very same frames, as without the checks.
+
+**1. Measured pressure vs the TCU's own command** (:class:`PressureCheck`). The piston pressure follows the command
+with a first-order lag ``strategy.hydraulic_lag_s`` = 50 ms (identified, ``calibration.toml``; the plant's
+``hydraulics.tau``). The TCU models it: P_m <- cmd + (P_m - cmd) exp(-dt / lag), with cmd the command it sent the
+cycle before (the plant applies it over the next period and measures at the next tick).
+
+* Tolerance ``tol = q_P + q_cmd + P_ABS_MPA + P_REL * max(P, P_m)``: half a DBC step of each (0.05 kPa), 0.02 MPa
+  (1 % of the DBC's 2-MPa range, a pressure sensor's accuracy) and 5 % of the pressure (the valve's gain).
+* Bound on the integral of the excess, ``P_IMPULSE_MPA_S`` = 0.075 MPa s: two first-order lags tau_a, tau_b of the
+  same command step dP differ by dP (exp(-t/tau_a) - exp(-t/tau_b)), whose integral is dP (tau_a - tau_b): with
+  the lag known within 20 ms (40 % of 50 ms: a solenoid's lag changes with the oil's viscosity) and dP at most the
+  command range 1.5 MPa, 0.03 MPa s; x2 for a swing from one sign to the other: 0.06 MPa s. Plus in real time a
+  command reaching the valve one 10-ms cycle late: 10 ms x 1.5 MPa = 0.015 MPa s (0 in lock-step).
+  A P_CL stuck at 0 under a creep pressure of 0.3 MPa passes it in about 0.3 s.
+* Reaction: the larger of the measured and the modelled pressure (the heat is monotonic in P: the prediction stays
+  on the safe side whichever of the two is wrong; a valve that really does not follow its command is as
+  implausible, and then the measurement is the larger). A launch's brake is not released on an implausible
+  pressure (``TcuInputs.pressure_trusted``): with a valve that builds no pressure the modelled pressure would say
+  the pre-fill carries the vehicle (4.5 m of roll-back on Table I's grade), so the vehicle stays held. Frames of
+  the TCU's lost on the bus trip this check too (the plant's fallback releases the pressures while the model
+  follows the commands; 0.082 MPa s for 0.5 s of dropped TCU_CMD): the larger, the command, is then used.
+
+**2. Clutch input speed vs engine speed** (:class:`InputSpeedCheck`). Shaft I (both clutch drums) turns with the
+engine through the reduction ``vehicle.input_ratio`` (i_a = 5.3585, Table I; in the calibration with its source)
+and two shafts (K_in, K_a1): omega_I = omega_e / i_a plus what the shafts twist.
+
+* Tolerance ``tol = q_in + q_e / i_a + N_ABS_RPM + N_REL * max``: half a DBC step of each (0.05 r/min;
+  0.125 r/min / i_a), 1 % (the published ratio's rounding) and ``N_ABS_RPM`` = 40 r/min for a ringing shaft: a
+  cold pack's high friction excites the clutch-hub modes (~330 Hz, Table I's damping 0.5 N m s/rad), and sampled
+  every 10 ms these alias to a slow apparent difference of their amplitude, which no integral bounds: 23.3 r/min
+  measured (plates at 40 degC, oil 150 degC, Table I's grade), 1 r/min in the other closed-loop runs; x1.7. (The
+  angle bound then holds only for the true twist, which the tolerance does not need.)
+* Bound on the angle between the two (the integral of the speed difference), ``ANGLE_RAD`` = 0.5 rad at shaft I:
+  the clutches' largest torque, 2 x mu k_geom P_max = 2 x 0.07 x 0.027338 m^3 x 1.5 MPa = 5.74 kN m, twists K_a1 =
+  89389 N m/rad by 0.064 rad (and K_in = 283429 N m/rad, at the engine, by 0.004 rad / i_a); x2 for a step's
+  overshoot and x2 for a swing: 0.26 rad. Plus in real time PLANT_ENGINE and PLANT_SPEEDS held from frames one
+  10-ms cycle apart: 10 ms x 20 rad/s of shaft-I speed change (an idle step of 1000 r/min at the engine): 0.2 rad.
+  An input speed stuck at 0 at the 800-r/min idle (149 r/min at shaft I) passes it in about 0.05 s; one that reads
+  less than 40 r/min under the truth is not caught (the heat then under-predicted by up to 40 / 90 r/min of a creep
+  slip: left open).
+* Reaction: the larger of the two speeds (the larger slip: a clutch's input turns faster than its output while it
+  drives the vehicle, so the heat predicted is the larger; an engine speed stuck high only makes the TCU stop
+  early).
+
+**3. Oil leaving a clutch vs its balance with the plate and the sump** (:class:`OilCheck`). The oil leaving a
+pack has been fed from the sump (through pump and valve) and has passed the plates; it settles within 0.18 s
+(``strategy.startup_observer_s``' derivation) to the balance K (T_plate - T_out) = cooling (T_out - T_sump) that the
+start-up observer uses, with the identified ``K_plate_oil_w_k`` and ``cooling_w_k``:
+
+    T_balance = (K T_plate + cooling T_sump) / (K + cooling)          (CL: 99.6 % plate; CH: 92.4 %)
+
+with the TCU's plate estimate of the last cycle for T_plate. A plate colder than the sump (a cold pack in hot oil)
+legitimately cools its oil below the sump's: the balance follows it, a comparison with the sump alone would not.
+The check is one-sided: oil reading *colder* than the balance makes the prediction cool its plate too fast (the
+hazard); hotter is on the safe side.
+
+* Tolerance ``OIL_TOL_K`` = 10 K: 3.5 K the prediction's error (``strategy.prediction_error_k``, taken as large
+  over the truth as under it), 1 K the fit of the balance (RMS 0.90 K CL, 0.55 K CH, ``calibration.toml``), 1 K
+  the oil's lag behind a plate heating at 5 K/s (0.18 s), 0.5 K of PLANT_OIL_TEMP's 100-ms cycle at that rate, 1 K
+  the losses of pump, valve and pack to the environment (the feed is not quite the sump), 0.1 K the DBC steps:
+  7.1 K, rounded up to 10 K for conditions beyond the identification runs.
+* Bound on the integral of the excess, ``OIL_KS`` = 2 K s (a deficit 10 K beyond the tolerance for 0.2 s). Its
+  cost: until it is passed the prediction cools towards the wrong value, (K / C) x the integral of the oil's error:
+  a T_OilCL stuck at 40 degC under a 228-degC plate passes it in 2 cycles (deficit 178 K beyond the tolerance), in
+  which CL's prediction may lose up to K / C x 188 K x 0.02 s = 0.667 /s x 3.8 K s = 2.5 K (the adiabatic
+  substitute then makes up for more: measured, CL's truth peaks at 240.8 degC against 245.4 degC without the
+  fault). The largest integral without a sensor fault, 0.34 K s (a cold pack in hot oil: plates 40 degC, oil
+  150 degC), leaves a factor 6.
+* Reaction: the prediction takes as that clutch's oil the hottest credible value: the measurement, the sump and
+  the plate estimate itself, the largest (with the plate's own estimate the plate exchanges no heat: an adiabatic,
+  conservative prediction).
+
+Not covered: a value stuck at what the redundant information says (a sensor frozen at its last value while nothing
+changes), and, for the oil, a sensor already wrong when the TCU starts (the start-up observer takes the plate from
+it). There is no FAULT reaction here: each check has a conservative substitute that needs no other sensor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from .plausibility import HEAL_S, MAX_DT_S
+
+__all__ = ["ANGLE_RAD", "InputSpeedCheck", "N_ABS_RPM", "N_REL", "OIL_KS", "OIL_TOL_K", "OilCheck", "P_ABS_MPA",
+           "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "SensorChecks", "Sustained"]
+
+P_ABS_MPA = 0.02  # pressure sensor accuracy: 1 % of the DBC's 2-MPa range [MPa]
+P_REL = 0.05  # the valve's gain [1]
+P_IMPULSE_MPA_S = 0.075  # lag uncertainty 2 x 20 ms x 1.5 MPa + real-time skew 10 ms x 1.5 MPa [MPa s]
+N_REL = 0.01  # input reduction i_a as published [1]
+N_ABS_RPM = 40.0  # a ringing shaft's aliased speed at shaft I (23.3 r/min measured, x1.7) [r/min]
+ANGLE_RAD = 0.5  # shaft twist 4 x 0.065 rad + real-time skew 10 ms x 20 rad/s, at shaft I [rad]
+OIL_TOL_K = 10.0  # oil leaving a clutch below its balance with plate estimate and sump, without a sensor fault [K]
+OIL_KS = 2.0  # integral of the oil's deficit beyond OIL_TOL_K [K s]
+_RPM_TO_RAD_S = math.pi / 30.0
+_EPS_S = 1e-9
+
+
+@dataclass(slots=True)
+class Sustained:
+    """One-sided CUSUMs of a difference beyond its tolerance: ``over[0]`` = the largest integral of
+    (difference - tol) over the intervals ending now, ``over[1]`` that of (-difference - tol) (only the first if
+    ``one_sided``): a difference that swings from one sign to the other (a shaft ringing) adds up on neither, a
+    sustained one on one. Passing ``bound`` sets ``last_over`` and starts both afresh; failing for :data:`HEAL_S`
+    after that (as :class:`ecu_stub.plausibility.PairCheck`)."""
+
+    bound: float
+    one_sided: bool = False
+    over: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    last_over: float | None = None
+    largest: float = 0.0  # the largest integral seen (how close a run without a sensor fault came)
+
+    def update(self, difference: float, tol: float, dt: float, now: float) -> bool:
+        over = self.over
+        over[0] = max(0.0, over[0] + (difference - tol) * dt)
+        if not self.one_sided:
+            over[1] = max(0.0, over[1] + (-difference - tol) * dt)
+        self.largest = max(self.largest, over[0], over[1])
+        if over[0] > self.bound or over[1] > self.bound:
+            self.last_over, over[0], over[1] = now, 0.0, 0.0
+        return self.failing(now)
+
+    def failing(self, now: float) -> bool:
+        return self.last_over is not None and now - self.last_over < HEAL_S - _EPS_S
+
+
+@dataclass(slots=True)
+class PressureCheck:
+    """One clutch's measured pressure vs the lag of the TCU's own command (module docstring, 1). ``lag_s``: the
+    calibration's ``strategy.hydraulic_lag_s``; ``q_mpa``: half a DBC step of the measurement plus the command's."""
+
+    lag_s: float
+    q_mpa: float
+    model_mpa: float | None = None  # the modelled pressure at the last update [MPa]
+    check: Sustained = field(default_factory=lambda: Sustained(P_IMPULSE_MPA_S))
+
+    def update(self, measured: float, cmd: float, dt: float, now: float, elapsed: float | None = None
+               ) -> tuple[bool, float]:
+        """One cycle: ``cmd`` the command sent the cycle before, held for ``elapsed`` [s] (default ``dt``; ``dt``
+        counts in the CUSUM). (failing, the pressure to use [MPa])."""
+        if self.model_mpa is None:
+            self.model_mpa = measured
+        else:
+            held = dt if elapsed is None else elapsed
+            self.model_mpa = cmd + (self.model_mpa - cmd) * math.exp(-held / self.lag_s)
+        m = self.model_mpa
+        tol = self.q_mpa + P_ABS_MPA + P_REL * max(abs(measured), abs(m))
+        self.check.update(measured - m, tol, dt, now)
+        failing = self.check.failing(now)
+        return failing, max(measured, m) if failing else measured
+
+
+@dataclass(slots=True)
+class InputSpeedCheck:
+    """ClutchInputSpeed vs EngineSpeed / i_a (module docstring, 2); speeds in r/min, ``q_rpm`` half DBC steps."""
+
+    input_ratio: float
+    q_rpm: float
+    check: Sustained = field(default_factory=lambda: Sustained(ANGLE_RAD))
+
+    def update(self, clutch_in: float, engine: float, dt: float, now: float) -> tuple[bool, float]:
+        """(failing, the clutch input speed to use [r/min])."""
+        via_engine = engine / self.input_ratio
+        tol = self.q_rpm + N_ABS_RPM + N_REL * max(abs(clutch_in), abs(via_engine))
+        self.check.update((clutch_in - via_engine) * _RPM_TO_RAD_S, tol * _RPM_TO_RAD_S, dt, now)
+        failing = self.check.failing(now)
+        return failing, max(clutch_in, via_engine) if failing else clutch_in
+
+
+@dataclass(slots=True)
+class OilCheck:
+    """The oil leaving one clutch vs its balance with the plate estimate and the sump (module docstring, 3); degC.
+    ``sump_share``: cooling / (K + cooling) of that clutch's calibration."""
+
+    sump_share: float
+    check: Sustained = field(default_factory=lambda: Sustained(OIL_KS, one_sided=True))
+
+    def update(self, oil: float, sump: float, plate: float | None, dt: float, now: float) -> tuple[bool, float]:
+        """(failing, the oil temperature to use [degC]); ``plate``: the TCU's estimate, None before it has one (then
+        nothing is checked)."""
+        balance = oil if plate is None else plate + self.sump_share * (sump - plate)
+        self.check.update(balance - oil, OIL_TOL_K, dt, now)
+        failing = self.check.failing(now)
+        return failing, max(oil, sump, plate if plate is not None else sump) if failing else oil
+
+
+@dataclass(slots=True)
+class SensorChecks:
+    """The three checks of both clutches, run each control cycle by :meth:`update`; ``last_now`` and the commands
+    of the last cycle (:meth:`commanded`) carried between cycles."""
+
+    lag_s: float
+    q_p_mpa: float
+    input_ratio: float
+    q_n_rpm: float
+    sump_share: dict[str, float]  # by clutch: cooling / (K + cooling) of the calibration
+    last_now: float | None = None
+    cmd_mpa: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
+    pressure: dict[str, PressureCheck] = field(init=False)
+    speed: InputSpeedCheck = field(init=False)
+    oil: dict[str, OilCheck] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the history (a restarted run)."""
+        self.pressure = {c: PressureCheck(self.lag_s, self.q_p_mpa) for c in ("CL", "CH")}
+        self.speed = InputSpeedCheck(self.input_ratio, self.q_n_rpm)
+        self.oil = {c: OilCheck(self.sump_share[c]) for c in ("CL", "CH")}
+        self.last_now, self.cmd_mpa = None, {"CL": 0.0, "CH": 0.0}
+
+    def commanded(self, P_CL_mpa: float, P_CH_mpa: float) -> None:
+        """The commands the TCU sends this cycle (the pressures' model follows them from the next)."""
+        self.cmd_mpa["CL"], self.cmd_mpa["CH"] = P_CL_mpa, P_CH_mpa
+
+    def update(self, values: dict[str, float], plate: dict[str, float] | None, now: float) -> list[str]:
+        """One cycle at ``now`` on the decoded ``values`` (by signal name: P_CL, P_CH, ClutchInputSpeed,
+        EngineSpeed, T_OilCL, T_OilCH, T_Sump), which it replaces in place by the values to use where a check
+        fails; ``plate`` the TCU's plate estimates (None before it has one). Returns the failing signals."""
+        elapsed = 0.0 if self.last_now is None else now - self.last_now
+        dt = min(elapsed, MAX_DT_S)
+        self.last_now = now
+        failing = []
+        for c in ("CL", "CH"):
+            name = f"P_{c}"
+            bad, values[name] = self.pressure[c].update(values[name], self.cmd_mpa[c], dt, now, elapsed)
+            if bad:
+                failing.append(name)
+        bad, values["ClutchInputSpeed"] = self.speed.update(values["ClutchInputSpeed"], values["EngineSpeed"], dt,
+                                                            now)
+        if bad:
+            failing.append("ClutchInputSpeed")
+        for c in ("CL", "CH"):
+            name = f"T_Oil{c}"
+            bad, values[name] = self.oil[c].update(values[name], values["T_Sump"],
+                                                   None if plate is None else plate[c], dt, now)
+            if bad:
+                failing.append(name)
+        return failing

@@ -1,0 +1,249 @@
+"""Plausibility of the TCU's thermal inputs (ecu_stub/sensor_checks.py) on hand numbers: agreement never trips, a
+stuck value trips within the time its tolerance and bound give, the conservative substitute is used, and a repaired
+sensor is trusted again; then the three stuck sensors of issue 18 in the closed loop, judged on the plant's truth."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from dsg_hil.physics.params import load_params, with_overrides
+from dsg_hil.protocol import Codec
+from dsg_hil.sim.loop import run_closed_loop
+from dsg_hil.sim.scenario import parse_scenario
+from ecu_stub.calibration import load_calibration
+from ecu_stub.plausibility import HEAL_S
+from ecu_stub.runner import TCU_USES, TcuRunner
+from ecu_stub.sensor_checks import (ANGLE_RAD, N_ABS_RPM, OIL_KS, OIL_TOL_K, P_ABS_MPA, P_IMPULSE_MPA_S, P_REL,
+                                    InputSpeedCheck, OilCheck, PressureCheck, SensorChecks)
+
+DT = 0.01  # TCU_CMD cycle [s]
+LAG = 0.05  # strategy.hydraulic_lag_s [s]
+Q_P = 0.0001  # half a DBC step of P_CL plus of P_CL_Cmd [MPa]
+I_A = 5.3585  # Table I's i_a
+Q_N = 0.05 + 0.125 / I_A  # half a DBC step of ClutchInputSpeed plus of EngineSpeed / i_a [r/min]
+SHARE = {"CL": 3.42 / (918.66 + 3.42), "CH": 74.98 / (914.57 + 74.98)}  # cooling / (K + cooling), calibration
+
+
+def first_failing(results) -> int | None:
+    return next((k for k, (bad, _) in enumerate(results) if bad), None)
+
+
+# ---- 1. pressure vs command -----------------------------------------------------------------------------------
+
+def lagged(commands, P0=0.0, lag=LAG):
+    """The pressure a first-order lag gives, one value per 10-ms cycle, the command of the cycle before held."""
+    out, P, cmd = [], P0, P0
+    for c in commands:
+        P = cmd + (P - cmd) * math.exp(-DT / lag)
+        out.append(P)
+        cmd = c
+    return out
+
+
+def test_a_pressure_following_its_command_never_trips_even_with_another_lag():
+    commands = [0.3 if (k // 50) % 2 else 1.5 if (k // 25) % 3 == 0 else 0.0 for k in range(2000)]  # steps, 20 s
+    for lag in (0.05, 0.04, 0.06):  # the plant's lag, and 10 ms either side of the TCU's
+        check = PressureCheck(LAG, Q_P)
+        measured = lagged(commands, lag=lag)
+        out = [check.update(P, cmd, DT, k * DT) for k, (P, cmd) in
+               enumerate(zip(measured, [0.0, *commands[:-1]], strict=True))]
+        assert first_failing(out) is None, lag
+        assert [P for _, P in out] == measured  # passed through unchanged
+        assert check.check.largest < P_IMPULSE_MPA_S
+
+
+def test_a_pressure_stuck_at_zero_trips_within_the_derived_time_and_the_model_is_used():
+    check = PressureCheck(LAG, Q_P)
+    for k in range(100):  # settled at 0.3 MPa
+        check.update(0.3, 0.3, DT, k * DT)
+    out = [check.update(0.0, 0.3, DT, (100 + k) * DT) for k in range(50)]
+    # excess 0.3 - (0.0001 + 0.02 + 5 % x 0.3) = 0.2649 MPa: 0.075 MPa s in 0.283 s, the 29th cycle
+    excess = 0.3 - (Q_P + P_ABS_MPA + P_REL * 0.3)
+    assert first_failing(out) == math.ceil(P_IMPULSE_MPA_S / excess / DT) - 1 == 28
+    assert all(P == 0.0 for _, P in out[:28]) and all(P == pytest.approx(0.3) for _, P in out[28:])
+
+
+def test_a_pressure_stuck_high_is_implausible_too_and_the_larger_is_used():
+    check = PressureCheck(LAG, Q_P)
+    out = [check.update(1.0, 0.0, DT, k * DT) for k in range(1, 30)]
+    assert first_failing(out) is not None and out[-1] == (True, 1.0)
+
+
+# ---- 2. clutch input speed vs engine speed ----------------------------------------------------------------------
+
+def test_the_input_speed_following_the_engine_never_trips_even_ringing():
+    check = InputSpeedCheck(I_A, Q_N)
+    engine = 800.0
+    # a cold pack's clutch-hub ringing, aliased by the 10-ms sampling: +-23 r/min, held for 0.5 s each side
+    out = [check.update(engine / I_A + (23.0 if (k // 50) % 2 else -23.0), engine, DT, k * DT) for k in range(2000)]
+    assert first_failing(out) is None and check.check.largest == 0.0
+
+
+def test_an_input_speed_stuck_at_zero_trips_within_the_derived_time_and_the_engine_speed_is_used():
+    check = InputSpeedCheck(I_A, Q_N)
+    for k in range(100):
+        check.update(149.3, 800.0, DT, k * DT)
+    out = [check.update(0.0, 800.0, DT, (100 + k) * DT) for k in range(20)]
+    # excess 149.3 - (0.073 + 40 + 1 % x 149.3) = 107.7 r/min = 11.28 rad/s: 0.5 rad in 0.044 s, the 5th cycle
+    excess = (800.0 / I_A - Q_N - N_ABS_RPM - 0.01 * 800.0 / I_A) * math.pi / 30
+    assert first_failing(out) == math.ceil(ANGLE_RAD / excess / DT) - 1 == 4
+    assert out[-1] == (True, pytest.approx(800.0 / I_A))
+
+
+def test_the_angle_bound_is_the_shaft_twist_of_table_i_plus_the_skew():
+    """2 x mu k_geom P_max over K_a1, K_in's twist under the engine side's torque, x4, + 10 ms x 20 rad/s."""
+    pt = load_params().powertrain
+    torque = 2 * 0.07 * 0.027338 * 1.5e6
+    twist = torque / pt.K_a1 + torque / (pt.i_a * pt.eta_a) / pt.K_in / pt.i_a
+    assert twist == pytest.approx(0.0645, abs=5e-4) and 4 * twist + 0.010 * 20.0 <= ANGLE_RAD
+
+
+def test_the_calibrations_input_ratio_is_the_gearboxs():
+    assert load_calibration().vehicle.input_ratio == load_params().powertrain.i_a
+
+
+# ---- 3. oil leaving a clutch vs its balance with plate and sump ----------------------------------------------
+
+def balance(plate: float, sump: float, clutch: str = "CL") -> float:
+    return plate + SHARE[clutch] * (sump - plate)
+
+
+def test_the_balance_is_the_start_up_observers_inverted():
+    """The observer's plate from the oil, T_out + cooling / K (T_out - T_sump), put back into the balance."""
+    cal = load_calibration()
+    for clutch in ("CL", "CH"):
+        c = cal.clutch(clutch)
+        T_out, sump = 180.0, 130.0
+        plate = T_out + c.cooling_w_k / c.K_plate_oil_w_k * (T_out - sump)
+        assert balance(plate, sump, clutch) == pytest.approx(T_out)
+        assert c.cooling_w_k / (c.K_plate_oil_w_k + c.cooling_w_k) == pytest.approx(SHARE[clutch])
+
+
+def test_oil_cooled_by_a_cold_plate_below_the_sump_never_trips():
+    check = OilCheck(SHARE["CL"])
+    # a cold pack (plate 40 degC, heating) in hot oil (sump 150 degC): its oil leaves near the plate's temperature
+    out = [check.update(balance(40.0 + 0.05 * k, 150.0) - 0.5, 150.0, 40.0 + 0.05 * k, DT, k * DT)
+           for k in range(2000)]
+    assert first_failing(out) is None and check.check.largest == 0.0
+    out = [check.update(balance(230.0, 120.0) - OIL_TOL_K + 0.1, 120.0, 230.0, DT, k * DT)
+           for k in range(2000)]  # just within the tolerance, for 20 s
+    assert first_failing(out) is None
+    hotter = OilCheck(SHARE["CH"])  # oil hotter than the balance: on the safe side, never implausible
+    assert first_failing([hotter.update(300.0, 130.0, 150.0, DT, k * DT) for k in range(500)]) is None
+
+
+def test_oil_stuck_cold_trips_within_the_derived_time_and_the_hottest_credible_value_is_used():
+    check = OilCheck(SHARE["CL"])
+    out = [check.update(40.0, 130.0, 228.0, DT, k * DT) for k in range(20)]
+    # deficit 227.65 - 10 - 40 = 177.65 K beyond the tolerance: 2 K s in 0.0113 s, the 2nd cycle
+    deficit = balance(228.0, 130.0) - OIL_TOL_K - 40.0
+    assert deficit == pytest.approx(177.64, abs=0.01)
+    assert first_failing(out) == math.ceil(OIL_KS / deficit / DT) - 1 == 1
+    assert out[-1] == (True, 228.0)  # the plate's own estimate: no cooling assumed
+
+
+def test_no_oil_check_before_the_tcu_has_a_plate_estimate():
+    check = OilCheck(SHARE["CL"])
+    assert first_failing([check.update(40.0, 130.0, None, DT, k * DT) for k in range(100)]) is None
+
+
+def test_a_repaired_sensor_is_trusted_again_after_the_heal_time():
+    check = OilCheck(SHARE["CL"])
+    t = 0.0
+    for _ in range(20):
+        t += DT
+        check.update(40.0, 130.0, 228.0, DT, t)
+    tripped = check.check.last_over
+    assert tripped is not None
+    t += DT
+    assert check.update(228.0, 130.0, 228.0, DT, t) == (True, 228.0)
+    t = tripped + HEAL_S + DT
+    assert check.update(227.0, 130.0, 228.0, DT, t) == (False, 227.0)
+
+
+def test_sensor_checks_replace_only_the_failing_values_and_name_them():
+    checks = SensorChecks(LAG, Q_P, I_A, Q_N, SHARE)
+    good = {"P_CL": 0.3, "P_CH": 0.0, "ClutchInputSpeed": 149.3, "EngineSpeed": 800.0, "T_OilCL": 228.0,
+            "T_OilCH": 200.0, "T_Sump": 130.0}
+    plate = {"CL": 228.5, "CH": 201.0}
+    checks.commanded(0.3, 0.0)
+    for k in range(100):
+        values = dict(good)
+        assert checks.update(values, plate, k * DT) == [] and values == good
+    for k in range(100, 140):
+        values = dict(good, T_OilCL=40.0, ClutchInputSpeed=0.0)
+        failing = checks.update(values, plate, k * DT)
+    assert failing == ["ClutchInputSpeed", "T_OilCL"]
+    assert values["T_OilCL"] == 228.5 and values["ClutchInputSpeed"] == pytest.approx(800.0 / I_A)
+    assert values["P_CL"] == 0.3 and values["T_OilCH"] == 200.0
+    checks.reset()
+    values = dict(good, T_OilCL=40.0)
+    assert checks.update(values, plate, 0.0) == [] and values["T_OilCL"] == 40.0
+
+
+# ---- the closed loop: issue 18's stuck sensors -------------------------------------------------------------------
+
+STUCK = {  # signal -> (the fault's target, the value held)
+    "T_OilCL": ("PLANT_OIL_TEMP.T_OilCL", 40.0),
+    "P_CL": ("PLANT_PRESSURE.P_CL", 0.0),
+    "ClutchInputSpeed": ("PLANT_SPEEDS.ClutchInputSpeed", 0.0),
+    "T_OilCH": ("PLANT_OIL_TEMP.T_OilCH", 40.0),
+    "P_CH": ("PLANT_PRESSURE.P_CH", 0.0),
+}
+
+
+def hot_creep(fault: str = "", stuck: tuple[str, float] | None = None):
+    """20-s creep from CL 228 / CH 245 / oil 130 degC on Table I's grade, the signal ``fault`` (of :data:`STUCK`), or
+    ``stuck`` = (MESSAGE.Signal, value), stuck from 2 s to the end: summary and the TCU's counts."""
+    text = ('name = "hot creep"\nduration_s = 20.0\ngrade_rad = 0.174\nengine_speed_rpm = 800.0\n'
+            "[initial]\nT_CL_c = 228.0\nT_CH_c = 245.0\nT_clutch_c = 228.0\nT_oil_c = 130.0\nv_mps = 0.0\n"
+            "[[driver]]\nt_s = 0.0\ncreep_request = false\nbrake = 1.0\ndesired_speed_mps = 0.0\n"
+            "[[driver]]\nt_s = 1.0\ncreep_request = true\nbrake = 0.0\ndesired_speed_mps = 0.206\n")
+    if fault or stuck:
+        target, value = stuck or STUCK[fault]
+        text += f'[[fault]]\nkind = "stuck"\ntarget = "{target}"\nvalue = {value}\nstart_s = 2.0\nend_s = 20.0\n'
+    tcus: list[TcuRunner] = []
+
+    def factory(db, bus):
+        tcus.append(TcuRunner(Codec(db, TCU_USES), bus))
+        return tcus[0]
+    run = run_closed_loop(parse_scenario(text, "hot creep"), load_params(), tcu_factory=factory)
+    return run.summary, tcus[0].frame_counts()
+
+
+def test_without_a_sensor_fault_no_check_trips():
+    summary, counts = hot_creep()
+    assert summary["stop_reason"] == "STOPPED_OVERHEAT" and max(summary["max_plate_temp_c"].values()) <= 250.0
+    assert set(counts["implausible"].values()) == {0}
+
+
+@pytest.mark.parametrize("signal", sorted(STUCK))
+def test_a_stuck_thermal_input_keeps_the_true_plate_under_t_safe(signal):
+    """Before the checks: T_OilCL stuck at 40 degC took CL's true plate to 300.1 degC, P_CL stuck at 0 to 253.0 degC,
+    ClutchInputSpeed stuck at 0 to 249.8 degC, T_OilCH at 40 degC CH's to 250.01 degC, P_CH at 0 to 250.06 degC
+    (with no fault: CL 245.4, CH 245.0 degC)."""
+    summary, counts = hot_creep(signal)
+    assert max(summary["max_plate_temp_c"].values()) <= 250.0 and set(summary["time_above_limit_s"].values()) == {0.0}
+    assert counts["implausible"][signal] > 0
+    assert all(n == 0 for name, n in counts["implausible"].items() if name != signal)
+
+
+def test_a_valve_that_builds_no_pressure_keeps_the_launch_on_the_brake():
+    """A real hydraulic failure (the plant's valve reaches 1 kPa at most): the measured pressure is right and the
+    check finds it implausible against the command; the prediction then uses the command's model (the larger),
+    but the launch's brake is not released on it: the vehicle stays held on Table I's grade."""
+    text = ('name = "dead valve"\nduration_s = 6.0\ngrade_rad = 0.174\nengine_speed_rpm = 800.0\n'
+            "[initial]\nT_CL_c = 100.0\nT_CH_c = 100.0\nT_clutch_c = 100.0\nT_oil_c = 100.0\nv_mps = 0.0\n"
+            "[[driver]]\nt_s = 0.0\ncreep_request = false\nbrake = 1.0\ndesired_speed_mps = 0.0\n"
+            "[[driver]]\nt_s = 1.0\ncreep_request = true\nbrake = 0.0\ndesired_speed_mps = 0.206\n")
+    tcus: list[TcuRunner] = []
+
+    def factory(db, bus):
+        tcus.append(TcuRunner(Codec(db, TCU_USES), bus))
+        return tcus[0]
+    params = with_overrides(load_params(), {"hydraulics.P_max": 1000.0})
+    summary = run_closed_loop(parse_scenario(text, "dead valve"), params, tcu_factory=factory).summary
+    assert tcus[0].frame_counts()["implausible"]["P_CL"] > 0
+    assert summary["rollback_m"] <= 0.005 and summary["creep_time_s"] == 0.0
