@@ -52,12 +52,14 @@ from .clutch_model import heat_w, mu_lookup, nm_per_mpa
 from .monitor import ThermalMonitor, crossover_heat_w, release_time_s
 from .pid import PID
 
-__all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "TcuInputs", "TcuOutputs"]
+__all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "TcuInputs",
+           "TcuOutputs"]
 
 OTHER = {"CL": "CH", "CH": "CL"}
 FAULT_PLANT_MISSING = 0x01
 BRAKE_PRESSED_PCT = 5.0
 CLUTCH_OPEN_MPA = 0.02  # measured piston pressure under which a clutch carries next to nothing (downhill check)
+RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (issue 18: +-20 %), speeding up
 
 
 @dataclass(slots=True)  # not frozen: built every control period, a frozen one costs several times more
@@ -336,13 +338,27 @@ class CreepController:
         """Downhill: at creep speeds both clutches slip forwards and cannot brake, so once the vehicle is more than
         ``speed.overspeed_fraction`` over its target and still speeding up with both clutches open, the TCU
         requests the brake (speed controller held at zero force) until the vehicle stands: long enough for the
-        request to reach the brakes (TCU_STATUS), which stop it at once (one bit: the full service brake)."""
+        request to reach the brakes (TCU_STATUS), which stop it at once (one bit: the full service brake).
+
+        The clutches not following their commands (a measured pressure implausible against the command,
+        ``inp.pressure_trusted`` False: a valve that builds no pressure, or the TCU's commands lost on the bus, after
+        which the gearbox releases both clutches) with the vehicle rolling back or over its target: nothing carries
+        the vehicle, so the TCU requests the brake and holds it while the pressures stay implausible, standing or
+        not (released, the vehicle would roll again). Over its target means here beyond the drivability band
+        (:data:`RUNAWAY_FRACTION`) and still speeding up: a launch's overshoot (+7 % on Table I's grade) is not a
+        runaway. A sensor reading wrong on a clutch that works moves the vehicle as commanded: no brake against
+        the clutch."""
         # speeding up with both clutches open (commanded and measured): the slope pushes, not a lagging piston
         pushed = inp.v_mps > last.v_mps and self.F_cmd <= 0.0 and max(inp.P_CL_mpa, inp.P_CH_mpa) < CLUTCH_OPEN_MPA
         braking = self.brake_request
-        if inp.v_mps > inp.desired_speed_mps * (1.0 + self.cal.speed.overspeed_fraction) and pushed:
+        over = inp.v_mps > inp.desired_speed_mps * (1.0 + self.cal.speed.overspeed_fraction)
+        standstill = self.cal.launch.standstill_mps
+        if over and pushed:
             self.brake_request = True
-        elif braking and abs(inp.v_mps) < self.cal.launch.standstill_mps:
+        elif not inp.pressure_trusted and (inp.v_mps < -standstill or (
+                inp.v_mps > inp.desired_speed_mps * (1.0 + RUNAWAY_FRACTION) and inp.v_mps > last.v_mps)):
+            self.brake_request = True  # the clutches do not carry the vehicle: it rolls back, or the slope pushes
+        elif braking and abs(inp.v_mps) < standstill and inp.pressure_trusted:
             self.brake_request = False
         if braking or self.brake_request:  # the speed controller starts again from zero force at this speed
             self.pid.reset(0.0)

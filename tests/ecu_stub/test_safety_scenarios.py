@@ -135,3 +135,27 @@ def test_sweep_found_a_slow_creep_with_a_light_drag_on_a_steep_grade_does_not_ro
                    "driver.desired_speed_mps": 0.06772472789428888, "driver.drag_level": 0.03431518347737088,
                    "driver.drag_onset_s": 159.58598194771338, "driver.drag_duration_s": 102.298512977253})
     assert s["rollback_guarded_m"] <= LIMITS["rollback_m"]
+
+
+def _frame_fault(kind: str, start: float, end: float) -> str:
+    return f'[[fault]]\nkind = "{kind}"\ntarget = "TCU_CMD"\nstart_s = {start}\nend_s = {end}\n'
+
+
+@pytest.mark.parametrize("kind, seconds, before_m", [("drop", 2.0, 0.843), ("corrupt_crc", 3.0, 2.083)])
+def test_lost_commands_do_not_roll_the_vehicle_back(kind, seconds, before_m):
+    """The TCU's commands lost on the bus (the sweep's 10 TCU_CMD-fault violations of 200): the gearbox releases
+    both clutches after 30 ms and, before, nobody braked: 0.843 m (2 s dropped) and 2.083 m (3 s corrupted) of
+    roll-back on Table I's grade. The TCU sees its pressures not following its commands (the pressure check) and
+    the vehicle rolling back, and requests the brake while they stay implausible."""
+    s = creep(12.0, [(1.0, True, 0.0, V_CREEP)], faults=_frame_fault(kind, 5.0, 5.0 + seconds))
+    assert s["rollback_m"] <= LIMITS["rollback_m"] < before_m
+    assert s["creep_time_s"] > 4.0  # creeping again after the fault
+
+
+def test_a_pressure_sensor_stuck_at_zero_on_a_working_clutch_is_not_braked_against():
+    """The same pressure check with the clutch working (only the sensor reads 0): the vehicle moves as commanded,
+    so no brake fights the clutch and the creep goes on as without the fault."""
+    stuck = '[[fault]]\nkind = "stuck"\ntarget = "PLANT_PRESSURE.P_CL"\nvalue = 0.0\nstart_s = 2.0\nend_s = 12.0\n'
+    s, plain = (creep(12.0, [(1.0, True, 0.0, V_CREEP)], faults=f) for f in (stuck, ""))
+    assert s["creep_time_s"] == pytest.approx(plain["creep_time_s"], abs=0.05)
+    assert s["rollback_m"] <= 0.005
