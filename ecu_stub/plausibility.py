@@ -63,8 +63,8 @@ import math
 from dataclasses import dataclass, field
 from enum import Enum
 
-__all__ = ["DISTANCE_M", "HEAL_S", "MAX_DT_S", "REL_TOL", "SKEW_M", "TWIST_M", "PairCheck", "SpeedVoter", "Verdict",
-           "shaft_speed_mps", "tolerance_mps"]
+__all__ = ["DISTANCE_M", "HEAL_S", "MAX_DT_S", "REL_TOL", "SKEW_M", "TWIST_M", "PairCheck", "SpeedVoter", "Sustained",
+           "Verdict", "shaft_speed_mps", "tolerance_mps"]
 
 TWIST_M = 0.030  # largest change of the driveline's twist, as distance at the wheel [m] (module docstring)
 SKEW_M = 0.010  # real time: PLANT_SPEEDS and PLANT_VEHICLE up to one 10-ms cycle apart, 1 m/s of speed change [m]
@@ -96,30 +96,63 @@ def tolerance_mps(a: float, b: float, q_a: float, q_b: float) -> float:
 
 
 @dataclass(slots=True)
+class Sustained:
+    """The debounce of every plausibility check here and in :mod:`ecu_stub.sensor_checks`: one-sided CUSUMs of a
+    difference beyond its tolerance: ``over[0]`` = the largest integral of (difference - tol) over the intervals
+    ending now, ``over[1]`` that of (-difference - tol) (only the first if ``one_sided``): a difference that swings
+    from one sign to the other (a shaft ringing) adds up on neither, a sustained one on one. Passing ``bound`` sets
+    ``last_over`` and starts both afresh; :meth:`failing` for :data:`HEAL_S` after that."""
+
+    bound: float
+    one_sided: bool = False
+    over: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    last_over: float | None = None
+    largest: float = 0.0  # the largest integral seen (how close a run without a sensor fault came)
+
+    def update(self, difference: float, tol: float, dt: float, now: float) -> bool:
+        """One cycle ``dt`` [s] long, ending at ``now`` [s]; returns :meth:`failing`."""
+        over = self.over
+        over[0] = max(0.0, over[0] + (difference - tol) * dt)
+        if not self.one_sided:
+            over[1] = max(0.0, over[1] + (-difference - tol) * dt)
+        self.largest = max(self.largest, over[0], over[1])
+        if over[0] > self.bound or over[1] > self.bound:
+            self.last_over, over[0], over[1] = now, 0.0, 0.0
+        return self.failing(now)
+
+    def failing(self, now: float) -> bool:
+        """The bound passed less than :data:`HEAL_S` ago."""
+        return self.last_over is not None and now - self.last_over < HEAL_S - _EPS_S
+
+
+@dataclass(slots=True)
 class PairCheck:
-    """Two measures of the vehicle speed with half-step resolutions ``q_a``, ``q_b`` [m/s], as two one-sided CUSUMs
-    of their difference beyond the tolerance: ``over_m[0]`` = the largest integral of (a - b - tol) over any
-    interval ending now, ``over_m[1]`` the same of (b - a - tol) (each is the bound's left-hand side, so a pair
-    without a sensor fault keeps both within :data:`DISTANCE_M`). Passing it sets ``last_over`` and starts both
-    afresh; the pair is :meth:`disagreeing` for :data:`HEAL_S` after that."""
+    """Two measures of the vehicle speed with half-step resolutions ``q_a``, ``q_b`` [m/s]: a :class:`Sustained`
+    of a - b beyond the tolerance with the bound :data:`DISTANCE_M` (``over_m[0]`` = the largest integral of
+    (a - b - tol) over any interval ending now, ``over_m[1]`` the same of (b - a - tol): each is the bound's
+    left-hand side, so a pair without a sensor fault keeps both within it). The pair is :meth:`disagreeing` for
+    :data:`HEAL_S` after its distance last passed the bound (``last_over``)."""
 
     q_a: float
     q_b: float
-    over_m: list[float] = field(default_factory=lambda: [0.0, 0.0])
-    last_over: float | None = None  # when the distance last passed DISTANCE_M [s]
+    check: Sustained = field(default_factory=lambda: Sustained(DISTANCE_M))
+
+    @property
+    def over_m(self) -> list[float]:
+        return self.check.over
+
+    @property
+    def last_over(self) -> float | None:
+        """When the distance last passed DISTANCE_M [s]."""
+        return self.check.last_over
 
     def update(self, a: float, b: float, dt: float, now: float) -> bool:
         """One cycle ``dt`` [s] long, ending at ``now`` [s]; returns :meth:`disagreeing`."""
-        tol, over = tolerance_mps(a, b, self.q_a, self.q_b), self.over_m
-        over[0] = max(0.0, over[0] + (a - b - tol) * dt)
-        over[1] = max(0.0, over[1] + (b - a - tol) * dt)
-        if over[0] > DISTANCE_M or over[1] > DISTANCE_M:
-            self.last_over, over[0], over[1] = now, 0.0, 0.0
-        return self.disagreeing(now)
+        return self.check.update(a - b, tolerance_mps(a, b, self.q_a, self.q_b), dt, now)
 
     def disagreeing(self, now: float) -> bool:
         """The distance passed :data:`DISTANCE_M` less than :data:`HEAL_S` ago."""
-        return self.last_over is not None and now - self.last_over < HEAL_S - _EPS_S
+        return self.check.failing(now)
 
 
 @dataclass(slots=True)

@@ -92,10 +92,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .plausibility import HEAL_S, MAX_DT_S
+from .plausibility import MAX_DT_S, Sustained
 
 __all__ = ["ANGLE_RAD", "InputSpeedCheck", "N_ABS_RPM", "N_REL", "OIL_KS", "OIL_TOL_K", "OilCheck", "P_ABS_MPA",
-           "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "SensorChecks", "Sustained"]
+           "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "SensorChecks"]
 
 P_ABS_MPA = 0.02  # pressure sensor accuracy: 1 % of the DBC's 2-MPa range [MPa]
 P_REL = 0.05  # the valve's gain [1]
@@ -106,35 +106,6 @@ ANGLE_RAD = 0.5  # shaft twist 4 x 0.065 rad + real-time skew 10 ms x 20 rad/s, 
 OIL_TOL_K = 10.0  # oil leaving a clutch below its balance with plate estimate and sump, without a sensor fault [K]
 OIL_KS = 2.0  # integral of the oil's deficit beyond OIL_TOL_K [K s]
 _RPM_TO_RAD_S = math.pi / 30.0
-_EPS_S = 1e-9
-
-
-@dataclass(slots=True)
-class Sustained:
-    """One-sided CUSUMs of a difference beyond its tolerance: ``over[0]`` = the largest integral of
-    (difference - tol) over the intervals ending now, ``over[1]`` that of (-difference - tol) (only the first if
-    ``one_sided``): a difference that swings from one sign to the other (a shaft ringing) adds up on neither, a
-    sustained one on one. Passing ``bound`` sets ``last_over`` and starts both afresh; failing for :data:`HEAL_S`
-    after that (as :class:`ecu_stub.plausibility.PairCheck`)."""
-
-    bound: float
-    one_sided: bool = False
-    over: list[float] = field(default_factory=lambda: [0.0, 0.0])
-    last_over: float | None = None
-    largest: float = 0.0  # the largest integral seen (how close a run without a sensor fault came)
-
-    def update(self, difference: float, tol: float, dt: float, now: float) -> bool:
-        over = self.over
-        over[0] = max(0.0, over[0] + (difference - tol) * dt)
-        if not self.one_sided:
-            over[1] = max(0.0, over[1] + (-difference - tol) * dt)
-        self.largest = max(self.largest, over[0], over[1])
-        if over[0] > self.bound or over[1] > self.bound:
-            self.last_over, over[0], over[1] = now, 0.0, 0.0
-        return self.failing(now)
-
-    def failing(self, now: float) -> bool:
-        return self.last_over is not None and now - self.last_over < HEAL_S - _EPS_S
 
 
 @dataclass(slots=True)
