@@ -1,4 +1,4 @@
-"""Issue 18's stuck thermal inputs in the closed loop: a 20-s creep from CL 228 / CH 245 / oil 130 degC on Table I's
+"""Issue 18's stuck thermal inputs in the closed loop: a 30-s creep from CL 228 / CH 235 / oil 130 degC on Table I's
 grade, one signal stuck (CRC and counter valid) from 2 s to the end; one JSON line per case with the true plates'
 maxima, seconds above 250 degC, the stop reason and the TCU's implausible counts (ecu_stub/sensor_checks.py).
 

@@ -23,8 +23,12 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   (the vehicle carried to its desired speed: not a launch's transient power), but at least the monitor's
   worst-case heat of a fastest release, so that the monitor can always release it in time; see :meth:`limit`),
   or when the prediction has stayed within ``dwell_band_k`` under the limit for ``dwell_time_s``.
-  The other clutch takes over if it is predicted ``takeover_headroom_k`` under its limit; otherwise
-  STOPPED_OVERHEAT.
+  The other clutch takes over if it is predicted ``takeover_headroom_k`` under its limit, the limit taken at the
+  power it will have once it carries the wheel force (its own gear's torque, :meth:`takeover_heat`), not the
+  power of the moment; otherwise STOPPED_OVERHEAT.
+* Clutches not following their commands (a measured pressure implausible: a dead valve, or the commands lost on
+  the bus): with the vehicle standing, rolling back or running away, the brake is requested and held; the speed
+  controller's integral is held meanwhile; the creep resumes as a launch (ENGAGE) once the pressures are plausible.
 * STOPPED_OVERHEAT: the brake is requested and the clutch torque ramps out over ``stop_release_s``. Latched until
   the driver withdraws the creep request (then IDLE: still held).
 * FAULT: plant frames missing or invalid: both clutches open, the brake requested, fault bit set; back to IDLE
@@ -47,9 +51,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from dsg_hil.common.units import CV
+
 from .calibration import TcuCalibration, load_calibration
 from .clutch_model import heat_w, mu_lookup, nm_per_mpa
-from .monitor import ThermalMonitor, crossover_heat_w, release_time_s
+from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 
 __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "TcuInputs",
@@ -59,6 +65,7 @@ OTHER = {"CL": "CH", "CH": "CL"}
 FAULT_PLANT_MISSING = 0x01
 BRAKE_PRESSED_PCT = 5.0
 CLUTCH_OPEN_MPA = 0.02  # measured piston pressure under which a clutch carries next to nothing (downhill check)
+_RPM_TO_RAD_S = CV.RPM_TO_RAD_S
 RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (issue 18: +-20 %), speeding up
 
 
@@ -119,6 +126,7 @@ class CreepController:
         self.F_cmd = 0.0  # wheel force demanded by the speed controller [N]
         self.v_ref = 0.0  # speed reference: the desired speed reached along a ramp [m/s]
         self.brake_request = False
+        self.held_untrusted = False  # the brake was requested because the clutches did not follow their commands
         self.last_now: float | None = None
         self.dt = 0.01  # the last control period [s]
         self.handover_from = "NONE"
@@ -223,10 +231,28 @@ class CreepController:
             heat_w, worst_w = self.crossover_heat(clutch), self.worst_heat(clutch) if worst_w is None else worst_w
         return s.T_safe_c - s.prediction_error_k - self.crossover_rise_k(clutch, heat_w, worst_w)
 
+    def takeover_heat(self, clutch: str) -> tuple[float, float]:
+        """Friction powers [W] the clutch would have once it carries the vehicle, (4) as torque times slip: the
+        torque for the wheel force it would take (the present demand; with none, the pre-fill a launch starts from:
+        M = F * speed_ratio / eta, whatever mu), through a crossover (its slip at the desired speed,
+        :func:`ecu_stub.monitor.crossover_slip_rpm`) and at the worst slip (:func:`ecu_stub.monitor.worst_slip_rpm`,
+        the monitor's). Not the power of the clutch carrying now: the two clutches' gears differ (CH's torque for a
+        wheel force is 1.73 times CL's, and it slips more at a creep speed), so the same wheel force heats CH about
+        twice as fast as CL."""
+        inp, cal = self.inp, self.cal
+        force = self.F_cmd if self.F_cmd > 0.0 else cal.launch.F_prefill_n
+        torque_rad = force * cal.clutch(clutch).speed_ratio_m / cal.vehicle.eta * _RPM_TO_RAD_S
+        slip, clutch_in = inp.slip_rpm(clutch), inp.clutch_in_rpm
+        return (torque_rad * crossover_slip_rpm(cal, clutch, slip, clutch_in, inp.desired_speed_mps),
+                torque_rad * worst_slip_rpm(slip, clutch_in))
+
     def can_take_over(self, clutch: str) -> bool:
         """The clutch may take the load if its estimate is ``takeover_headroom_k`` under its limit, the limit taken at
-        the larger friction powers of the two now (the on-coming clutch will carry the same wheel force)."""
-        load, worst = max(self.heat.values()), max(self.worst_heat("CL"), self.worst_heat("CH"))
+        the larger friction powers of the two clutches now (the on-coming clutch will carry the same wheel force) and
+        of the clutch once it carries (:meth:`takeover_heat`)."""
+        load, worst = self.takeover_heat(clutch)
+        load = max(load, *self.heat.values())
+        worst = max(worst, self.worst_heat("CL"), self.worst_heat("CH"))
         return self._T_pred[clutch] <= self.limit(clutch, load, worst) - self.cal.strategy.takeover_headroom_k
 
     def _limit_reached(self, now: float) -> bool:
@@ -342,9 +368,12 @@ class CreepController:
 
         The clutches not following their commands (a measured pressure implausible against the command,
         ``inp.pressure_trusted`` False: a valve that builds no pressure, or the TCU's commands lost on the bus, after
-        which the gearbox releases both clutches) with the vehicle rolling back or over its target: nothing carries
-        the vehicle, so the TCU requests the brake and holds it while the pressures stay implausible, standing or
-        not (released, the vehicle would roll again). Over its target means here beyond the drivability band
+        which the gearbox releases both clutches) with the vehicle standing, rolling back or over its target:
+        nothing carries the vehicle, so the TCU requests the brake and holds it while the pressures stay
+        implausible. Once they are plausible again it launches as from rest (ENGAGE: the pre-fill under the brake,
+        released when the measured pressure has built up), not on the check's healing alone: with the commands
+        still lost the check heals once the command and the released pressure agree, and releasing the brake then
+        rolled the vehicle back again (0.117 m for 5 s of frozen counters on a 0.243-rad grade, now 0.014 m). Over its target means here beyond the drivability band
         (:data:`RUNAWAY_FRACTION`) and still speeding up: a launch's overshoot (+7 % on Table I's grade) is not a
         runaway. A sensor reading wrong on a clutch that works moves the vehicle as commanded: no brake against
         the clutch."""
@@ -355,28 +384,42 @@ class CreepController:
         standstill = self.cal.launch.standstill_mps
         if over and pushed:
             self.brake_request = True
-        elif not inp.pressure_trusted and (inp.v_mps < -standstill or (
+        elif not inp.pressure_trusted and (inp.v_mps < standstill or (
                 inp.v_mps > inp.desired_speed_mps * (1.0 + RUNAWAY_FRACTION) and inp.v_mps > last.v_mps)):
-            self.brake_request = True  # the clutches do not carry the vehicle: it rolls back, or the slope pushes
+            self.brake_request = self.held_untrusted = True  # the clutches do not carry it: it rolls, or is pushed
         elif braking and abs(inp.v_mps) < standstill and inp.pressure_trusted:
+            if self.held_untrusted:  # launch again: the brake holds until the measured pressure has built up
+                self.held_untrusted = False
+                self.P_cmd[OTHER[self.active]] = 0.0
+                self.state, self.F_cmd, self.near_limit_since = "ENGAGE", self.cal.launch.F_prefill_n, None
+                return
             self.brake_request = False
         if braking or self.brake_request:  # the speed controller starts again from zero force at this speed
             self.pid.reset(0.0)
             self.v_ref = max(inp.v_mps, 0.0)
 
     def _speed_control(self, v_err: float, dt: float, clutch: str, inp: TcuInputs, share: float = 1.0) -> float:
-        """PI on speed with a wheel-force output limited to what the clutches can give (anti-windup)."""
+        """PI on speed with a wheel-force output limited to what the clutches can give (anti-windup), its integral
+        held while the measured pressures are implausible (``inp.pressure_trusted`` False: the clutches do not follow
+        the commands, e.g. the commands are lost on the bus), so that it does not wind up against a vehicle nothing
+        drives and overshoot once the commands reach the clutches again."""
         cap = self.force_capacity(clutch, inp)
         if share < 1.0:
             cap = min(cap / max(share, 1e-3), self.force_capacity(self.handover_from, inp) / max(1.0 - share, 1e-3))
         self.pid.out_max = cap
-        return self.pid.update(v_err, dt)
+        if inp.pressure_trusted:
+            return self.pid.update(v_err, dt)
+        held = self.pid.integral  # the clutches do not follow their commands: integrating would wind up
+        out = self.pid.update(v_err, dt)
+        self.pid.integral = min(held, cap)
+        return out
 
     def _idle(self, inp: TcuInputs, pedal: bool) -> None:
         """No creep wanted (or not yet allowed): clutches open, and the vehicle held by the brake request unless
         the driver brakes a moving vehicle himself (a standing one stays held when his foot comes off)."""
         self.state, self.active = "IDLE", "NONE"
         self._open_both()
+        self.held_untrusted = False
         self.brake_request = abs(inp.v_mps) < self.cal.launch.standstill_mps or not pedal
 
     def _open_both(self) -> None:

@@ -185,6 +185,27 @@ def test_a_plate_kept_just_under_its_limit_is_acted_on_after_the_dwell_time():
     assert out.state == "CREEP"
 
 
+def test_the_on_coming_clutch_is_judged_on_its_own_power_once_it_carries():
+    """The handover gate takes the power the on-coming clutch will have, not the present one: the same wheel force F
+    needs the torque F r_c / eta on clutch c, so by hand, on CREEP's speeds (150 r/min in, 0.2 m/s desired):
+    CH's crossover slip 150 - 0.2 / r_CH = 117.9 r/min and worst slip 150 r/min, each times CH's torque; with the
+    clutches open (no force demanded), the pre-fill's force."""
+    ctrl, clock = creeping()
+    ctrl.update(replace(CREEP, P_CL_mpa=0.6, v_mps=0.2), clock.tick())
+    rpm, eta, F = 2 * math.pi / 60, FLAT.vehicle.eta, ctrl.F_cmd
+    assert F > 0.0
+    slip_x = 150.0 - 0.2 / FLAT.CH.speed_ratio_m / rpm
+    assert slip_x == pytest.approx(117.9, abs=0.1)
+    M_CH = F * FLAT.CH.speed_ratio_m / eta
+    assert ctrl.takeover_heat("CH") == pytest.approx((M_CH * slip_x * rpm, M_CH * 150.0 * rpm), rel=1e-9)
+    # CH's torque is r_CH / r_CL = 1.73 times CL's for the same force, and it slips more at the desired speed
+    # (117.9 against 94.5 r/min): the same wheel force heats CH 2.16 times as fast as CL
+    assert ctrl.takeover_heat("CH")[0] == pytest.approx(2.16 * ctrl.takeover_heat("CL")[0], rel=0.01)
+    ctrl.F_cmd = 0.0
+    M_pre = FLAT.launch.F_prefill_n * FLAT.CH.speed_ratio_m / eta
+    assert ctrl.takeover_heat("CH") == pytest.approx((M_pre * slip_x * rpm, M_pre * 150.0 * rpm), rel=1e-9)
+
+
 def test_stops_when_neither_can_take_over_but_not_before_the_hotter_is_near_its_limit():
     ctrl, clock = creeping()
     inp = replace(CREEP, clutch_in_rpm=50.0, cl_out_rpm=50.0, ch_out_rpm=50.0, v_mps=0.2, P_CL_mpa=0.6)

@@ -76,11 +76,15 @@ def test_creep_request_toggles_without_the_brake_do_not_roll_back():
     assert s["max_speed_creep_mps"] <= 1.2 * V_CREEP
 
 
-def test_both_clutches_are_used_to_235_degc_before_the_stop():
-    """Both plates start hot (CL 228, CH 245 degC, oil 130 degC): the TCU creeps on each in turn to its handover
-    limit and stops (brake) only when neither can take over, each plate having reached >= 235 degC, none 250."""
-    s = creep(20.0, [(1.0, True, 0.0, V_CREEP)], T_CL=228.0, T_CH=245.0, T_oil=130.0)
-    assert s["stop_reason"] == "STOPPED_OVERHEAT" and s["handovers"]
+@pytest.mark.parametrize("T_CH, handover", [(230.0, True), (245.0, False)])
+def test_both_clutches_are_used_to_235_degc_before_the_stop(T_CH, handover):
+    """Both plates start hot (CL 228 degC, oil 130 degC): the TCU creeps on each in turn to its handover limit and
+    stops (brake) only when neither can take over, each plate having reached >= 235 degC, none 250. With CH at
+    245 degC (cooled to 235.4 degC by the decision), CH is not taken: carrying the creep force it would make 16 kW
+    (measured on the plant after such a handover: 16.4 kW), not CL's 7.4 kW, and its limit at that power leaves it
+    less than ``takeover_headroom_k`` (the gate before it took CL's power and handed over)."""
+    s = creep(40.0 if handover else 10.0, [(1.0, True, 0.0, V_CREEP)], T_CL=228.0, T_CH=T_CH, T_oil=130.0)
+    assert s["stop_reason"] == "STOPPED_OVERHEAT" and bool(s["handovers"]) == handover
     assert 235.0 <= min(s["max_plate_temp_c"].values()) and max(s["max_plate_temp_c"].values()) <= T_SAFE_C
     assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS and s["rollback_guarded_m"] <= 0.005
 
@@ -141,15 +145,30 @@ def _frame_fault(kind: str, start: float, end: float) -> str:
     return f'[[fault]]\nkind = "{kind}"\ntarget = "TCU_CMD"\nstart_s = {start}\nend_s = {end}\n'
 
 
-@pytest.mark.parametrize("kind, seconds, before_m", [("drop", 2.0, 0.843), ("corrupt_crc", 3.0, 2.083)])
-def test_lost_commands_do_not_roll_the_vehicle_back(kind, seconds, before_m):
+@pytest.mark.parametrize("kind, seconds, grade, before_m", [("drop", 2.0, GRADE, 0.843),
+                                                             ("corrupt_crc", 3.0, GRADE, 2.083),
+                                                             ("freeze_counter", 5.0, 0.243, 0.117)])
+def test_lost_commands_do_not_roll_the_vehicle_back(kind, seconds, grade, before_m):
     """The TCU's commands lost on the bus (the sweep's 10 TCU_CMD-fault violations of 200): the gearbox releases
     both clutches after 30 ms and, before, nobody braked: 0.843 m (2 s dropped) and 2.083 m (3 s corrupted) of
     roll-back on Table I's grade. The TCU sees its pressures not following its commands (the pressure check) and
-    the vehicle rolling back, and requests the brake while they stay implausible."""
-    s = creep(12.0, [(1.0, True, 0.0, V_CREEP)], faults=_frame_fault(kind, 5.0, 5.0 + seconds))
+    the vehicle rolling back, and requests the brake while they stay implausible. Held so, it launches again as
+    from rest (pre-fill under the brake, released once the measured pressure has built up): before, it released
+    the brake once the check healed with the commands still lost, and on a 0.243-rad grade rolled back twice more
+    (0.117 m in all for 5 s of frozen counters, now 0.014 m)."""
+    s = creep(7.0 + max(seconds, 5.0) + 4.0, [(1.0, True, 0.0, V_CREEP)], grade=grade,
+              faults=_frame_fault(kind, 5.0, 5.0 + seconds))
     assert s["rollback_m"] <= LIMITS["rollback_m"] < before_m
     assert s["creep_time_s"] > 4.0  # creeping again after the fault
+
+
+def test_lost_commands_on_the_level_do_not_wind_the_speed_controller_up():
+    """5 s of frozen TCU_CMD counters on the level: the vehicle coasts to rest while the speed controller's force
+    reaches no clutch. Before, its integral wound up meanwhile and the creep overshot to 0.351 m/s (+70 %) when
+    the commands came back; now it is held while the pressures are implausible and the standing vehicle is held
+    and launched again as from rest: a launch's overshoot (at most +20 %, the drivability band)."""
+    s = creep(14.0, [(1.0, True, 0.0, V_CREEP)], grade=0.0, faults=_frame_fault("freeze_counter", 5.0, 10.0))
+    assert s["max_speed_creep_mps"] <= 1.2 * V_CREEP and s["creep_time_s"] > 4.0
 
 
 def test_a_pressure_sensor_stuck_at_zero_on_a_working_clutch_is_not_braked_against():

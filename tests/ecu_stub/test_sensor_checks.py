@@ -195,15 +195,16 @@ STUCK = {  # signal -> (the fault's target, the value held)
 
 
 def hot_creep(fault: str = "", stuck: tuple[str, float] | None = None):
-    """20-s creep from CL 228 / CH 245 / oil 130 degC on Table I's grade, the signal ``fault`` (of :data:`STUCK`), or
+    """30-s creep from CL 228 / CH 235 / oil 130 degC on Table I's grade (CL creeps to its limit, hands over to CH,
+    CH to its limit, stop), the signal ``fault`` (of :data:`STUCK`), or
     ``stuck`` = (MESSAGE.Signal, value), stuck from 2 s to the end: summary and the TCU's counts."""
-    text = ('name = "hot creep"\nduration_s = 20.0\ngrade_rad = 0.174\nengine_speed_rpm = 800.0\n'
-            "[initial]\nT_CL_c = 228.0\nT_CH_c = 245.0\nT_clutch_c = 228.0\nT_oil_c = 130.0\nv_mps = 0.0\n"
+    text = ('name = "hot creep"\nduration_s = 30.0\ngrade_rad = 0.174\nengine_speed_rpm = 800.0\n'
+            "[initial]\nT_CL_c = 228.0\nT_CH_c = 235.0\nT_clutch_c = 228.0\nT_oil_c = 130.0\nv_mps = 0.0\n"
             "[[driver]]\nt_s = 0.0\ncreep_request = false\nbrake = 1.0\ndesired_speed_mps = 0.0\n"
             "[[driver]]\nt_s = 1.0\ncreep_request = true\nbrake = 0.0\ndesired_speed_mps = 0.206\n")
     if fault or stuck:
         target, value = stuck or STUCK[fault]
-        text += f'[[fault]]\nkind = "stuck"\ntarget = "{target}"\nvalue = {value}\nstart_s = 2.0\nend_s = 20.0\n'
+        text += f'[[fault]]\nkind = "stuck"\ntarget = "{target}"\nvalue = {value}\nstart_s = 2.0\nend_s = 30.0\n'
     tcus: list[TcuRunner] = []
 
     def factory(db, bus):
@@ -221,9 +222,11 @@ def test_without_a_sensor_fault_no_check_trips():
 
 @pytest.mark.parametrize("signal", sorted(STUCK))
 def test_a_stuck_thermal_input_keeps_the_true_plate_under_t_safe(signal):
-    """Before the checks: T_OilCL stuck at 40 degC took CL's true plate to 300.1 degC, P_CL stuck at 0 to 253.0 degC,
-    ClutchInputSpeed stuck at 0 to 249.8 degC, T_OilCH at 40 degC CH's to 250.01 degC, P_CH at 0 to 250.06 degC
-    (with no fault: CL 245.4, CH 245.0 degC)."""
+    """Before the checks, on 20 s from CH at 245 degC (a start CH is no longer taken over from, since the handover
+    gate takes CH's own power): T_OilCL stuck at 40 degC took CL's true plate to 300.1 degC, P_CL stuck at 0 to
+    253.0 degC, ClutchInputSpeed stuck at 0 to 249.8 degC, T_OilCH at 40 degC CH's to 250.01 degC, P_CH at 0 to
+    250.06 degC. With the checks, here: at most CL 245.7 degC (P_CL), CH 244.7 degC (P_CH); no fault: CL 245.4,
+    CH 244.6 degC."""
     summary, counts = hot_creep(signal)
     assert max(summary["max_plate_temp_c"].values()) <= 250.0 and set(summary["time_above_limit_s"].values()) == {0.0}
     assert counts["implausible"][signal] > 0
