@@ -185,6 +185,23 @@ def test_a_plate_kept_just_under_its_limit_is_acted_on_after_the_dwell_time():
     assert out.state == "CREEP"
 
 
+def test_the_pressure_for_a_force_takes_the_slip_at_the_vehicle_speed_not_a_ringing_output_shaft():
+    """By hand on the flat map's twin with a slip-dependent mu: the pressure for a wheel force uses the slip of the
+    clutch input against the vehicle's speed (150 r/min - 0.2 m/s / r_CL = 94.5 r/min); an output shaft ringing
+    about it (measured CL output 0 or 110 r/min instead of 55.5) changes nothing."""
+    slope = replace(FLAT, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), (0.0, 1.5),
+                                               (((0.10, 0.10), (0.06, 0.06)),) * 2))  # mu falls with slip
+    ctrl, clock = creeping(slope)
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
+    ctrl.update(inp, clock.tick())
+    F, rpm = 20000.0, 2 * math.pi / 60
+    slip = 150.0 - 0.2 / slope.CL.speed_ratio_m / rpm
+    mu = friction_coefficient(slope.friction, ctrl.T_pred["CL"], slip, max(ctrl.P_cmd["CL"], 0.6))
+    P = F * slope.CL.speed_ratio_m / slope.vehicle.eta / (mu * slope.CL.k_geom_m3 * 1e6)
+    for out_rpm in (0.0, 55.5, 110.0):
+        assert ctrl.pressure_for("CL", F, replace(inp, cl_out_rpm=out_rpm)) == pytest.approx(P, rel=1e-9)
+
+
 def test_the_on_coming_clutch_is_judged_on_its_own_power_once_it_carries():
     """The handover gate takes the power the on-coming clutch will have, not the present one: the same wheel force F
     needs the torque F r_c / eta on clutch c, so by hand, on CREEP's speeds (150 r/min in, 0.2 m/s desired):
