@@ -65,3 +65,14 @@ def test_plant_speed_figures():
     assert [c["name"] for c in study] == ["step 1 ms", "step 0.5 ms", "step 0.25 ms", "step 0.1 ms"]
     assert all(math.isfinite(c["max_plate_error_c"]) and math.isfinite(c["max_speed_error_rpm"]) for c in study)
     assert out["cosim"]["solve_ivp"] is not None  # a tolerance reached the plant's accuracy
+
+
+def test_sweep_scaling_figures():
+    """1 and 2 workers on Dask, one round of 1 run per worker (2 simulated s): the figures issue 17 item 6 names."""
+    out = bench_json("sweep_scaling.py", "--runs-per-worker", "1", "--duration", "2", "--rounds", "1")
+    one, two = out["configurations"]["1"], out["configurations"]["2"]
+    assert (one["runs"], two["runs"]) == (1, 2) and one["efficiency"] == 1.0 and positive(two["efficiency"])
+    assert two["efficiency"] == pytest.approx(two["runs_per_min"] / (2 * one["runs_per_min"]), abs=1e-3)
+    assert len(one["worker_peak_rss_mb"]) == 1 and len(two["worker_peak_rss_mb"]) == 2
+    assert out["worker_peak_rss_mb_max"] == max(one["worker_peak_rss_mb"] + two["worker_peak_rss_mb"]) > 0
+    assert out["runs_per_core_hour"] == round(60 * one["runs_per_min"])
