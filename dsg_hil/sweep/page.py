@@ -164,11 +164,12 @@ def _timeline(plt: Any, task: Mapping[str, Any], out: Path, limit: float) -> lis
     from ..sim.run import RunConfig, open_run  # noqa: PLC0415
     from ..sim.scenario import parse_scenario  # noqa: PLC0415
     from .controllers import config_for  # noqa: PLC0415
+    from .worker import runs_quiet  # noqa: PLC0415
 
     params = with_overrides(load_params(), task["params"], origin="sweep") if task["params"] else None
     config = RunConfig(scenario=parse_scenario(task["scenario"], task["run_id"]), params=params,
                        faults=task["faults"], truth=True, **config_for(task["controller"]))
-    with open_run(config) as run:
+    with runs_quiet(), open_run(config) as run:
         run.run()
     truth = run.truth()
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)

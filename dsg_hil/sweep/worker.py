@@ -7,11 +7,13 @@ from __future__ import annotations
 import contextlib
 import functools
 import gzip
+import logging
 import tempfile
 import time
 import traceback
 from pathlib import Path
 from typing import Any
+from collections.abc import Iterator
 
 from cantools.database import Database
 
@@ -24,7 +26,7 @@ from ..sim.scenario import Scenario, parse_scenario
 from .controllers import config_for
 from .verdict import UnexplainedFault, fault_windows, summary_row, violations
 
-__all__ = ["WARM_LOCK", "pedal_while_stopping", "run_task", "warm"]
+__all__ = ["RUN_LOGGERS", "WARM_LOCK", "pedal_while_stopping", "run_task", "runs_quiet", "warm"]
 
 WARM_LOCK = "dsg-hil-numba-warm"
 _warmed = False
@@ -45,6 +47,25 @@ def _shipped_dbc() -> Database:
     return load_dbc()
 
 
+RUN_LOGGERS = ("dsg_hil", "ecu_stub")  # what a run logs: a fault's rejected frames, a tick answered late ...
+
+
+@contextlib.contextmanager
+def runs_quiet() -> Iterator[None]:
+    """The runs' warnings not printed while the block runs (errors still are). A sweep's runs count them in each
+    summary and keep them in the logs; printed (by Python's last-resort handler) they interleaved with the
+    sweep's progress on the terminal, a few hundred lines per faulted run."""
+    loggers = [logging.getLogger(name) for name in RUN_LOGGERS]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
+
+
 def _warm_in_worker() -> None:
     try:
         from distributed import Lock, get_worker  # noqa: PLC0415
@@ -53,6 +74,8 @@ def _warm_in_worker() -> None:
     except (ImportError, ValueError):
         warm()
         return
+    for name in RUN_LOGGERS:  # a Dask worker runs nothing but runs: quiet for good (see runs_quiet)
+        logging.getLogger(name).setLevel(logging.ERROR)
     with Lock(WARM_LOCK):
         warm()
 
