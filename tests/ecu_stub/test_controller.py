@@ -185,21 +185,31 @@ def test_a_plate_kept_just_under_its_limit_is_acted_on_after_the_dwell_time():
     assert out.state == "CREEP"
 
 
-def test_the_pressure_for_a_force_takes_the_slip_at_the_vehicle_speed_not_a_ringing_output_shaft():
-    """By hand on the flat map's twin with a slip-dependent mu: the pressure for a wheel force uses the slip of the
-    clutch input against the vehicle's speed (150 r/min - 0.2 m/s / r_CL = 94.5 r/min); an output shaft ringing
-    about it (measured CL output 0 or 110 r/min instead of 55.5) changes nothing."""
+def test_the_pressure_for_a_force_takes_the_slip_low_passed_not_a_ringing_output_shaft():
+    """By hand on a map whose mu falls with slip: the pressure for a wheel force uses the slip through a first-order
+    low-pass of SLIP_FILTER_S (0.1 s). Settled at 100 r/min, the output speed of one cycle does not move it; an
+    output shaft ringing 0 / 100 r/min cycle by cycle leaves it within 3 r/min of the mean; a step of the slip from
+    100 to 50 r/min reaches 100 - 50 (1 - e^-1) = 68.4 r/min after 0.1 s."""
     slope = replace(FLAT, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), (0.0, 1.5),
                                                (((0.10, 0.10), (0.06, 0.06)),) * 2))  # mu falls with slip
     ctrl, clock = creeping(slope)
-    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
-    ctrl.update(inp, clock.tick())
-    F, rpm = 20000.0, 2 * math.pi / 60
-    slip = 150.0 - 0.2 / slope.CL.speed_ratio_m / rpm
-    mu = friction_coefficient(slope.friction, ctrl.T_pred["CL"], slip, max(ctrl.P_cmd["CL"], 0.6))
-    P = F * slope.CL.speed_ratio_m / slope.vehicle.eta / (mu * slope.CL.k_geom_m3 * 1e6)
-    for out_rpm in (0.0, 55.5, 110.0):
-        assert ctrl.pressure_for("CL", F, replace(inp, cl_out_rpm=out_rpm)) == pytest.approx(P, rel=1e-9)
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)  # 150 r/min in, CL out 50: slip 100 r/min
+    run(ctrl, clock, inp, 1.0)
+    F = 20000.0
+
+    def by_hand(slip):
+        mu = friction_coefficient(slope.friction, ctrl.T_pred["CL"], slip, max(ctrl.P_cmd["CL"], 0.6))
+        return F * slope.CL.speed_ratio_m / slope.vehicle.eta / (mu * slope.CL.k_geom_m3 * 1e6)
+
+    assert ctrl.mean_slip_rpm("CL", inp) == pytest.approx(100.0, abs=1e-3)
+    for out_rpm in (0.0, 50.0, 140.0):
+        assert ctrl.pressure_for("CL", F, replace(inp, cl_out_rpm=out_rpm)) == pytest.approx(by_hand(100.0), rel=1e-4)
+    for k in range(100):  # ringing: the output at 0 and 100 r/min in turn, the slip 150 and 50 about 100
+        ctrl.update(replace(inp, cl_out_rpm=0.0 if k % 2 else 100.0), clock.tick())
+    assert abs(ctrl.mean_slip_rpm("CL", inp) - 100.0) < 3.0
+    run(ctrl, clock, inp, 1.0)
+    run(ctrl, clock, replace(inp, cl_out_rpm=100.0), 0.1)  # the slip steps to 50 r/min
+    assert ctrl.mean_slip_rpm("CL", inp) == pytest.approx(100.0 - 50.0 * (1.0 - math.exp(-1.0)), abs=0.1)
 
 
 def test_the_on_coming_clutch_is_judged_on_its_own_power_once_it_carries():

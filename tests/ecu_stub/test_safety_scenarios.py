@@ -178,3 +178,17 @@ def test_a_pressure_sensor_stuck_at_zero_on_a_working_clutch_is_not_braked_again
     s, plain = (creep(12.0, [(1.0, True, 0.0, V_CREEP)], faults=f) for f in (stuck, ""))
     assert s["creep_time_s"] == pytest.approx(plain["creep_time_s"], abs=0.05)
     assert s["rollback_m"] <= 0.005
+
+
+def test_stop_and_go_beyond_the_prefill_s_design_does_not_roll_back_at_the_brake_releases():
+    """The falsification search's first counterexample (a vehicle +34 % on 0.211 rad at 962 r/min, creep and brake
+    in turn every 5.7 s), 60 s of it: the fixed pre-fill (sized for +30 % on 0.2 rad) let the vehicle roll back at
+    every brake release, up to 13.5 mm/s here (51 mm over the search's 240 s). After the first creep the pre-fill is
+    half its settled force (CreepController.prefill_force): at most 10 mm/s."""
+    events, t = [], 1.0
+    while t < 60.0:
+        events += [(t, True, 0.0, 0.3055), (t + 5.731, False, 1.0, 0.0)]
+        t += 11.462
+    s = creep(60.0, events, grade=0.211, idle=962.0, mass=10544.16 / 7840.0)
+    assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS and s["rollback_m"] <= 0.005
+    assert s["max_speed_creep_mps"] <= 1.2 * 0.3055
