@@ -119,7 +119,7 @@ class LockstepMaster:
         self._given_up = 0  # ticks given up in a row just before this one (their answers may come late)
         self._status_tick: int | None = None  # the tick whose answer brought the last TCU_STATUS
         self._silent_s = 0.0  # wall time waited in vain on ticks given up since the TCU was last heard
-        self._frames: list[tuple[int, bytes, float]] = []  # this period's frames, for re-sending
+        self._frames: list[tuple[Frames, float]] = []  # this period's frames (batches, stamped), for re-sending
 
     # ---- the presence handshake -------------------------------------------------------------------------------
     def handshake(self, timeout: float, pump: Callable[[], None] | None = None) -> None:
@@ -165,7 +165,11 @@ class LockstepMaster:
 
     def keep(self, frame_id: int, data: bytes, stamp: float) -> None:
         """A frame the node sent in this period (first transmission), re-sent with the period."""
-        self._frames.append((frame_id, data, stamp))
+        self._frames.append(([(frame_id, data)], stamp))
+
+    def keep_all(self, frames: Frames, stamp: float) -> None:
+        """:meth:`keep` of each of ``frames`` (not copied: the node leaves the list alone), in one call."""
+        self._frames.append((frames, stamp))
 
     def tick_data(self) -> bytes:
         """The data of this period's SIM_SYNC tick (counter advanced); the node sends it last, ID ``sync_id``."""
@@ -298,9 +302,10 @@ class LockstepMaster:
 
     def _resend(self) -> None:
         send = self.send
-        for frame_id, data, stamp in self._frames:
-            send(frame_id, data, stamp)
-            self.retries[frame_id] += 1
+        for frames, stamp in self._frames:
+            for frame_id, data in frames:
+                send(frame_id, data, stamp)
+                self.retries[frame_id] += 1
 
 
 class LockstepResponder:

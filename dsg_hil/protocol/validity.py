@@ -263,6 +263,24 @@ class TxScheduler:
                 next_due[name] = due + ((now_ms - due) // period + 1) * period
         return names
 
+    def encode_due_ms(self, now_ms: int, encoders: Mapping[str, Callable[..., bytes]],
+                      *args: object) -> list[tuple[int, bytes]]:
+        """The frames due at ``now_ms`` (:meth:`due_ms`) as (ID, data), in DBC order, each encoded by
+        ``encoders[name](*args, counter)`` with its next counter (:meth:`next_counter`): the two, fused (a sender
+        that encodes its own state every cycle)."""
+        frames = []
+        next_due, periods, counters, moduli, ids = self.next_due_ms, self._periods_ms, self.counters, self._moduli, \
+            self.ids
+        for name, due in next_due.items():
+            if now_ms >= due:
+                period = periods[name]
+                next_due[name] = due + ((now_ms - due) // period + 1) * period
+                counter = counters[name]
+                counters[name] = (counter + 1) % moduli[name]
+                frames.append((ids[name], encoders[name](*args, counter)))
+        self.sent += len(frames)
+        return frames
+
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""
         return data_frame(self.ids[name], self.data(name, values), timestamp)

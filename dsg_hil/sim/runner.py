@@ -65,6 +65,7 @@ class PlantRunner:
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._sent_by_id = dict.fromkeys(self._names, 0)  # frames sent (first transmissions, the ones logged)
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
+        self._send_all: Callable[[list[tuple[int, bytes]]], None] | None = None  # ... (a batch of send_data)
         self.link = LockstepMaster(codec, PLANT_RX, self._send, bus.recv, self._use_stamped)  # lock-step protocol
         self._keep: Callable[[int, bytes, float], None] | None = None  # lock-step: the period's frames, re-sent
         self._cmd_on_bus: float | None = None
@@ -126,6 +127,7 @@ class PlantRunner:
         """Frames as (ID, data), no :class:`can.Message` built unless a listener wants one, where the bus is the
         direct in-process one (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped: no plant-side faults)."""
         self._send_data = getattr(self.bus, "send_data", None)
+        self._send_all = getattr(self.bus, "send_all", None) if self._send_data is not None else None
         self.link.recv = getattr(self.bus, "recv_data", None) or self.bus.recv
         self._channel = getattr(self.bus, "channel", None)  # of the frames received as (ID, data), when logged
 
@@ -206,6 +208,25 @@ class PlantRunner:
             if keep is not None:
                 keep(frame_id, data, stamp)
         self.sent += len(names)
+
+    def _publish_period(self, tick: int, t: float) -> None:
+        """Lock-step: send the frames due at ``tick`` (stamped ``t``) and the tick's SIM_SYNC last, kept for
+        re-sending: :meth:`_publish_due` and :meth:`_emit` of the tick, in one batch on a bus taking them so (the
+        direct in-process bus, no listener)."""
+        link, send_all = self.link, self._send_all
+        if send_all is None or self.listeners:
+            self._publish_due(tick * self.period_ms, stamp=t)
+            self._emit(link.sync_id, link.tick_data(), t)
+            return
+        frames = self.tx.encode_due_ms(tick * self.period_ms, self._frame_data, self.out,
+                                       self.scenario.driver_at(self.plant.state.t))
+        frames.append((link.sync_id, link.tick_data()))
+        send_all(frames)
+        link.keep_all(frames, t)
+        sent_by = self._sent_by_id
+        for frame_id, _ in frames:
+            sent_by[frame_id] += 1
+        self.sent += len(frames)
 
     def _take(self, msg: can.Message, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
         """Handle one received frame: (status, frame) as :meth:`RxMonitor.take`; only new frames are used and
@@ -318,8 +339,7 @@ class PlantRunner:
             for tick in range(self.n_periods):
                 t = tick * self.period  # the frames' stamp [s]; the schedule counts whole ms
                 link.start(tick)
-                self._publish_due(tick * self.period_ms, stamp=t)
-                self._emit(link.sync_id, link.tick_data(), t)
+                self._publish_period(tick, t)  # the period's frames, its tick last
                 if pump is not None:
                     pump()
                 link.answer(t, reply_timeout, pump)  # False: given up (the master warns once per episode)
