@@ -216,20 +216,31 @@ class LockstepMaster:
         return answered
 
     def _await(self, t: float, reply_timeout: float, pump: Callable[[], None] | None, excused: bool) -> bool:
+        """:meth:`answer`'s wait. What already waits is read first, with no clock read: in-process the whole answer
+        is there; the schedule of the waits and re-sends is set up only when the queue runs dry (``waiting``)."""
         clock, recv, rx, cmd_id = self._clock, self.recv, self.rx, self._cmd_id
-        # (re-sends at once, in-process, cost no wall time: the whole schedule then, as the answers may need it)
-        short = (excused or self._given_up > 0) and self.retry_first_s > 0
-        max_retries = min(self.retries_per_tick, RETRIES_IN_EPISODE) if short else self.retries_per_tick
-        lost_tick = not excused and self._given_up + 1 >= LOST_AFTER_TICKS  # the silence may end the run here
-        retries, interval = 0, self.retry_first_s
-        since = clock()  # silence is counted from here, plus ``_silent_s`` of ticks given up
-        first_wait = next_retry = since + interval
-        have_cmd, status_retries = False, 0
+        waiting = retry_now = have_cmd = False  # retry_now: re-send at once when the queue runs dry
+        since = first_wait = next_retry = silent_at = 0.0
+        retries = status_retries = max_retries = 0
+        interval, lost_tick = self.retry_first_s, False
         taken: list[tuple[DecodedFrame, Received]] = []
         try:
             while True:
-                silent_at = math.inf if excused else max(first_wait, since + reply_timeout - self._silent_s)
-                item = recv(max(0.0, min(next_retry, silent_at) - clock()))
+                item = recv(0.0)
+                if item is None:
+                    if not waiting:
+                        waiting = True
+                        # (re-sends at once, in-process, cost no wall time: the whole schedule then, as the answers
+                        # may need it)
+                        short = (excused or self._given_up > 0) and self.retry_first_s > 0
+                        max_retries = min(self.retries_per_tick, RETRIES_IN_EPISODE) if short \
+                            else self.retries_per_tick
+                        lost_tick = not excused and self._given_up + 1 >= LOST_AFTER_TICKS  # may end the run here
+                        since = clock()  # silence is counted from here, plus ``_silent_s`` of ticks given up
+                        first_wait = since + interval
+                        next_retry = since if retry_now else first_wait
+                    silent_at = math.inf if excused else max(first_wait, since + reply_timeout - self._silent_s)
+                    item = recv(max(0.0, min(next_retry, silent_at) - clock()))
                 if item is not None:
                     if isinstance(item, tuple):
                         frame_id = item[0]
@@ -238,16 +249,18 @@ class LockstepMaster:
                         frame_id = item.arbitration_id
                         status, frame = rx.take(item, t)
                     if status != IGNORED:
-                        since, self._silent_s = clock(), 0.0
+                        self._silent_s = 0.0
+                        if waiting:
+                            since = clock()
                     if status == REJECTED and frame_id == cmd_id and not have_cmd:
-                        next_retry = clock()  # a command that failed its checks: ask again at once
+                        retry_now, next_retry = True, clock() if waiting else 0.0  # failed its checks: ask again
                     elif status == NEW and frame is not None:
                         taken.append((frame, item))
                         if frame.name == CMD and int(frame.values[ECHO]) == self.tick & 0xFF:
                             have_cmd = True
                             if not self._status_expected():
                                 return True
-                            next_retry = clock()  # its TCU_STATUS was lost: ask again at once
+                            retry_now, next_retry = True, clock() if waiting else 0.0  # its TCU_STATUS was lost
                         elif frame.name == STATUS:
                             self._status_tick = self.tick
                             if have_cmd:
