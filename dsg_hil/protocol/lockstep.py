@@ -24,7 +24,7 @@ from ..common.errors import PeerLost, PeerTimeout  # the lock-step's errors, in 
 from .codec import Codec, DecodedFrame, ProtocolError
 from .faults.spec import FaultSpec
 from .frame import data_frame
-from .validity import DUPLICATE, IGNORED, NEW, REJECTED, TIMEOUT_CYCLES, RxMonitor, TxScheduler
+from .validity import DUPLICATE, IGNORED, NEW, REJECTED, TIMEOUT_CYCLES, RxMonitor, RxState, TxScheduler
 
 __all__ = ["LOST_AFTER_TICKS", "PROBE", "PROBE_INTERVAL_S", "RETRIES_IN_EPISODE", "RETRIES_PER_TICK",
            "RETRY_FIRST_S", "RETRY_MAX_S", "SIGHTS_BEFORE_INCOMPLETE", "STATUS_RETRIES", "WAITING_NOTICE_S", "Frames",
@@ -372,6 +372,8 @@ class LockstepResponder:
             if not rest:
                 self._due_every[name] = every
         self._taken_in: dict[str, int] = {}  # by plant message: its last new frame came after tick n - 1's answer
+        self._due_of: RxMonitor | None = None  # _missing: the receive monitor whose states ``_due`` holds
+        self._due: list[tuple[str, int, RxState]] = []
         self._unconfirmed: int | None = None  # a tick that did not follow the last one answered, held (see handle)
         self.ticks_missed = 0  # ticks the TCU never saw (it went on from a later tick of the plant's)
 
@@ -485,9 +487,12 @@ class LockstepResponder:
         come since the last tick answered: the one whose counter is the tick's (counters restart at tick 0, +1 per
         frame), so a frame is placed in its period whatever ticks the TCU missed or saw late (and an old frame
         whose counter the tick's has come round to again is not taken for it)."""
-        states, taken_in, since = self.rx.states, self._taken_in, self.tick + 1
-        return [name for name, every in self._due_every.items() if tick % every == 0 and (
-            taken_in.get(name) != since or states[name].last_counter != (tick // every) % states[name].counter_modulus)]
+        if self._due_of is not self.rx:  # (name, every, state) of the messages due, looked up once per monitor
+            self._due_of, self._due = self.rx, [(name, every, self.rx.states[name])
+                                                for name, every in self._due_every.items()]
+        taken_in, since = self._taken_in, self.tick + 1
+        return [name for name, every, state in self._due if tick % every == 0 and (
+            taken_in.get(name) != since or state.last_counter != (tick // every) % state.counter_modulus)]
 
     def _complete(self, tick: int) -> bool:
         """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen

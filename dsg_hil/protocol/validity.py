@@ -240,6 +240,7 @@ class TxScheduler:
         self.ids = {name: codec.frame_id(name) for name in names}
         self._moduli = {name: codec.protection(name).counter_modulus for name in names}
         self._encoders = {name: codec.encoder(name) for name in names}  # frame: one per frame
+        self._fixed = {name: (self._periods_ms[name], self._moduli[name], self.ids[name]) for name in names}
 
     @property
     def next_due(self) -> dict[str, float]:
@@ -269,15 +270,14 @@ class TxScheduler:
         ``encoders[name](*args, counter)`` with its next counter (:meth:`next_counter`): the two, fused (a sender
         that encodes its own state every cycle)."""
         frames = []
-        next_due, periods, counters, moduli, ids = self.next_due_ms, self._periods_ms, self.counters, self._moduli, \
-            self.ids
+        next_due, counters, fixed = self.next_due_ms, self.counters, self._fixed
         for name, due in next_due.items():
             if now_ms >= due:
-                period = periods[name]
+                period, modulus, frame_id = fixed[name]
                 next_due[name] = due + ((now_ms - due) // period + 1) * period
                 counter = counters[name]
-                counters[name] = (counter + 1) % moduli[name]
-                frames.append((ids[name], encoders[name](*args, counter)))
+                counters[name] = (counter + 1) % modulus
+                frames.append((frame_id, encoders[name](*args, counter)))
         self.sent += len(frames)
         return frames
 
