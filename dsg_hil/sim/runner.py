@@ -241,8 +241,11 @@ class PlantRunner:
 
     def _use_stamped(self, frame: DecodedFrame, item: Received, stamp: float) -> None:
         """:meth:`_use` of a new frame of a lock-step answer (from the master), logged with ``stamp``."""
-        if not self.listeners:
-            self._use(frame, None)
+        if not self.listeners:  # _use, written out: every period
+            if frame.name == "TCU_CMD":
+                self.P_cmd = commanded_pressures(frame.values)
+            elif frame.name == "TCU_STATUS":
+                self.summary.on_status(self.plant.state.t, frame.values, self.out)
         elif isinstance(item, tuple):
             self._use(frame, data_frame(item[0], item[1], stamp, self._channel, True))
         else:
@@ -259,7 +262,7 @@ class PlantRunner:
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
 
     def _check_command(self, now: float) -> None:
-        valid = self.rx.valid("TCU_CMD", now)
+        valid = self.link.rx.states["TCU_CMD"].valid(now)  # (rx.valid, a look-up less: every period)
         if self.command_valid and not valid:
             self.summary.fallback_events += 1
             log.warning("t=%.3f s: TCU_CMD missing for %.0f ms: hydraulics unpowered (pressures decay to 0)",
@@ -272,7 +275,7 @@ class PlantRunner:
     def _inputs(self, driver: DriverInput, now: float) -> PlantInputs:
         """Plant inputs from the driver and the TCU's frames; ``now`` is the time frames are judged on. The last
         inputs again when nothing changed (most periods: a held command), else new ones."""
-        status = self.rx.states["TCU_STATUS"]
+        status = self.link.rx.states["TCU_STATUS"]
         brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
         brake = max(driver.brake, brake_request)
