@@ -564,9 +564,9 @@ class RunSummary:
     command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
     stop_reason: str | None = None  # ended early: interrupted, terminated, peer_lost, no_peer; else the creep's
     # on_period's rows not yet in ``creep`` (see flush): a copy of them, how many, and what they were given with
-    _batch: np.ndarray | None = field(default=None, repr=False)
-    _batched: int = field(default=0, repr=False)
-    _batch_args: tuple | None = field(default=None, repr=False)
+    _batch: np.ndarray | None = field(default=None, repr=False, compare=False)
+    _batched: int = field(default=0, repr=False, compare=False)
+    _batch_args: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def tcu_state(self) -> str:
