@@ -140,15 +140,18 @@ class Codec:
         return self._encoders[name]
 
     def expression_encoder(self, name: str, args: Sequence[str], values: Mapping[str, str],
-                           namespace: Mapping[str, object] | None = None) -> Callable[..., bytes]:
+                           namespace: Mapping[str, object] | None = None, *,
+                           floats: bool = False) -> Callable[..., bytes]:
         """An encoder of ``name`` as ``f(*args, counter)`` whose signal values are the Python expressions ``values``
         of those arguments (by signal; ``namespace``: other names they use; a signal not named takes its default):
         :meth:`encode` of ``{signal: expression}``, byte for byte. Fused where the codec generated the message's
         functions (:func:`.generated.generate_fused`: no dict built and looked up, for a sender that encodes its
-        own state every cycle); else the dict, then :meth:`encoder`."""
+        own state every cycle); else the dict, then :meth:`encoder`. ``floats``: every expression gives a float
+        (no ``float()`` of it taken again)."""
         message = self._by_name[name]
         if name in self.sources:
-            return generate_fused(message, self._protection[message.frame_id], args, values, namespace)[0]
+            return generate_fused(message, self._protection[message.frame_id], args, values, namespace,
+                                  floats=floats)[0]
         encode, of = self._encoders[name], dict_of(args, values, namespace)
         return lambda *a: encode(of(*a[:-1]), a[-1])
 

@@ -166,10 +166,12 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
 
 
-def _encode_lines(signal: Signal, protection: Protection, length: int, value: str | None = None) -> list[str]:
+def _encode_lines(signal: Signal, protection: Protection, length: int, value: str | None = None,
+                  is_float: bool = False) -> list[str]:
     """Source lines putting ``signal`` into the frame (``F`` or ``G``): clamped (NaN or missing: the default), to
-    raw. Its value is ``values.get(name)`` (``get``; None: missing), or the expression ``value`` (never missing),
-    or with ``value`` :data:`DEFAULT` its default; the Counter is ``counter``; the CRC is sealed after all."""
+    raw. Its value is ``values.get(name)`` (``get``; None: missing), or the expression ``value`` (never missing;
+    ``is_float``: a float already, else taken as one), or with ``value`` :data:`DEFAULT` its default; the Counter
+    is ``counter``; the CRC is sealed after all."""
     acc, shift = _shift(signal, length)
     mask = (1 << signal.length) - 1
     if signal.name == COUNTER:
@@ -187,7 +189,7 @@ def _encode_lines(signal: Signal, protection: Protection, length: int, value: st
     elif value == DEFAULT:
         lines = [f"    v = {default!r}"]
     else:
-        lines = [f"    v = float({value})", *(f"    {line}" for line in clamp)]
+        lines = [f"    v = {value}" if is_float else f"    v = float({value})", *(f"    {line}" for line in clamp)]
     return [*lines, *_to_raw(_conversion(signal)), f"    {acc} |= (r & {mask}){_shifted(shift)}"]
 
 
@@ -202,12 +204,14 @@ def _encode_end(message: Message, protection: Protection) -> list[str]:
 
 
 def generate_fused(message: Message, protection: Protection, args: Sequence[str], values: Mapping[str, str],
-                   namespace: Mapping[str, object] | None = None) -> tuple[Callable[..., bytes], str]:
+                   namespace: Mapping[str, object] | None = None, *,
+                   floats: bool = False) -> tuple[Callable[..., bytes], str]:
     """An encoder of ``message`` (check :func:`unsupported` first) taking ``args`` and then the counter, whose
     signal values are the Python expressions ``values`` of those arguments (by signal; a signal not named takes its
     default, as one missing from the dict of the plain encoder): the frame the plain encoder gives for
     ``{signal: float(expression)}``, byte for byte, without the dict built and looked up. ``namespace``: names the
-    expressions use besides ``args``. Returns the function and its source."""
+    expressions use besides ``args``; ``floats``: every expression gives a float (else each is taken as
+    ``float(expression)``). Returns the function and its source."""
     unknown = set(values) - {s.name for s in message.signals} | set(values) & {COUNTER, CRC}
     if unknown:
         raise ValueError(f"{message.name}: no signal {sorted(unknown)[0]} to give a value")
@@ -216,7 +220,7 @@ def generate_fused(message: Message, protection: Protection, args: Sequence[str]
         raise ValueError(f"{message.name}: argument {sorted(taken)[0]!r} is a name the encoder uses")
     lines = [f"def encode({', '.join((*args, 'counter'))}):", "    F = G = 0"]
     for signal in message.signals:
-        lines += _encode_lines(signal, protection, message.length, values.get(signal.name, DEFAULT))
+        lines += _encode_lines(signal, protection, message.length, values.get(signal.name, DEFAULT), floats)
     source = "\n".join([*lines, *_encode_end(message, protection)]) + "\n"
     scope: dict = {"INF": math.inf, "from_bytes": int.from_bytes, **_crc_expression(protection)[1], **(namespace or {})}
     exec(_compiled(source, f"{message.name} fused"), scope)  # noqa: S102 - our own source

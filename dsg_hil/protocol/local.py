@@ -19,6 +19,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
+from collections.abc import Iterable
 
 import can
 
@@ -61,6 +62,18 @@ class LocalBus(can.BusABC):
     def send_data(self, frame_id: int, data: bytes) -> None:
         """Send a classic data frame with an 11-bit ID: ``send`` of ``data_frame(frame_id, data)``, cheaper."""
         self._put((frame_id, data))
+
+    def send_all(self, frames: Iterable[tuple[int, bytes]]) -> None:
+        """:meth:`send_data` of each of ``frames`` (ID, data) in turn, in one call."""
+        if self._is_shutdown:
+            raise can.CanOperationError("Cannot operate on a closed bus")
+        peer = self.peer
+        if peer is None or peer._is_shutdown:
+            return
+        peer._queue.extend(frames)
+        if peer._waiting:
+            with peer._ready:
+                peer._ready.notify_all()
 
     def _put(self, item: tuple[int, bytes] | can.Message) -> None:
         if self._is_shutdown:

@@ -24,7 +24,7 @@ from ..common.errors import PeerLost, PeerTimeout  # the lock-step's errors, in 
 from .codec import Codec, DecodedFrame, ProtocolError
 from .faults.spec import FaultSpec
 from .frame import data_frame
-from .validity import DUPLICATE, IGNORED, NEW, REJECTED, TIMEOUT_CYCLES, RxMonitor, TxScheduler
+from .validity import DUPLICATE, IGNORED, NEW, REJECTED, TIMEOUT_CYCLES, RxMonitor, RxState, TxScheduler
 
 __all__ = ["LOST_AFTER_TICKS", "PROBE", "PROBE_INTERVAL_S", "RETRIES_IN_EPISODE", "RETRIES_PER_TICK",
            "RETRY_FIRST_S", "RETRY_MAX_S", "SIGHTS_BEFORE_INCOMPLETE", "STATUS_RETRIES", "WAITING_NOTICE_S", "Frames",
@@ -119,7 +119,7 @@ class LockstepMaster:
         self._given_up = 0  # ticks given up in a row just before this one (their answers may come late)
         self._status_tick: int | None = None  # the tick whose answer brought the last TCU_STATUS
         self._silent_s = 0.0  # wall time waited in vain on ticks given up since the TCU was last heard
-        self._frames: list[tuple[int, bytes, float]] = []  # this period's frames, for re-sending
+        self._frames: list[tuple[Frames, float]] = []  # this period's frames (batches, stamped), for re-sending
 
     # ---- the presence handshake -------------------------------------------------------------------------------
     def handshake(self, timeout: float, pump: Callable[[], None] | None = None) -> None:
@@ -165,7 +165,11 @@ class LockstepMaster:
 
     def keep(self, frame_id: int, data: bytes, stamp: float) -> None:
         """A frame the node sent in this period (first transmission), re-sent with the period."""
-        self._frames.append((frame_id, data, stamp))
+        self._frames.append(([(frame_id, data)], stamp))
+
+    def keep_all(self, frames: Frames, stamp: float) -> None:
+        """:meth:`keep` of each of ``frames`` (not copied: the node leaves the list alone), in one call."""
+        self._frames.append((frames, stamp))
 
     def tick_data(self) -> bytes:
         """The data of this period's SIM_SYNC tick (counter advanced); the node sends it last, ID ``sync_id``."""
@@ -212,20 +216,31 @@ class LockstepMaster:
         return answered
 
     def _await(self, t: float, reply_timeout: float, pump: Callable[[], None] | None, excused: bool) -> bool:
+        """:meth:`answer`'s wait. What already waits is read first, with no clock read: in-process the whole answer
+        is there; the schedule of the waits and re-sends is set up only when the queue runs dry (``waiting``)."""
         clock, recv, rx, cmd_id = self._clock, self.recv, self.rx, self._cmd_id
-        # (re-sends at once, in-process, cost no wall time: the whole schedule then, as the answers may need it)
-        short = (excused or self._given_up > 0) and self.retry_first_s > 0
-        max_retries = min(self.retries_per_tick, RETRIES_IN_EPISODE) if short else self.retries_per_tick
-        lost_tick = not excused and self._given_up + 1 >= LOST_AFTER_TICKS  # the silence may end the run here
-        retries, interval = 0, self.retry_first_s
-        since = clock()  # silence is counted from here, plus ``_silent_s`` of ticks given up
-        first_wait = next_retry = since + interval
-        have_cmd, status_retries = False, 0
+        waiting = retry_now = have_cmd = False  # retry_now: re-send at once when the queue runs dry
+        since = first_wait = next_retry = silent_at = 0.0
+        retries = status_retries = max_retries = 0
+        interval, lost_tick = self.retry_first_s, False
         taken: list[tuple[DecodedFrame, Received]] = []
         try:
             while True:
-                silent_at = math.inf if excused else max(first_wait, since + reply_timeout - self._silent_s)
-                item = recv(max(0.0, min(next_retry, silent_at) - clock()))
+                item = recv(0.0)
+                if item is None:
+                    if not waiting:
+                        waiting = True
+                        # (re-sends at once, in-process, cost no wall time: the whole schedule then, as the answers
+                        # may need it)
+                        short = (excused or self._given_up > 0) and self.retry_first_s > 0
+                        max_retries = min(self.retries_per_tick, RETRIES_IN_EPISODE) if short \
+                            else self.retries_per_tick
+                        lost_tick = not excused and self._given_up + 1 >= LOST_AFTER_TICKS  # may end the run here
+                        since = clock()  # silence is counted from here, plus ``_silent_s`` of ticks given up
+                        first_wait = since + interval
+                        next_retry = since if retry_now else first_wait
+                    silent_at = math.inf if excused else max(first_wait, since + reply_timeout - self._silent_s)
+                    item = recv(max(0.0, min(next_retry, silent_at) - clock()))
                 if item is not None:
                     if isinstance(item, tuple):
                         frame_id = item[0]
@@ -234,16 +249,18 @@ class LockstepMaster:
                         frame_id = item.arbitration_id
                         status, frame = rx.take(item, t)
                     if status != IGNORED:
-                        since, self._silent_s = clock(), 0.0
+                        self._silent_s = 0.0
+                        if waiting:
+                            since = clock()
                     if status == REJECTED and frame_id == cmd_id and not have_cmd:
-                        next_retry = clock()  # a command that failed its checks: ask again at once
+                        retry_now, next_retry = True, clock() if waiting else 0.0  # failed its checks: ask again
                     elif status == NEW and frame is not None:
                         taken.append((frame, item))
                         if frame.name == CMD and int(frame.values[ECHO]) == self.tick & 0xFF:
                             have_cmd = True
                             if not self._status_expected():
                                 return True
-                            next_retry = clock()  # its TCU_STATUS was lost: ask again at once
+                            retry_now, next_retry = True, clock() if waiting else 0.0  # its TCU_STATUS was lost
                         elif frame.name == STATUS:
                             self._status_tick = self.tick
                             if have_cmd:
@@ -298,9 +315,10 @@ class LockstepMaster:
 
     def _resend(self) -> None:
         send = self.send
-        for frame_id, data, stamp in self._frames:
-            send(frame_id, data, stamp)
-            self.retries[frame_id] += 1
+        for frames, stamp in self._frames:
+            for frame_id, data in frames:
+                send(frame_id, data, stamp)
+                self.retries[frame_id] += 1
 
 
 class LockstepResponder:
@@ -354,6 +372,8 @@ class LockstepResponder:
             if not rest:
                 self._due_every[name] = every
         self._taken_in: dict[str, int] = {}  # by plant message: its last new frame came after tick n - 1's answer
+        self._due_of: RxMonitor | None = None  # _missing: the receive monitor whose states ``_due`` holds
+        self._due: list[tuple[str, int, RxState]] = []
         self._unconfirmed: int | None = None  # a tick that did not follow the last one answered, held (see handle)
         self.ticks_missed = 0  # ticks the TCU never saw (it went on from a later tick of the plant's)
 
@@ -467,9 +487,12 @@ class LockstepResponder:
         come since the last tick answered: the one whose counter is the tick's (counters restart at tick 0, +1 per
         frame), so a frame is placed in its period whatever ticks the TCU missed or saw late (and an old frame
         whose counter the tick's has come round to again is not taken for it)."""
-        states, taken_in, since = self.rx.states, self._taken_in, self.tick + 1
-        return [name for name, every in self._due_every.items() if tick % every == 0 and (
-            taken_in.get(name) != since or states[name].last_counter != (tick // every) % states[name].counter_modulus)]
+        if self._due_of is not self.rx:  # (name, every, state) of the messages due, looked up once per monitor
+            self._due_of, self._due = self.rx, [(name, every, self.rx.states[name])
+                                                for name, every in self._due_every.items()]
+        taken_in, since = self._taken_in, self.tick + 1
+        return [name for name, every, state in self._due if tick % every == 0 and (
+            taken_in.get(name) != since or state.last_counter != (tick // every) % state.counter_modulus)]
 
     def _complete(self, tick: int) -> bool:
         """Whether every plant frame due at ``tick`` came in its period; if not, whether the tick has been seen

@@ -240,6 +240,7 @@ class TxScheduler:
         self.ids = {name: codec.frame_id(name) for name in names}
         self._moduli = {name: codec.protection(name).counter_modulus for name in names}
         self._encoders = {name: codec.encoder(name) for name in names}  # frame: one per frame
+        self._fixed = {name: (self._periods_ms[name], self._moduli[name], self.ids[name]) for name in names}
 
     @property
     def next_due(self) -> dict[str, float]:
@@ -262,6 +263,23 @@ class TxScheduler:
                 period = periods[name]
                 next_due[name] = due + ((now_ms - due) // period + 1) * period
         return names
+
+    def encode_due_ms(self, now_ms: int, encoders: Mapping[str, Callable[..., bytes]],
+                      *args: object) -> list[tuple[int, bytes]]:
+        """The frames due at ``now_ms`` (:meth:`due_ms`) as (ID, data), in DBC order, each encoded by
+        ``encoders[name](*args, counter)`` with its next counter (:meth:`next_counter`): the two, fused (a sender
+        that encodes its own state every cycle)."""
+        frames = []
+        next_due, counters, fixed = self.next_due_ms, self.counters, self._fixed
+        for name, due in next_due.items():
+            if now_ms >= due:
+                period, modulus, frame_id = fixed[name]
+                next_due[name] = due + ((now_ms - due) // period + 1) * period
+                counter = counters[name]
+                counters[name] = (counter + 1) % modulus
+                frames.append((frame_id, encoders[name](*args, counter)))
+        self.sent += len(frames)
+        return frames
 
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""

@@ -66,6 +66,7 @@ __all__ = ["CLUTCHES", "ESTABLISHED", "MIN_PHASE_S", "P_ENGAGED", "SAFETY_TEMPER
            "STATES", "STOP_MIN_S", "TORQUE_MIN", "V_MOVING",  # re-exported: the metrics' definitions
            "GUARDED", "CreepMetrics", "RunSummary", "Sample", "driving_clutch", "phases"]
 
+BATCH_ROWS = 256  # RunSummary.on_period: rows held for one CreepMetrics.add_rows call, at most
 GUARDED = ("FAULT", "STOPPED_OVERHEAT")  # TCU states in which the vehicle's roll-back counts as the TCU's
 _IN_ACC_ORDER = itemgetter(*ACC)  # values by accumulator name -> the tuple in the order of creep_rows' acc
 _ACC_UNPACKED = ("slip_CL", "slip_CH", "overlap", "max_T_CL", "max_T_CH", "above_CL", "above_CH", "energy_CL",
@@ -342,13 +343,14 @@ class CreepMetrics:
         kernel()
 
     def add_rows(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample], dt: float,
-                 creep_request: bool, desired_speed: float) -> None:
+                 creep_request: bool, desired_speed: float, period: int | None = None) -> None:
         """Consecutive samples as the rows of an array (columns named by ``fields``), ``creep_request`` and
         ``desired_speed`` held over them: :meth:`add` on each row in turn, compiled
         (:func:`dsg_hil.results.creep_rows.creep_rows`, the same operations, so the same sums to the last bit).
         ``sample``
         makes a :class:`Sample` of a row, for the rows a run keeps. A record is taken either by :meth:`add` or
-        by this, not both."""
+        by this, not both. ``period``: the rows are periods of that many rows, each as a call of its own would
+        take it (the same result; a batch of periods costs one call, :meth:`RunSummary.on_period`)."""
         n = len(rows)
         if n == 0:
             return
@@ -363,20 +365,16 @@ class CreepMetrics:
                                     np.zeros(cap), kernel(), fields.index("v"))
             st.run[Run.code] = -1.0  # no run open
         v = rows[:, st.v_col].tolist()  # (a period's few rows: Python's floats cost less than numpy's calls)
-        if (total := sum(v)) != total:  # a NaN (or infinities of both signs): numpy's reductions, as they treat it
-            self._rollback_and_speed(rows[:, st.v_col], dt, creep_request, desired_speed)
-        else:
+        total = sum(v)
+        if period is not None and period < n and total != total:  # a NaN: period by period, as separate calls
             prev = self._v_prev
-            if (min(v) < 0.0 or prev < 0.0) and (creep_request or self.tcu_state in GUARDED):
-                guarded = self.rollback_guarded
-                for x in v:  # as add: the trapezoid since the last sample, row by row
-                    moved = _moved(prev, x)
-                    prev = x
-                    if moved < 0.0:
-                        guarded -= moved * dt
-                self.rollback_guarded = guarded
-            if creep_request:
-                self._creep_speed(max(v), desired_speed)
+            for lo in range(0, n, period):
+                part = v[lo:lo + period]
+                self._guarded_and_speed(part, sum(part), rows[lo:lo + period, st.v_col], prev, dt, creep_request,
+                                        desired_speed)
+                prev = part[-1]
+        else:  # (no NaN in the whole, none in a period: the sums, in order, and the maxima are the periods')
+            self._guarded_and_speed(v, total, rows[:, st.v_col], self._v_prev, dt, creep_request, desired_speed)
         # the accumulators stay in their array from one call to the next (only this method and the rest's end
         # change them between calls); the attributes are written from it after each call
         acc = st.acc
@@ -412,11 +410,30 @@ class CreepMetrics:
             row = rows[int(rest_row)]
             self._rest = (float(row[st.cols[Col.t]]), sample(row))
 
-    def _rollback_and_speed(self, v: np.ndarray, dt: float, creep_request: bool, desired_speed: float) -> None:
+    def _guarded_and_speed(self, v: list[float], total: float, speeds: np.ndarray, prev: float, dt: float,
+                           creep_request: bool, desired_speed: float) -> None:
+        """:meth:`add_rows`' roll-back while guarded and highest creep speed of the speeds ``v`` (their sum
+        ``total``; ``speeds``, as an array; ``prev``: the speed before them)."""
+        if total != total:  # a NaN (or infinities of both signs): numpy's reductions, as they treat it
+            self._rollback_and_speed(speeds, prev, dt, creep_request, desired_speed)
+            return
+        if (min(v) < 0.0 or prev < 0.0) and (creep_request or self.tcu_state in GUARDED):
+            guarded = self.rollback_guarded
+            for x in v:  # as add: the trapezoid since the last sample, row by row
+                moved = _moved(prev, x)
+                prev = x
+                if moved < 0.0:
+                    guarded -= moved * dt
+            self.rollback_guarded = guarded
+        if creep_request:
+            self._creep_speed(max(v), desired_speed)
+
+    def _rollback_and_speed(self, v: np.ndarray, v_prev: float, dt: float, creep_request: bool,
+                            desired_speed: float) -> None:
         """:meth:`add_rows`' roll-back while guarded and highest creep speed, by numpy's reductions (speeds ``v``
-        with a NaN)."""
+        with a NaN, ``v_prev`` the speed before them)."""
         if creep_request or self.tcu_state in GUARDED:
-            prev = np.concatenate(([self._v_prev], v[:-1]))
+            prev = np.concatenate(([v_prev], v[:-1]))
             moved = 0.5 * (v + np.where(prev != prev, v, prev))  # as add: the trapezoid since the last sample
             back = moved[moved < 0.0]
             if len(back):
@@ -546,6 +563,10 @@ class RunSummary:
     wall_time_s: float | None = None  # of the run itself (after the lockstep handshake)
     command_latency_s: list[float] = field(default_factory=list)  # real time: TCU_CMD on the bus -> used
     stop_reason: str | None = None  # ended early: interrupted, terminated, peer_lost, no_peer; else the creep's
+    # on_period's rows not yet in ``creep`` (see flush): a copy of them, how many, and what they were given with
+    _batch: np.ndarray | None = field(default=None, repr=False, compare=False)
+    _batched: int = field(default=0, repr=False, compare=False)
+    _batch_args: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def tcu_state(self) -> str:
@@ -557,22 +578,46 @@ class RunSummary:
 
     def on_step(self, out: Sample, creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
         """One plant step: ``out`` holds the outputs at its end, and stands for the step just taken."""
+        self.flush()
         self.creep.add(out, self.dt, creeping, desired_speed)
         if fallback:
             self.fallback_time_s += self.dt
 
     def on_period(self, rows: np.ndarray, fields: Sequence[str], sample: Callable[[np.ndarray], Sample],
                   creeping: bool, fallback: bool, desired_speed: float = 0.0) -> None:
-        """Plant steps as the rows of an array (:meth:`CreepMetrics.add_rows`): :meth:`on_step` on each row."""
-        self.creep.add_rows(rows, fields, sample, self.dt, creeping, desired_speed)
+        """Plant steps as the rows of an array (:meth:`CreepMetrics.add_rows`): :meth:`on_step` on each row. The rows
+        are copied and handed on in batches of periods (:meth:`flush`): one call for up to ``BATCH_ROWS`` rows given
+        with the same arguments, the same sums to the last bit."""
+        n, args = len(rows), (fields, sample, creeping, desired_speed, len(rows))
+        batch, k = self._batch, self._batched
+        if k and batch is not None and (args != self._batch_args or k + n > len(batch)
+                                        or batch.shape[1] != rows.shape[1]):
+            self.flush()
+            k = 0
+        if batch is None or batch.shape[1] != rows.shape[1] or n > len(batch):
+            batch = self._batch = np.empty((max(BATCH_ROWS, n), rows.shape[1]))
+        batch[k:k + n] = rows
+        self._batched, self._batch_args = k + n, args
         if fallback:
             self.fallback_time_s = _in_order(self.fallback_time_s, np.full(len(rows), self.dt))
 
+    def flush(self) -> None:
+        """Hand the rows :meth:`on_period` holds to ``creep`` (:meth:`CreepMetrics.add_rows`); done before a
+        TCU_STATUS is taken (the guarded roll-back depends on the TCU's state), a single step, and the summary."""
+        k = self._batched
+        if k:
+            assert self._batch is not None and self._batch_args is not None
+            fields, sample, creeping, desired_speed, period = self._batch_args
+            self._batched = 0
+            self.creep.add_rows(self._batch[:k], fields, sample, self.dt, creeping, desired_speed, period)
+
     def on_status(self, t: float, values: dict[str, float], truth: Sample) -> None:
+        self.flush()
         self.creep.status(t, values["State"], values["ActiveClutch"], values["T_CL_Pred"], values["T_CH_Pred"],
                           truth)
 
     def as_json(self, frames: dict[str, int], scenario: str, mode: str, interface: str, duration_s: float) -> dict:
+        self.flush()
         creep = self.creep.as_json()
         if self.stop_reason is not None:
             creep["stop_reason"] = self.stop_reason

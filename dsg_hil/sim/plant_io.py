@@ -94,7 +94,7 @@ def _to_dbc(source: str, quantity: str, factor: float) -> str:
 
 def value_sources(message: str) -> dict[str, str]:
     """By signal of ``message``, the source of its value in the DBC's unit from ``out`` (the plant's outputs) or
-    ``driver`` (:data:`SIGNALS`, constants inlined)."""
+    ``driver`` (:data:`SIGNALS`, constants inlined): always a float (``float()`` of a quantity that is not one)."""
     source = "driver" if message == "DRIVER" else "out"
     return {signal: _to_dbc(source, *SIGNALS[message, signal]) for signal in PLANT_TX[message]}
 
@@ -126,8 +126,8 @@ units, from the plant's outputs ``out`` and the driver's input (:data:`SIGNALS`;
 def frame_encoder(codec: Codec, message: str) -> Callable[[PlantOutputs, DriverInput, int], bytes]:
     """``f(out, driver, counter)``: the data of a frame of ``message`` the plant sends, its values as
     :func:`plant_signals` gives them (:func:`value_sources`), encoded by the codec without a dict in between where
-    it can (:meth:`Codec.expression_encoder`)."""
-    return codec.expression_encoder(message, ("out", "driver"), value_sources(message))
+    it can (:meth:`Codec.expression_encoder`; every source is a float, :func:`value_sources`)."""
+    return codec.expression_encoder(message, ("out", "driver"), value_sources(message), floats=True)
 
 
 (_CL, _CL_TO_PA), (_CH, _CH_TO_PA) = (

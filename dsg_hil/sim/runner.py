@@ -65,9 +65,11 @@ class PlantRunner:
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._sent_by_id = dict.fromkeys(self._names, 0)  # frames sent (first transmissions, the ones logged)
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
+        self._send_all: Callable[[list[tuple[int, bytes]]], None] | None = None  # ... (a batch of send_data)
         self.link = LockstepMaster(codec, PLANT_RX, self._send, bus.recv, self._use_stamped)  # lock-step protocol
         self._keep: Callable[[int, bytes, float], None] | None = None  # lock-step: the period's frames, re-sent
         self._cmd_on_bus: float | None = None
+        self._held: PlantInputs | None = None  # the last inputs (_inputs)
         self._traces: dict[int, np.ndarray] = {}  # by number of steps: the plant's trace of a period (_advance)
         self._running = False  # set once the run proper starts (after the lock-step handshake)
         self._wall0 = time.monotonic()  # when it did (wall clock: the progress line's pace and ETA)
@@ -126,6 +128,7 @@ class PlantRunner:
         """Frames as (ID, data), no :class:`can.Message` built unless a listener wants one, where the bus is the
         direct in-process one (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped: no plant-side faults)."""
         self._send_data = getattr(self.bus, "send_data", None)
+        self._send_all = getattr(self.bus, "send_all", None) if self._send_data is not None else None
         self.link.recv = getattr(self.bus, "recv_data", None) or self.bus.recv
         self._channel = getattr(self.bus, "channel", None)  # of the frames received as (ID, data), when logged
 
@@ -207,6 +210,24 @@ class PlantRunner:
                 keep(frame_id, data, stamp)
         self.sent += len(names)
 
+    def _publish_period(self, tick: int, t: float, driver: DriverInput) -> None:
+        """Lock-step: send the frames due at ``tick`` (stamped ``t``; ``driver``: the driver's inputs now) and the
+        tick's SIM_SYNC last, kept for re-sending: :meth:`_publish_due` and :meth:`_emit` of the tick, in one batch
+        on a bus taking them so (the direct in-process bus, no listener)."""
+        link, send_all = self.link, self._send_all
+        if send_all is None or self.listeners:
+            self._publish_due(tick * self.period_ms, stamp=t)
+            self._emit(link.sync_id, link.tick_data(), t)
+            return
+        frames = self.tx.encode_due_ms(tick * self.period_ms, self._frame_data, self.out, driver)
+        frames.append((link.sync_id, link.tick_data()))
+        send_all(frames)
+        link.keep_all(frames, t)
+        sent_by = self._sent_by_id
+        for frame_id, _ in frames:
+            sent_by[frame_id] += 1
+        self.sent += len(frames)
+
     def _take(self, msg: can.Message, now: float, stamp: float) -> tuple[str, DecodedFrame | None]:
         """Handle one received frame: (status, frame) as :meth:`RxMonitor.take`; only new frames are used and
         logged."""
@@ -220,8 +241,11 @@ class PlantRunner:
 
     def _use_stamped(self, frame: DecodedFrame, item: Received, stamp: float) -> None:
         """:meth:`_use` of a new frame of a lock-step answer (from the master), logged with ``stamp``."""
-        if not self.listeners:
-            self._use(frame, None)
+        if not self.listeners:  # _use, written out: every period
+            if frame.name == "TCU_CMD":
+                self.P_cmd = commanded_pressures(frame.values)
+            elif frame.name == "TCU_STATUS":
+                self.summary.on_status(self.plant.state.t, frame.values, self.out)
         elif isinstance(item, tuple):
             self._use(frame, data_frame(item[0], item[1], stamp, self._channel, True))
         else:
@@ -238,7 +262,7 @@ class PlantRunner:
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
 
     def _check_command(self, now: float) -> None:
-        valid = self.rx.valid("TCU_CMD", now)
+        valid = self.link.rx.states["TCU_CMD"].valid(now)  # (rx.valid, a look-up less: every period)
         if self.command_valid and not valid:
             self.summary.fallback_events += 1
             log.warning("t=%.3f s: TCU_CMD missing for %.0f ms: hydraulics unpowered (pressures decay to 0)",
@@ -249,20 +273,27 @@ class PlantRunner:
 
     # ---- physics -------------------------------------------------------------------------------------------
     def _inputs(self, driver: DriverInput, now: float) -> PlantInputs:
-        """Plant inputs from the driver and the TCU's frames; ``now`` is the time frames are judged on."""
-        status = self.rx.states["TCU_STATUS"]
+        """Plant inputs from the driver and the TCU's frames; ``now`` is the time frames are judged on. The last
+        inputs again when nothing changed (most periods: a held command), else new ones."""
+        status = self.link.rx.states["TCU_STATUS"]
         brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
+        brake = max(driver.brake, brake_request)
+        held = self._held
+        if held is not None and P_CL == held.P_CL_cmd and P_CH == held.P_CH_cmd and brake == held.brake:
+            return held  # (grade and engine speed are the scenario's)
         scenario = self.scenario
         rpm = scenario.engine_speed_rpm
-        # (P_CL_cmd, P_CH_cmd, brake, grade, engine_speed_request), positional: built every control period
-        return PlantInputs(P_CL, P_CH, max(driver.brake, brake_request), scenario.grade_rad,
-                           None if rpm is None else rpm / CV.RAD_S_TO_RPM)
+        # (P_CL_cmd, P_CH_cmd, brake, grade, engine_speed_request), positional
+        self._held = PlantInputs(P_CL, P_CH, brake, scenario.grade_rad, None if rpm is None else rpm / CV.RAD_S_TO_RPM)
+        return self._held
 
-    def _advance(self, steps: int, now: float) -> None:
-        """``steps`` plant steps on one set of inputs: one compiled call, whose trace (every step's outputs) feeds
-        the summary as an array; a single step (real time) goes the per-sample way, cheaper for one row."""
-        driver = self.scenario.driver_at(self.plant.state.t)
+    def _advance(self, steps: int, now: float, driver: DriverInput | None = None) -> None:
+        """``steps`` plant steps on one set of inputs (``driver``: the driver's inputs now, if known): one compiled
+        call, whose trace (every step's outputs) feeds the summary as an array; a single step (real time) goes the
+        per-sample way, cheaper for one row."""
+        if driver is None:
+            driver = self.scenario.driver_at(self.plant.state.t)
         inputs = self._inputs(driver, now)
         creeping, fallback, desired = driver.creep_request, not self.command_valid, driver.desired_speed_mps
         if steps == 1:
@@ -313,19 +344,22 @@ class PlantRunner:
         link.handshake(startup_timeout, pump)
         self._running = True
         self._keep = link.keep
+        driver_at, state, steps = self.scenario.driver_at, self.plant.state, self.steps_per_period
+        report = self.progress
         t0 = self._wall0 = time.monotonic()
         try:
             for tick in range(self.n_periods):
                 t = tick * self.period  # the frames' stamp [s]; the schedule counts whole ms
+                driver = driver_at(state.t)  # the driver's inputs this period (the plant's time, not t)
                 link.start(tick)
-                self._publish_due(tick * self.period_ms, stamp=t)
-                self._emit(link.sync_id, link.tick_data(), t)
+                self._publish_period(tick, t, driver)  # the period's frames, its tick last
                 if pump is not None:
                     pump()
                 link.answer(t, reply_timeout, pump)  # False: given up (the master warns once per episode)
                 self._check_command(t)
-                self._advance(self.steps_per_period, t)
-                self._report()
+                self._advance(steps, t, driver)
+                if report:
+                    self._report()
         except PeerLost:
             self.summary.stop_reason = "peer_lost"
             raise

@@ -126,6 +126,8 @@ def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db):
         named = signals[::2]  # the rest: defaults
         expressions = {s: f"x[{s!r}]" for s in named}
         encoders = [codec.expression_encoder(message.name, ("x",), expressions) for codec in (generated, reference)]
+        as_floats = generated.expression_encoder(message.name, ("x",), {s: f"float({e})" for s, e in
+                                                                         expressions.items()}, floats=True)
         for _ in range(200):
             values = {}
             while len(values) < len(named):
@@ -135,6 +137,7 @@ def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db):
             counter = rng.randrange(-3, 300)
             expected = reference.encode(message.name, values, counter)
             assert [encode(values, counter) for encode in encoders] == [expected, expected], (message.name, values)
+            assert as_floats(values, counter) == expected  # floats=True: expressions that give floats, taken as such
             n += 1
     assert n >= 600
     with pytest.raises(ValueError, match="no signal Counter"):

@@ -242,3 +242,31 @@ def test_add_rows_counts_the_roll_back_trapezoid_across_periods_as_add_does():
     back = -sum(min(0.5 * (a + b), 0.0) for a, b in zip([flat[0], *flat[:-1]], flat, strict=True)) * DT
     assert one.rollback_distance == pytest.approx(back, rel=1e-12) and one.rollback_guarded == one.rollback_distance
     assert rows.rollback_distance == one.rollback_distance and rows.rollback_guarded == one.rollback_guarded
+
+
+@pytest.mark.parametrize("bad", [None, float("nan"), float("inf")])
+def test_periods_batched_by_on_period_count_as_samples_one_by_one(bad):
+    """RunSummary.on_period holds periods and hands them on in batches (flushed before a TCU_STATUS): the same
+    metrics to the last bit as add row by row, a speed that is not finite included (taken period by period)."""
+    speeds = [[-0.02, -0.01, 0.05], [0.03, 0.01, -0.04], [-0.03, 0.02, 0.01], [0.04, -0.05, 0.06]] * 3
+    if bad is not None:
+        speeds[4] = [0.03, bad, -0.04]
+        speeds[6] = [-bad, 0.02, 0.01]
+    one, batched = CreepMetrics(), RunSummary(DT)
+    t, sample = 0.0, lambda r: PlantOutputs(*r.tolist())  # (one function: another is another batch)
+    for k, block in enumerate(speeds):
+        samples = []
+        for v in block:
+            samples.append(out(round(t, 9), v=v, **CL_SLIPS))
+            one.add(samples[-1], DT, k < 9, 0.1)
+            t += DT
+        batched.on_period(np.array([[float(x) for x in s] for s in samples]), PlantOutputs._fields, sample, k < 9,
+                          False, 0.1)
+        if k == 5:  # a TCU_STATUS: FAULT from here (the guarded roll-back counts while creep is not requested)
+            status = {"State": 5.0, "ActiveClutch": 1.0, "T_CL_Pred": 90.0, "T_CH_Pred": 80.0}
+            batched.on_status(t, status, samples[-1])
+            one.status(t, 5.0, 1.0, 90.0, 80.0, samples[-1])
+    assert batched._batched > 0  # rows still held, until a flush (as_json flushes)
+    batched.flush()
+    assert json.dumps(batched.creep.as_json()) == json.dumps(one.as_json())
+    assert batched.creep.rollback_guarded == one.rollback_guarded > 0.0

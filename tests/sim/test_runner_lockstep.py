@@ -276,10 +276,10 @@ def test_a_stalled_plant_is_no_lost_peer(clean):
     pair = LockstepPair()
     advance = pair.runner._advance
 
-    def slow_advance(steps, now):
+    def slow_advance(steps, now, *driver):
         if pair.runner.tick == 20:
             time.sleep(0.5)
-        advance(steps, now)
+        advance(steps, now, *driver)
 
     pair.runner._advance = slow_advance
     pair.run(reply_timeout=0.3)
