@@ -31,8 +31,9 @@ MuLookup = Callable[[float, float, float], float]
 _LOOKUPS: dict[int, tuple[FrictionMap, MuLookup]] = {}  # by id() of the map (hashing a map hashes all of mu)
 
 
-def _lookup(m: FrictionMap) -> MuLookup:
-    """``mu(T, |slip|, P)`` of the map ``m`` (:func:`_build`), built once per map."""
+def mu_lookup(m: FrictionMap) -> MuLookup:
+    """``mu(T, |slip|, P)`` of the map ``m`` (T [degC], |slip| [r/min] >= 0, P [MPa]) as one function, built once per
+    map (:func:`_build`): what :func:`friction_coefficient` evaluates, for a caller that writes the formulas out."""
     entry = _LOOKUPS.get(id(m))
     if entry is not None and entry[0] is m:
         return entry[1]
@@ -43,23 +44,32 @@ def _lookup(m: FrictionMap) -> MuLookup:
     return mu_of
 
 
-def mu_lookup(m: FrictionMap) -> MuLookup:
-    """``mu(T, |slip|, P)`` of the map ``m`` (T [degC], |slip| [r/min] >= 0, P [MPa]) as one function, built once per
-    map: what :func:`friction_coefficient` evaluates, for a caller that writes the formulas out."""
-    return _lookup(m)
+_lookup = mu_lookup
 
 
 def _build(m: FrictionMap) -> MuLookup:
     """``mu(T, |slip|, P)`` of the map ``m``. On each axis the index i and weight w of x between grid[i] and
-    grid[i+1], clamped to the grid (i = 0, w = 0 below it; the last span, w = 1 above); the spans precomputed (the
-    same subtractions, so the same floats), the map's tuples held in the closure. (Apart from :func:`_lookup`: a
-    function holding a closure makes its cells on every call.)"""
+    grid[i+1], clamped to the grid (i = 0, w = 0 below it; the last span, w = 1 above); the spans and each cell's
+    four (T, slip) corners precomputed (the same subtractions and table entries, so the same floats), the map's
+    tuples held in the closure. The last two lookups are remembered: a control cycle asks for the same state more
+    than once (the monitor's bound, then the next prediction), and gets the very float again. (Apart from
+    :func:`_lookup`: a function holding a closure makes its cells on every call.)"""
     T_grid, S_grid, P_grid, table = m.T_grid_c, m.slip_grid_rpm, m.P_grid_mpa, m.mu
     T_lo, T_hi, T_last, T_span = T_grid[0], T_grid[-1], len(T_grid) - 2, _spans(T_grid)
     S_lo, S_hi, S_last, S_span = S_grid[0], S_grid[-1], len(S_grid) - 2, _spans(S_grid)
     P_lo, P_hi, P_last, P_span = P_grid[0], P_grid[-1], len(P_grid) - 2, _spans(P_grid)
+    corners = tuple(tuple((lo[j], lo[j + 1], hi[j], hi[j + 1]) for j in range(len(S_grid) - 1))
+                    for lo, hi in zip(table, table[1:]))  # [i][j]: (T_i, S_j), (T_i, S_j+1), (T_i+1, S_j), ...
+    last = before = (math.nan,) * 4  # (T, slip, P, mu) of the last two lookups (one tuple each: thread-safe)
 
     def mu_of(T_c: float, slip: float, P_mpa: float) -> float:  # the three axes written out: a call each costs more
+        nonlocal last, before
+        seen = last
+        if seen[0] == T_c and seen[1] == slip and seen[2] == P_mpa:
+            return seen[3]
+        seen = before
+        if seen[0] == T_c and seen[1] == slip and seen[2] == P_mpa:
+            return seen[3]
         if T_c <= T_lo:
             i, wt = 0, 0.0
         elif T_c >= T_hi:
@@ -81,11 +91,13 @@ def _build(m: FrictionMap) -> MuLookup:
         else:
             k = bisect_right(P_grid, P_mpa) - 1
             wp = (P_mpa - P_grid[k]) / P_span[k]
-        lo, hi = table[i], table[i + 1]  # the four corners in (T, slip), each interpolated in P; in this order
-        a, b, c, d = lo[j], lo[j + 1], hi[j], hi[j + 1]
+        a, b, c, d = corners[i][j]  # each interpolated in P, summed in this order
+        k1 = k + 1
         vt, vs, vp = 1 - wt, 1 - ws, 1 - wp
-        return (((0.0 + vt * vs * (vp * a[k] + wp * a[k + 1])) + vt * ws * (vp * b[k] + wp * b[k + 1]))
-                + wt * vs * (vp * c[k] + wp * c[k + 1])) + wt * ws * (vp * d[k] + wp * d[k + 1])
+        mu = (((0.0 + vt * vs * (vp * a[k] + wp * a[k1])) + vt * ws * (vp * b[k] + wp * b[k1]))
+              + wt * vs * (vp * c[k] + wp * c[k1])) + wt * ws * (vp * d[k] + wp * d[k1])
+        before, last = last, (T_c, slip, P_mpa, mu)
+        return mu
 
     return mu_of
 

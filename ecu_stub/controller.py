@@ -224,8 +224,13 @@ class CreepController:
         the worst slip until it is released (:func:`ecu_stub.monitor.worst_heat_w`): the monitor's bound."""
         inp, cal = self.inp, self.cal  # worst_heat_w written out (the same operations: it runs every cycle)
         c, T = cal.clutch(clutch), self._T_pred[clutch]
-        P = max(max(self.P_cmd[clutch], inp.pressure_mpa(clutch)), 0.0)
-        slip = abs(max(abs(inp.slip_rpm(clutch)), abs(inp.clutch_in_rpm)))
+        P, P_meas = self.P_cmd[clutch], inp.pressure_mpa(clutch)  # max() as comparisons: the same floats
+        if P_meas > P:
+            P = P_meas
+        if P < 0.0:
+            P = 0.0
+        slip, n_in = abs(inp.slip_rpm(clutch)), abs(inp.clutch_in_rpm)
+        slip = abs(n_in if n_in > slip else slip)
         return heat_w(mu_lookup(cal.friction)(T, slip, P), c, P, slip)
 
     def crossover_heat(self, clutch: str) -> float:

@@ -32,12 +32,12 @@ from dataclasses import dataclass
 from dsg_hil.common.units import CV
 
 from .calibration import TcuCalibration
-from .clutch_model import friction_heat, heat_w, mu_lookup
+from .clutch_model import friction_heat, mu_lookup
 
 __all__ = ["MonitorVerdict", "ThermalMonitor", "crossover_heat_w", "crossover_slip_rpm", "release_time_s",
            "worst_heat_w", "worst_slip_rpm"]
 
-_RPM_TO_RAD_S = CV.RPM_TO_RAD_S
+_MPA_TO_PA, _RPM_TO_RAD_S = CV.MPA_TO_PA, CV.RPM_TO_RAD_S
 _BISECTIONS = 30  # pressure limit to 1.5 MPa / 2^30: far below the DBC's 1-kPa resolution
 
 
@@ -107,14 +107,19 @@ class ThermalMonitor:
         pressure alone passes it: the release starts at once); a stop if that is the carrying clutch."""
         cal = self.cal
         s = cal.strategy
-        T_safe, error_k, tau, mu_of = s.T_safe_c, s.prediction_error_k, release_time_s(cal, dt), mu_lookup(cal.friction)
+        T_safe, error_k, mu_of = s.T_safe_c, s.prediction_error_k, mu_lookup(cal.friction)
+        tau = 0.5 * s.stop_release_s + s.hydraulic_lag_s + dt  # release_time_s
         bounds, limits, stop = {}, {}, False
         for c, clutch in (("CL", cal.CL), ("CH", cal.CH)):
-            # B = bound(P_cmd[c]): bound_c, worst_heat_w and friction_heat written out (every cycle, for both
-            # clutches), the same operations in the same order
-            T, P = T_pred[c], max(max(P_cmd[c], P_meas[c]), 0.0)
-            slip = abs(max(abs(slip_rpm[c]), abs(clutch_in_rpm)))
-            Q = heat_w(mu_of(T, slip, P), clutch, P, slip)
+            # B = bound(P_cmd[c]): bound_c, worst_heat_w, friction_heat and heat_w written out (every cycle, for both
+            # clutches), the same operations in the same order; max() as comparisons (the same floats)
+            T, P, P_m, slip, n_in = T_pred[c], P_cmd[c], P_meas[c], abs(slip_rpm[c]), abs(clutch_in_rpm)
+            if P_m > P:
+                P = P_m
+            if P < 0.0:
+                P = 0.0
+            slip = abs(n_in if n_in > slip else slip)
+            Q = mu_of(T, slip, P) * clutch.k_geom_m3 * _MPA_TO_PA * P * slip * _RPM_TO_RAD_S
             B = T + error_k + Q * tau / clutch.C_plate_j_k
             if B > T_safe:
                 def bound(P: float, c: str = c) -> float:

@@ -28,16 +28,26 @@ class PID:
     def update(self, error: float, dt: float) -> float:
         if not dt > 0.0:
             raise ValueError(f"dt must be positive, got {dt}")
-        derivative = 0.0 if self.last_error is None else (error - self.last_error) / dt
+        # (every control cycle: min() and max() written out as comparisons, the same floats)
+        last_error, out_min, out_max, kp = self.last_error, self.out_min, self.out_max, self.kp
+        derivative = 0.0 if last_error is None else (error - last_error) / dt
         self.last_error = error
         candidate = self.integral + self.ki * error * dt
-        unclamped = self.kp * error + candidate + self.kd * derivative
+        unclamped = kp * error + candidate + self.kd * derivative
         # anti-windup: integrate only while the output is not saturated in the direction of the error
-        if self.out_min < unclamped < self.out_max or (unclamped >= self.out_max and error < 0) or \
-                (unclamped <= self.out_min and error > 0):
-            self.integral = min(max(candidate, self.out_min), self.out_max)
-        out = min(max(self.kp * error + self.integral + self.kd * derivative, self.out_min), self.out_max)
+        if out_min < unclamped < out_max or (unclamped >= out_max and error < 0) or \
+                (unclamped <= out_min and error > 0):
+            self.integral = _clamp(candidate, out_min, out_max)
+        out = _clamp(kp * error + self.integral + self.kd * derivative, out_min, out_max)
         step = self.rate_limit * dt
-        out = min(max(out, self.last_output - step), self.last_output + step)
+        last_output = self.last_output
+        out = _clamp(out, last_output - step, last_output + step)
         self.last_output = out
         return out
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    """``min(max(x, lo), hi)``, the same float (max keeps x unless lo > x; min keeps that unless hi < it)."""
+    if lo > x:
+        x = lo
+    return hi if hi < x else x

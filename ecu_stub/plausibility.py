@@ -74,6 +74,7 @@ HEAL_S = 2.0  # a pair is disagreeing this long after its distance last passed D
 MAX_DT_S = 0.03  # a cycle counts at most the DBC's receive timeout (3 cycles of 10 ms) [s]
 _RPM_TO_RAD_S = math.pi / 30.0
 _EPS_S = 1e-9  # times are sums of float cycle times: 50 x 10 ms may come out a hair under 0.5 s
+_HEALED_S = HEAL_S - _EPS_S  # failing while the bound was passed less than this ago [s]
 
 
 class Verdict(Enum):
@@ -110,19 +111,30 @@ class Sustained:
     largest: float = 0.0  # the largest integral seen (how close a run without a sensor fault came)
 
     def update(self, difference: float, tol: float, dt: float, now: float) -> bool:
-        """One cycle ``dt`` [s] long, ending at ``now`` [s]; returns :meth:`failing`."""
+        """One cycle ``dt`` [s] long, ending at ``now`` [s]; returns :meth:`failing`. (Every check, every cycle: the
+        max() of each integral with 0, of ``largest`` and :meth:`failing` written out, the same floats.)"""
         over = self.over
-        over[0] = max(0.0, over[0] + (difference - tol) * dt)
+        up = over[0] + (difference - tol) * dt
+        up = up if up > 0.0 else 0.0
+        down = over[1]
         if not self.one_sided:
-            over[1] = max(0.0, over[1] + (-difference - tol) * dt)
-        self.largest = max(self.largest, over[0], over[1])
-        if over[0] > self.bound or over[1] > self.bound:
-            self.last_over, over[0], over[1] = now, 0.0, 0.0
-        return self.failing(now)
+            down += (-difference - tol) * dt
+            down = down if down > 0.0 else 0.0
+        largest = self.largest
+        if up > largest:
+            largest = up
+        if down > largest:
+            largest = down
+        self.largest = largest
+        if up > self.bound or down > self.bound:
+            self.last_over, up, down = now, 0.0, 0.0
+        over[0], over[1] = up, down
+        last = self.last_over
+        return last is not None and now - last < _HEALED_S
 
     def failing(self, now: float) -> bool:
         """The bound passed less than :data:`HEAL_S` ago."""
-        return self.last_over is not None and now - self.last_over < HEAL_S - _EPS_S
+        return self.last_over is not None and now - self.last_over < _HEALED_S
 
 
 @dataclass(slots=True)
@@ -148,7 +160,9 @@ class PairCheck:
 
     def update(self, a: float, b: float, dt: float, now: float) -> bool:
         """One cycle ``dt`` [s] long, ending at ``now`` [s]; returns :meth:`disagreeing`."""
-        return self.check.update(a - b, tolerance_mps(a, b, self.q_a, self.q_b), dt, now)
+        abs_a, abs_b = abs(a), abs(b)  # tolerance_mps written out (the same operations: three pairs every cycle)
+        tol = self.q_a + self.q_b + REL_TOL * (abs_b if abs_b > abs_a else abs_a)
+        return self.check.update(a - b, tol, dt, now)
 
     def disagreeing(self, now: float) -> bool:
         """The distance passed :data:`DISTANCE_M` less than :data:`HEAL_S` ago."""
@@ -184,10 +198,11 @@ class SpeedVoter:
         """One cycle at ``now`` [s]: (verdict, the vehicle speed to use [m/s]): ``v_mps`` itself unless the verdict
         is SUBSTITUTED (then the mean of the two shaft-derived speeds). The cycle's length counts up to
         :data:`MAX_DT_S` (after a longer gap, e.g. FAULT on missing frames, the values held did not describe it)."""
-        dt = 0.0 if self.last_now is None else min(now - self.last_now, MAX_DT_S)
-        self.last_now = now
-        v_cl = shaft_speed_mps(cl_out_rpm, self.speed_ratio_cl_m)
-        v_ch = shaft_speed_mps(ch_out_rpm, self.speed_ratio_ch_m)
+        last, self.last_now = self.last_now, now
+        dt = 0.0 if last is None else now - last
+        dt = MAX_DT_S if MAX_DT_S < dt else dt  # min(dt, MAX_DT_S)
+        v_cl = self.speed_ratio_cl_m * cl_out_rpm * _RPM_TO_RAD_S  # shaft_speed_mps of each, written out
+        v_ch = self.speed_ratio_ch_m * ch_out_rpm * _RPM_TO_RAD_S
         with_cl, with_ch, shafts = self.pairs
         off_cl, off_ch = with_cl.update(v_mps, v_cl, dt, now), with_ch.update(v_mps, v_ch, dt, now)
         off_shafts = shafts.update(v_cl, v_ch, dt, now)

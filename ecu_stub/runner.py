@@ -45,7 +45,7 @@ from dsg_hil.protocol.validity import RxState, all_valid
 from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
 from .plausibility import SpeedVoter, Verdict
-from .sensor_checks import SensorChecks
+from .sensor_checks import CHECKED, SensorChecks
 
 __all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
 
@@ -75,7 +75,6 @@ TX_VALUES = {  # by message sent, in the order of an answer (TCU_CMD last), each
 REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
 FAULT_IMPLAUSIBLE = 0x10  # TCU_STATUS.FaultBits bit 4: a valid frame's value failed a plausibility check
-CHECKED = ("P_CL", "P_CH", "ClutchInputSpeed", "T_OilCL", "T_OilCH")  # ecu_stub.sensor_checks
 SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
 DRAIN_MAX = 256  # real time: frames already waiting taken before a control cycle, at most (a busy bus: go on)
 
@@ -189,15 +188,13 @@ class TcuRunner:
         clutch_in, P_CL, P_CH, T_CL, T_CH = s["ClutchInputSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"]
         trusted = True
         if (checks := self.sensor_checks) is not None:
-            values = {"P_CL": P_CL, "P_CH": P_CH, "ClutchInputSpeed": clutch_in, "EngineSpeed": e["EngineSpeed"],
-                      "T_OilCL": T_CL, "T_OilCH": T_CH, "T_Sump": o["T_Sump"]}
-            failing = checks.update(values, getattr(self.controller, "T_pred", None), now)
+            P_CL, P_CH, clutch_in, T_CL, T_CH, failing = checks.check(
+                P_CL, P_CH, clutch_in, e["EngineSpeed"], T_CL, T_CH, o["T_Sump"],
+                getattr(self.controller, "T_pred", None), now)
             if failing:  # a sensor fault: the value replaced by a conservative one
                 faults |= FAULT_IMPLAUSIBLE
                 for name in failing:
                     self.implausible[name] += 1
-                clutch_in, P_CL, P_CH = values["ClutchInputSpeed"], values["P_CL"], values["P_CH"]
-                T_CL, T_CH = values["T_OilCL"], values["T_OilCH"]
                 trusted = "P_CL" not in failing and "P_CH" not in failing
         return TcuInputs(True, e["EngineSpeed"], clutch_in, s["CLOutputSpeed"], s["CHOutputSpeed"],
                          v_mps, P_CL, P_CH, T_CL, T_CH, o["T_Sump"],

@@ -94,8 +94,8 @@ from dataclasses import dataclass, field
 
 from .plausibility import MAX_DT_S, Sustained
 
-__all__ = ["ANGLE_RAD", "InputSpeedCheck", "N_ABS_RPM", "N_REL", "OIL_KS", "OIL_TOL_K", "OilCheck", "P_ABS_MPA",
-           "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "SensorChecks"]
+__all__ = ["ANGLE_RAD", "CHECKED", "InputSpeedCheck", "N_ABS_RPM", "N_REL", "OIL_KS", "OIL_TOL_K", "OilCheck",
+           "P_ABS_MPA", "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "SensorChecks"]
 
 P_ABS_MPA = 0.02  # pressure sensor accuracy: 1 % of the DBC's 2-MPa range [MPa]
 P_REL = 0.05  # the valve's gain [1]
@@ -106,6 +106,7 @@ ANGLE_RAD = 0.5  # shaft twist 4 x 0.065 rad + real-time skew 10 ms x 20 rad/s, 
 OIL_TOL_K = 10.0  # oil leaving a clutch below its balance with plate estimate and sump, without a sensor fault [K]
 OIL_KS = 2.0  # integral of the oil's deficit beyond OIL_TOL_K [K s]
 _RPM_TO_RAD_S = math.pi / 30.0
+CHECKED = ("P_CL", "P_CH", "ClutchInputSpeed", "T_OilCL", "T_OilCH")  # the signals checked, in this order
 
 
 @dataclass(slots=True)
@@ -122,15 +123,15 @@ class PressureCheck:
                ) -> tuple[bool, float]:
         """One cycle: ``cmd`` the command sent the cycle before, held for ``elapsed`` [s] (default ``dt``; ``dt``
         counts in the CUSUM). (failing, the pressure to use [MPa])."""
-        if self.model_mpa is None:
-            self.model_mpa = measured
-        else:
-            held = dt if elapsed is None else elapsed
-            self.model_mpa = cmd + (self.model_mpa - cmd) * math.exp(-held / self.lag_s)
         m = self.model_mpa
-        tol = self.q_mpa + P_ABS_MPA + P_REL * max(abs(measured), abs(m))
-        self.check.update(measured - m, tol, dt, now)
-        failing = self.check.failing(now)
+        if m is None:
+            m = measured
+        else:
+            m = cmd + (m - cmd) * math.exp(-(dt if elapsed is None else elapsed) / self.lag_s)
+        self.model_mpa = m
+        abs_measured, abs_m = abs(measured), abs(m)  # (max() written out, here and below: the same floats)
+        tol = self.q_mpa + P_ABS_MPA + P_REL * (abs_m if abs_m > abs_measured else abs_measured)
+        failing = self.check.update(measured - m, tol, dt, now)
         return failing, max(measured, m) if failing else measured
 
 
@@ -145,9 +146,9 @@ class InputSpeedCheck:
     def update(self, clutch_in: float, engine: float, dt: float, now: float) -> tuple[bool, float]:
         """(failing, the clutch input speed to use [r/min])."""
         via_engine = engine / self.input_ratio
-        tol = self.q_rpm + N_ABS_RPM + N_REL * max(abs(clutch_in), abs(via_engine))
-        self.check.update((clutch_in - via_engine) * _RPM_TO_RAD_S, tol * _RPM_TO_RAD_S, dt, now)
-        failing = self.check.failing(now)
+        abs_in, abs_via = abs(clutch_in), abs(via_engine)
+        tol = self.q_rpm + N_ABS_RPM + N_REL * (abs_via if abs_via > abs_in else abs_in)
+        failing = self.check.update((clutch_in - via_engine) * _RPM_TO_RAD_S, tol * _RPM_TO_RAD_S, dt, now)
         return failing, max(clutch_in, via_engine) if failing else clutch_in
 
 
@@ -163,8 +164,7 @@ class OilCheck:
         """(failing, the oil temperature to use [degC]); ``plate``: the TCU's estimate, None before it has one (then
         nothing is checked)."""
         balance = oil if plate is None else plate + self.sump_share * (sump - plate)
-        self.check.update(balance - oil, OIL_TOL_K, dt, now)
-        failing = self.check.failing(now)
+        failing = self.check.update(balance - oil, OIL_TOL_K, dt, now)
         return failing, max(oil, sump, plate if plate is not None else sump) if failing else oil
 
 
@@ -202,23 +202,25 @@ class SensorChecks:
         """One cycle at ``now`` on the decoded ``values`` (by signal name: P_CL, P_CH, ClutchInputSpeed,
         EngineSpeed, T_OilCL, T_OilCH, T_Sump), which it replaces in place by the values to use where a check
         fails; ``plate`` the TCU's plate estimates (None before it has one). Returns the failing signals."""
-        elapsed = 0.0 if self.last_now is None else now - self.last_now
-        dt = min(elapsed, MAX_DT_S)
-        self.last_now = now
-        failing = []
-        for c in ("CL", "CH"):
-            name = f"P_{c}"
-            bad, values[name] = self.pressure[c].update(values[name], self.cmd_mpa[c], dt, now, elapsed)
-            if bad:
-                failing.append(name)
-        bad, values["ClutchInputSpeed"] = self.speed.update(values["ClutchInputSpeed"], values["EngineSpeed"], dt,
-                                                            now)
-        if bad:
-            failing.append("ClutchInputSpeed")
-        for c in ("CL", "CH"):
-            name = f"T_Oil{c}"
-            bad, values[name] = self.oil[c].update(values[name], values["T_Sump"],
-                                                   None if plate is None else plate[c], dt, now)
-            if bad:
-                failing.append(name)
+        *used, failing = self.check(values["P_CL"], values["P_CH"], values["ClutchInputSpeed"], values["EngineSpeed"],
+                                    values["T_OilCL"], values["T_OilCH"], values["T_Sump"], plate, now)
+        values.update(zip(CHECKED, used))
         return failing
+
+    def check(self, P_CL: float, P_CH: float, clutch_in: float, engine: float, T_oil_CL: float, T_oil_CH: float,
+              T_sump: float, plate: dict[str, float] | None, now: float
+              ) -> tuple[float, float, float, float, float, list[str]]:
+        """:meth:`update` on the values one by one (a cycle's, without a dict): the values to use of the checked
+        signals (:data:`CHECKED`: P_CL, P_CH, ClutchInputSpeed, T_OilCL, T_OilCH) and the failing ones."""
+        last, self.last_now = self.last_now, now
+        elapsed = 0.0 if last is None else now - last
+        dt = MAX_DT_S if MAX_DT_S < elapsed else elapsed  # min(elapsed, MAX_DT_S)
+        cmd, pressure, oil = self.cmd_mpa, self.pressure, self.oil
+        bad_P_CL, P_CL = pressure["CL"].update(P_CL, cmd["CL"], dt, now, elapsed)
+        bad_P_CH, P_CH = pressure["CH"].update(P_CH, cmd["CH"], dt, now, elapsed)
+        bad_in, clutch_in = self.speed.update(clutch_in, engine, dt, now)
+        bad_T_CL, T_oil_CL = oil["CL"].update(T_oil_CL, T_sump, None if plate is None else plate["CL"], dt, now)
+        bad_T_CH, T_oil_CH = oil["CH"].update(T_oil_CH, T_sump, None if plate is None else plate["CH"], dt, now)
+        failing = [name for name, bad in zip(CHECKED, (bad_P_CL, bad_P_CH, bad_in, bad_T_CL, bad_T_CH)) if bad] \
+            if bad_P_CL or bad_P_CH or bad_in or bad_T_CL or bad_T_CH else []
+        return P_CL, P_CH, clutch_in, T_oil_CL, T_oil_CH, failing

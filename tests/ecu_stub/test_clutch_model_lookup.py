@@ -71,3 +71,12 @@ def test_a_new_map_is_looked_up_anew():
     assert friction_coefficient(m, 0.5, 0.5, 0.5) == 0.1
     assert friction_coefficient(other, 0.5, 0.5, 0.5) == 0.2
     assert friction_coefficient(m, 0.5, 0.5, 0.5) == 0.1
+
+
+def test_repeated_and_alternating_states_give_each_its_own_mu():
+    """The lookup remembers its last two states: asked again, in any order among three, each gets its own value."""
+    m = load_calibration().friction
+    states = [(150.0, 90.0, 0.4), (150.0, 90.0, 0.41), (151.0, 90.0, 0.4), (150.0, 91.0, 0.4)]
+    order = [0, 0, 1, 0, 1, 2, 0, 2, 3, 1, 3, 3, 2, 0]
+    assert [friction_coefficient(m, *states[n]) for n in order] == [plain_mu(m, *states[n]) for n in order]
+    assert len({plain_mu(m, *state) for state in states}) == len(states)
