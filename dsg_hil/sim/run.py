@@ -219,6 +219,10 @@ class Run:
         self.runner = PlantRunner(plant_for(self.scenario, self.params), self.scenario, codec, plant_bus,
                                   listeners, config.progress)
         self.runner.link.notify = config.progress  # "waiting for a TCU", while the lock-step handshake waits
+        periodic = [f for f in (config.on_period, self._record_truth if config.truth else None) if f is not None]
+        if periodic:  # called by the runner as it sends each tick (not a listener: that would cost each frame)
+            runner = self.runner
+            runner.on_tick = lambda: [f(runner) for f in periodic]
         self.runner.inject(self.faults_by_side["plant"], config.fault_seed)
         if self.runner.bus is not plant_bus:
             stack.callback(self.runner.bus.shutdown)
@@ -299,9 +303,6 @@ class Run:
             listeners = (*listeners, log)
         if config.capture:
             listeners = (*listeners, self.frames.append)
-        periodic = [f for f in (config.on_period, self._record_truth if config.truth else None) if f is not None]
-        if periodic:
-            listeners = (*listeners, at_each_tick(self.db, lambda: [f(self.runner) for f in periodic]))
         return listeners
 
     def _record_truth(self, runner: PlantRunner) -> None:

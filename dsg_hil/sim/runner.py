@@ -50,6 +50,7 @@ class PlantRunner:
         for name in PLANT_USES:  # resolved at start-up by the codec; fail here if not
             codec.message(name)
         self.plant, self.scenario, self.codec, self.bus = plant, scenario, codec, bus
+        self.on_tick: Callable[[], object] | None = None  # lock-step: called as each tick is sent (RunConfig.on_period)
         self.listeners = listeners
         self.progress = progress
         self.period = codec.cycle_time("TCU_CMD")
@@ -353,6 +354,8 @@ class PlantRunner:
                 driver = driver_at(state.t)  # the driver's inputs this period (the plant's time, not t)
                 link.start(tick)
                 self._publish_period(tick, t, driver)  # the period's frames, its tick last
+                if self.on_tick is not None:
+                    self.on_tick()
                 if pump is not None:
                     pump()
                 link.answer(t, reply_timeout, pump)  # False: given up (the master warns once per episode)
