@@ -10,8 +10,10 @@ A run violates when (limits: :data:`LIMITS`, overridable in the space's ``[limit
   is judged by the vehicle's roll-back and speed there; FAULT outside those windows is a false alarm that leaves
   the driver without creep);
 * ``standstill``: the vehicle came to rest while creep was requested, the TCU had not stopped it for overheat
-  (summary ``stop_reason`` ``vehicle_stopped``) and the driver's pedal was at most ``standstill_brake`` from then
-  until the summary calls it stopped (``brake_at_stop``; a pressed brake stops creep by design).
+  (summary ``stop_reason`` ``vehicle_stopped``), the driver's pedal was at most ``standstill_brake`` from then
+  until the summary calls it stopped (``brake_at_stop``; a pressed brake stops creep by design), and the stop did
+  not begin in a fault window (``stop_in_fault_window``: holding the vehicle is the TCU's safe reaction to an
+  injected fault, FAULT on missing plant frames or the hold on lost commands, judged there by roll-back and speed).
 
 The summary's failure metrics (``max_speed_creep_mps``, ``overspeed_mps``, ``rollback_guarded_m``,
 ``fault_time_s``) are read into row columns by :data:`OPTIONAL` (None where a summary lacks one, e.g. one read
@@ -122,7 +124,8 @@ def violations(row: Mapping[str, Any], limits: Mapping[str, float]) -> list[str]
     unexplained = row.get("fault_unexplained_s", row.get("fault_time_s"))  # a row of an older sweep: all of it
     if (unexplained or 0.0) > limits["fault_s"]:
         found.append("fault")
-    if row.get("stop_reason") == "vehicle_stopped" and (row.get("brake_at_stop") or 0.0) <= limits["standstill_brake"]:
+    if (row.get("stop_reason") == "vehicle_stopped" and (row.get("brake_at_stop") or 0.0) <= limits["standstill_brake"]
+            and not row.get("stop_in_fault_window")):
         found.append("standstill")
     return found
 

@@ -24,7 +24,7 @@ from ..sim.run import RunConfig, open_run
 from ..results.thresholds import STOP_MIN_S
 from ..sim.scenario import Scenario, parse_scenario
 from .controllers import config_for
-from .verdict import UnexplainedFault, fault_windows, summary_row, violations
+from .verdict import UnexplainedFault, fault_windows, in_windows, summary_row, violations
 
 __all__ = ["RUN_LOGGERS", "WARM_LOCK", "pedal_while_stopping", "run_task", "runs_quiet", "warm"]
 
@@ -82,7 +82,8 @@ def _warm_in_worker() -> None:
 
 def _run(task: dict[str, Any], log: Path | None) -> tuple[dict[str, Any], dict[str, Any]]:
     """One run of ``task`` (its log to ``log``): the summary JSON, and what the worker measures besides: the top
-    true speed, the top desired speed, the driver's pedal when the vehicle stopped."""
+    true speed, the top desired speed, the driver's pedal when the vehicle stopped, whether it stopped in a fault
+    window."""
     scenario = parse_scenario(task["scenario"], task["run_id"])
     params = with_overrides(load_params(), task["params"], origin="sweep") if task["params"] else None
     peak = [float("-inf")]
@@ -101,7 +102,8 @@ def _run(task: dict[str, Any], log: Path | None) -> tuple[dict[str, Any], dict[s
     return summary, {"v_max_mps": peak[0] if peak[0] > float("-inf") else None,
                      "fault_unexplained_s": round(unexplained.seconds, 3),
                      "v_desired_max_mps": max(e.desired_speed_mps for e in scenario.driver),
-                     "brake_at_stop": None if stop is None else pedal_while_stopping(scenario, stop)}
+                     "brake_at_stop": None if stop is None else pedal_while_stopping(scenario, stop),
+                     "stop_in_fault_window": stop is not None and in_windows(stop, unexplained.windows)}
 
 
 def pedal_while_stopping(scenario: Scenario, stop: float) -> float:

@@ -35,6 +35,9 @@ def test_each_violation_on_its_own():
     assert violations({**ok, "max_speed_mps": 13.6}, LIMITS) == ["overspeed"]
     assert violations({**ok, "fault_time_s": 0.5}, LIMITS) == ["fault"]
     assert violations({**ok, "stop_reason": "vehicle_stopped", "brake_at_stop": 0.0}, LIMITS) == ["standstill"]
+    # the TCU holding the vehicle in an injected fault's window (FAULT on missing plant frames): its safe reaction
+    assert violations({**ok, "stop_reason": "vehicle_stopped", "brake_at_stop": 0.0, "stop_in_fault_window": True},
+                      LIMITS) == []
     # the driver braking (the pedal above nothing) stops creep by design
     assert violations({**ok, "stop_reason": "vehicle_stopped", "brake_at_stop": 0.052}, LIMITS) == []
     assert violations({**ok, "max_plate_temp_c": 250.1}, {**LIMITS, "plate_temp_c": 260.0}) == []
