@@ -17,12 +17,12 @@ from cantools.database.can import Database
 
 from ..physics.params import Params
 from ..protocol.faults import FaultSpec
-from .run import (ECU_STUB, RunConfig, TcuFactory, answer_at_once, at_each_tick, attach_tcu, open_run, plant_for,
+from .run import (ECU_STUB, RunConfig, TcuFactory, answer_at_once, attach_tcu, open_run, plant_for,
                   private_channel)
 from .runner import PlantRunner
 from .scenario import Scenario
 
-__all__ = ["TRANSPORTS", "LoopResult", "answer_at_once", "at_each_tick", "attach_tcu", "plant_for",
+__all__ = ["TRANSPORTS", "LoopResult", "answer_at_once", "attach_tcu", "plant_for",
            "run_closed_loop"]
 
 TRANSPORTS = ("local", "virtual")  # of run_closed_loop

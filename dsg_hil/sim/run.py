@@ -50,12 +50,12 @@ from ..results.outcome import Summary
 from ..results.summary import RunSummary
 from ..physics.thermal import NODES
 from ..physics.plant import Plant
-from .plant_io import PLANT_RX, PLANT_USES, SYNC
+from .plant_io import PLANT_RX, PLANT_USES
 from .runner import PeerLost, PeerTimeout, PlantRunner
 from .scenario import Scenario, load_scenario
 
 __all__ = ["ECU_STUB", "EcuStubProcess", "Run", "RunConfig", "TcuFactory", "TcuProcess", "answer_at_once",
-           "at_each_tick", "attach_tcu", "open_run", "plant_for", "private_channel", "stop_process",
+           "attach_tcu", "open_run", "plant_for", "private_channel", "stop_process",
            "unstarted_summary"]
 
 ECU_STUB = "ecu-stub"  # RunConfig.tcu: the bundled TCU, in this process where the bus allows, else as a process
@@ -510,17 +510,6 @@ def answer_at_once(runner: PlantRunner) -> None:
     """An in-process TCU has answered when ``pump()`` returns: re-send a late tick at once instead of waiting
     on the wall clock (a fault that loses answers then costs no wall time, and no silence toward PeerLost)."""
     runner.retry_first_s = runner.retry_max_s = 0.0
-
-
-def at_each_tick(db: Database, call: Callable[[], object]) -> Callable[[can.Message], None]:
-    """A plant listener that calls ``call()`` at each SIM_SYNC tick the plant sends (once per control period:
-    listeners see first transmissions only, never re-sends or the presence probe)."""
-    sync_id = db.get_message_by_name(SYNC).frame_id
-
-    def listener(msg: can.Message) -> None:
-        if msg.arbitration_id == sync_id:
-            call()
-    return listener
 
 
 def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Iterable[FaultSpec], fault_seed: int,
