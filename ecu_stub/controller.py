@@ -340,9 +340,7 @@ class CreepController:
             first = "CL" if self.can_take_over("CL") else "CH"
             if not self.can_take_over(first):
                 return self._stop(now, faults)
-            self.state, self.active = "ENGAGE", first
-            self.near_limit_since = None
-            self.F_cmd = self.prefill_force()
+            self._engage(first)
             self.brake_request = self.brake_request and abs(inp.v_mps) < self.cal.launch.standstill_mps
 
         if self.state in ("CREEP", "HANDOVER"):
@@ -431,7 +429,7 @@ class CreepController:
             if self.held_untrusted:  # launch again: the brake holds until the measured pressure has built up
                 self.held_untrusted = False
                 self.P_cmd[OTHER[self.active]] = 0.0
-                self.state, self.F_cmd, self.near_limit_since = "ENGAGE", self.prefill_force(), None
+                self._engage(self.active)
                 return
             self.brake_request = False
         if braking or self.brake_request:  # the speed controller starts again from zero force at this speed
@@ -453,6 +451,11 @@ class CreepController:
         out = self.pid.update(v_err, dt)
         self.pid.integral = min(held, cap)
         return out
+
+    def _engage(self, clutch: str) -> None:
+        """A launch on ``clutch``: ENGAGE, the pre-fill's force (:meth:`prefill_force`), no dwell running."""
+        self.state, self.active, self.near_limit_since = "ENGAGE", clutch, None
+        self.F_cmd = self.prefill_force()
 
     def prefill_force(self) -> float:
         """Wheel force [N] of a launch's pre-fill: ``launch.F_prefill_n`` (the heaviest vehicle of the documented
