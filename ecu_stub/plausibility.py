@@ -55,6 +55,24 @@ A pair stays disagreeing for :data:`HEAL_S` = 2 s after its distance last passed
 start afresh): a fault that persists passes it again sooner unless it is within 20 mm/s of the tolerance
 (40 mm / 2 s), so such a sensor stays replaced, and a repaired one is trusted again 2 s later. A run without a
 sensor fault never reaches the bound, so it gives the very same inputs, and frames, as without the check.
+
+**An impossible step substitutes at once** (:func:`plausible_step`). The vote needs its 40 mm: a VehicleSpeed stuck
+at 0 while creeping at 0.187 m/s took 0.15-0.2 s, in which the speed controller, believing the vehicle stopped,
+tripled the clutch force: a light vehicle (5,086 kg on 0.1 rad, found by a 1,000-run sample of issue 18's space)
+reached 0.759 m/s before the substitute brought it back. But VehicleSpeed is the speed of the vehicle's mass, the
+most inert state of the driveline (the shafts ring, it does not), and without a brake nothing decelerates a vehicle
+faster than the slope and the rolling resistance: dv/dt >= -g (sin a + f cos a) = -3.60 m/s^2 on the steepest grade
+of the documented range (0.25 rad) with Table I's f = 0.123 (the clutches push forwards at creep speeds: the engine
+turns faster than either output); :data:`A_COAST_MPS2` = 4 m/s^2 with 10 % for what that leaves out. Nothing
+accelerates it faster than its tyres' grip, 1.2 g + g sin 0.25 (:data:`A_GRIP_MPS2` = 14.2 m/s^2). A step beyond
+these between two PLANT_VEHICLE frames (their counter's step times the DBC's cycle: the plant's own clock, whatever
+the bus delays; the control cycles' time if longer) is a sensor fault at once: VehicleSpeed is replaced by the shafts'
+speed (``SUBSTITUTED``, if the shafts agree) from that cycle on, until the vote takes over or VehicleSpeed's distances
+to both shafts are back to zero (at most :data:`HEAL_S`). Measured over bench/tcu_envelope.py's cases without a
+brake, VehicleSpeed changes by at most 11 mm/s per cycle against 42 mm/s allowed: a run without a sensor fault gives
+the same frames as before. Not while braking (the driver's pedal above 0, or the TCU's brake request within
+:data:`BRAKE_SETTLE_S`): the plant's brake is a torque up to ``vehicle.M_brake_max`` that grip does not limit (53 m/s^2
+on the lightest vehicle of the sweep's space), so there only the vote judges.
 """
 
 from __future__ import annotations
@@ -63,8 +81,9 @@ import math
 from dataclasses import dataclass, field
 from enum import Enum
 
-__all__ = ["DISTANCE_M", "HEAL_S", "MAX_DT_S", "REL_TOL", "SKEW_M", "TWIST_M", "PairCheck", "SpeedVoter", "Sustained",
-           "Verdict", "shaft_speed_mps", "tolerance_mps"]
+__all__ = ["A_COAST_MPS2", "A_GRIP_MPS2", "BRAKE_SETTLE_S", "DISTANCE_M", "HEAL_S", "MAX_DT_S", "REL_TOL", "SKEW_M",
+           "TWIST_M", "PairCheck", "SpeedVoter", "Sustained", "Verdict", "plausible_step", "shaft_speed_mps",
+           "tolerance_mps"]
 
 TWIST_M = 0.030  # largest change of the driveline's twist, as distance at the wheel [m] (module docstring)
 SKEW_M = 0.010  # real time: PLANT_SPEEDS and PLANT_VEHICLE up to one 10-ms cycle apart, 1 m/s of speed change [m]
@@ -72,6 +91,9 @@ DISTANCE_M = TWIST_M + SKEW_M  # what compliance and skew can put between two me
 REL_TOL = 0.03  # rolling radius of a real tyre (wear, load, inflation) and the identified speed ratios [1]
 HEAL_S = 2.0  # a pair is disagreeing this long after its distance last passed DISTANCE_M [s]
 MAX_DT_S = 0.03  # a cycle counts at most the DBC's receive timeout (3 cycles of 10 ms) [s]
+A_COAST_MPS2 = 4.0  # fastest deceleration without a brake: g (sin 0.25 + 0.123 cos 0.25) = 3.60, +10 % [m/s^2]
+A_GRIP_MPS2 = 14.2  # fastest acceleration: the tyres' grip, 1.2 g, + g sin 0.25 [m/s^2]
+BRAKE_SETTLE_S = 0.2  # a brake request acts this long after it ends (TCU_STATUS every 100 ms, read at the next) [s]
 _RPM_TO_RAD_S = math.pi / 30.0
 _EPS_S = 1e-9  # times are sums of float cycle times: 50 x 10 ms may come out a hair under 0.5 s
 _HEALED_S = HEAL_S - _EPS_S  # failing while the bound was passed less than this ago [s]
@@ -94,6 +116,13 @@ def tolerance_mps(a: float, b: float, q_a: float, q_b: float) -> float:
     """Largest steady difference [m/s] of two measures ``a``, ``b`` of the vehicle speed without a sensor fault:
     half-step resolutions ``q_a`` + ``q_b`` and :data:`REL_TOL` of the larger speed (module docstring)."""
     return q_a + q_b + REL_TOL * max(abs(a), abs(b))
+
+
+def plausible_step(dv_mps: float, span_s: float, q_mps: float) -> bool:
+    """A change ``dv_mps`` of VehicleSpeed over ``span_s`` [s] of the plant's time that an unbraked vehicle can make:
+    -:data:`A_COAST_MPS2` span - 2 q <= dv <= :data:`A_GRIP_MPS2` span + 2 q, with ``q`` half a DBC step (module
+    docstring)."""
+    return -(A_COAST_MPS2 * span_s + 2.0 * q_mps) <= dv_mps <= A_GRIP_MPS2 * span_s + 2.0 * q_mps
 
 
 @dataclass(slots=True)
@@ -180,9 +209,13 @@ class SpeedVoter:
     speed_ratio_ch_m: float
     v_step_mps: float
     shaft_step_rpm: float
+    v_cycle_s: float = 0.01  # PLANT_VEHICLE's cycle time (DBC) [s]
+    counter_modulus: int = 16
     verdict: Verdict = Verdict.OK
     last_now: float | None = None
     pairs: tuple[PairCheck, PairCheck, PairCheck] = field(init=False)  # (v, CL), (v, CH), (CL, CH)
+    last_v: tuple[float, int, float] | None = None  # the last VehicleSpeed taken: (value, frame counter, time)
+    stepped_at: float | None = None  # when VehicleSpeed last made an impossible step (:func:`plausible_step`)
 
     def __post_init__(self) -> None:
         self.reset()
@@ -192,12 +225,34 @@ class SpeedVoter:
         half = 0.5 * self.shaft_step_rpm * _RPM_TO_RAD_S
         q_v, q_cl, q_ch = 0.5 * self.v_step_mps, half * self.speed_ratio_cl_m, half * self.speed_ratio_ch_m
         self.pairs = (PairCheck(q_v, q_cl), PairCheck(q_v, q_ch), PairCheck(q_cl, q_ch))
-        self.verdict, self.last_now = Verdict.OK, None
+        self.verdict, self.last_now, self.last_v, self.stepped_at = Verdict.OK, None, None, None
 
-    def update(self, v_mps: float, cl_out_rpm: float, ch_out_rpm: float, now: float) -> tuple[Verdict, float]:
+    def _stepped(self, v_mps: float, counter: int | None, now: float) -> bool:
+        """True if VehicleSpeed stepped impossibly since its last frame (:func:`plausible_step`): the span is the
+        frames' counter step times :attr:`v_cycle_s` (the plant's clock), or the time since, if longer."""
+        last, self.last_v = self.last_v, (v_mps, -1 if counter is None else counter, now)
+        if last is None:
+            return False
+        v_last, counter_last, t_last = last
+        if counter is not None:
+            frames = (counter - counter_last) % self.counter_modulus
+            if frames == 0:  # no new frame: the value held
+                self.last_v = last
+                return False
+        else:
+            frames = 1
+        span = max(frames * self.v_cycle_s, now - t_last)
+        return not plausible_step(v_mps - v_last, span, 0.5 * self.v_step_mps)
+
+    def update(self, v_mps: float, cl_out_rpm: float, ch_out_rpm: float, now: float, counter: int | None = None,
+               braked: bool = False) -> tuple[Verdict, float]:
         """One cycle at ``now`` [s]: (verdict, the vehicle speed to use [m/s]): ``v_mps`` itself unless the verdict
         is SUBSTITUTED (then the mean of the two shaft-derived speeds). The cycle's length counts up to
-        :data:`MAX_DT_S` (after a longer gap, e.g. FAULT on missing frames, the values held did not describe it)."""
+        :data:`MAX_DT_S` (after a longer gap, e.g. FAULT on missing frames, the values held did not describe it).
+        ``counter``: PLANT_VEHICLE's frame counter (None: every cycle a new frame); ``braked``: a brake may act
+        (no step check then, module docstring)."""
+        if self._stepped(v_mps, counter, now) and not braked:
+            self.stepped_at = now
         last, self.last_now = self.last_now, now
         dt = 0.0 if last is None else now - last
         dt = MAX_DT_S if MAX_DT_S < dt else dt  # min(dt, MAX_DT_S)
@@ -207,6 +262,13 @@ class SpeedVoter:
         off_cl, off_ch = with_cl.update(v_mps, v_cl, dt, now), with_ch.update(v_mps, v_ch, dt, now)
         off_shafts = shafts.update(v_cl, v_ch, dt, now)
         if not (off_cl and off_ch):
+            stepped = self.stepped_at
+            if stepped is not None:  # an impossible step, not yet judged by the vote: the shafts' speed if they agree
+                if not off_shafts and now - stepped < _HEALED_S and max(with_cl.check.over) > 0.0 \
+                        and max(with_ch.check.over) > 0.0:
+                    self.verdict = Verdict.SUBSTITUTED
+                    return self.verdict, 0.5 * (v_cl + v_ch)
+                self.stepped_at = None
             self.verdict = Verdict.OK
             return self.verdict, v_mps
         if off_shafts:

@@ -31,6 +31,7 @@ the tick's time, so the same run gives the same record; else with the wall clock
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
 
@@ -44,7 +45,7 @@ from dsg_hil.protocol.validity import RxState, all_valid
 
 from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
-from .plausibility import SpeedVoter, Verdict
+from .plausibility import BRAKE_SETTLE_S, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, SensorChecks
 
 __all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
@@ -117,6 +118,7 @@ class TcuRunner:
         # whose VehicleSpeed the vote replaced ("VehicleSpeed") or whose speeds it found all implausible ("speeds")
         self.speed_vote: SpeedVoter | None = None
         self.sensor_checks: SensorChecks | None = None
+        self._braked_at = -math.inf  # the last cycle whose outputs requested the brake (the speed vote's step check)
         cal = getattr(self.controller, "cal", None)
         if isinstance(cal, TcuCalibration):
             def scale(message: str, signal: str) -> float:
@@ -125,7 +127,8 @@ class TcuRunner:
             self.speed_vote = SpeedVoter(cal.CL.speed_ratio_m, cal.CH.speed_ratio_m,
                                          scale("PLANT_VEHICLE", "VehicleSpeed"),
                                          max(scale("PLANT_SPEEDS", "CLOutputSpeed"),
-                                             scale("PLANT_SPEEDS", "CHOutputSpeed")))
+                                             scale("PLANT_SPEEDS", "CHOutputSpeed")),
+                                         codec.cycle_time("PLANT_VEHICLE"))
             self.sensor_checks = SensorChecks(
                 cal.strategy.hydraulic_lag_s, 0.5 * (scale("PLANT_PRESSURE", "P_CL") + scale("TCU_CMD", "P_CL_Cmd")),
                 cal.vehicle.input_ratio,
@@ -178,7 +181,9 @@ class TcuRunner:
         v_mps, vote = v["VehicleSpeed"], self.speed_vote
         verdict = Verdict.OK
         if vote is not None:
-            verdict, v_mps = vote.update(v_mps, s["CLOutputSpeed"], s["CHOutputSpeed"], now)
+            braked = d["BrakePedal"] > 0.0 or now - self._braked_at <= BRAKE_SETTLE_S
+            verdict, v_mps = vote.update(v_mps, s["CLOutputSpeed"], s["CHOutputSpeed"], now, required[2].last_counter,
+                                         braked)
         if verdict is not Verdict.OK:  # a sensor fault: VehicleSpeed replaced by the shafts' speed, or none trusted
             faults |= FAULT_IMPLAUSIBLE
             if verdict is Verdict.FAULT:
@@ -214,6 +219,8 @@ class TcuRunner:
         self.now = tick_ms / CV.S_TO_MS if lockstep else now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
+        if out.brake_request:
+            self._braked_at = now
         if self.sensor_checks is not None:
             self.sensor_checks.commanded(out.P_CL_cmd_mpa, out.P_CH_cmd_mpa)
         tx, frames = link.tx, []
@@ -231,6 +238,7 @@ class TcuRunner:
         self.controller = type(self.controller)(self.controller.cal)
         if self.speed_vote is not None:
             self.speed_vote.reset()
+        self._braked_at = -math.inf
         if self.sensor_checks is not None:
             self.sensor_checks.reset()
         self.now = now

@@ -11,7 +11,18 @@ import pytest
 
 from dsg_hil.protocol import Codec, TxScheduler, load_dbc
 from dsg_hil.sim.plant_io import PLANT_USES
-from ecu_stub.plausibility import DISTANCE_M, HEAL_S, TWIST_M, SpeedVoter, Verdict, shaft_speed_mps, tolerance_mps
+from ecu_stub.plausibility import (
+    A_COAST_MPS2,
+    A_GRIP_MPS2,
+    DISTANCE_M,
+    HEAL_S,
+    TWIST_M,
+    SpeedVoter,
+    Verdict,
+    plausible_step,
+    shaft_speed_mps,
+    tolerance_mps,
+)
 from ecu_stub.runner import FAULT_IMPLAUSIBLE, TCU_USES, TcuRunner
 
 R_CL, R_CH = 0.034443, 0.059517  # the shipped calibration's speed ratios [m/s per rad/s]
@@ -27,9 +38,10 @@ def voter() -> SpeedVoter:
     return SpeedVoter(R_CL, R_CH, 0.001, 0.1)  # the DBC's steps of VehicleSpeed and of the output speeds
 
 
-def run(check: SpeedVoter, cycles, t0: float = 0.0) -> list[tuple[Verdict, float]]:
-    """``cycles``: (VehicleSpeed, CL speed, CH speed) in m/s, one per 10-ms cycle from t0."""
-    return [check.update(v, rpm(v_cl, R_CL), rpm(v_ch, R_CH), t0 + k * DT) for k, (v, v_cl, v_ch) in enumerate(cycles)]
+def run(check: SpeedVoter, cycles, t0: float = 0.0, braked: bool = False) -> list[tuple[Verdict, float]]:
+    """``cycles``: (VehicleSpeed, CL speed, CH speed) in m/s, one per 10-ms cycle from t0, a new frame each."""
+    return [check.update(v, rpm(v_cl, R_CL), rpm(v_ch, R_CH), t0 + k * DT, braked=braked)
+            for k, (v, v_cl, v_ch) in enumerate(cycles)]
 
 
 def test_shaft_speed_and_tolerance_by_hand():
@@ -69,22 +81,89 @@ def test_vehicle_speed_stuck_at_zero_is_replaced_by_the_shafts_speed_after_40_mm
     assert check.pairs[0].last_over == pytest.approx(0.12)  # then afresh: 7 more cycles
     assert check.pairs[0].over_m == [0.0, pytest.approx(0.0035822 * 7, abs=1e-6)]
     # the sensor comes back at 0.2 s: trusted again HEAL_S (2 s) after the bound was last passed (0.12 s), the
-    # shafts' speed used meanwhile
-    back = run(check, [(0.37, 0.37, 0.37)] * 300, t0=0.2)
+    # shafts' speed used meanwhile; braked here, so that only the vote judges
+    back = run(check, [(0.37, 0.37, 0.37)] * 300, t0=0.2, braked=True)
     first_ok = next(k for k, (verdict, _) in enumerate(back) if verdict is Verdict.OK)
     assert first_ok == round((0.12 + HEAL_S - 0.2) / DT) == 192
+    assert all(r == (Verdict.SUBSTITUTED, pytest.approx(0.37)) for r in back[:first_ok])
+    assert all(r == (Verdict.OK, 0.37) for r in back[first_ok:])
+    # unbraked, its step back from 0 to 0.37 m/s in 10 ms is impossible too: trusted HEAL_S after that step
+    check = voter()
+    run(check, [(0.0, 0.37, 0.37)] * 20)
+    back = run(check, [(0.37, 0.37, 0.37)] * 300, t0=0.2)
+    first_ok = next(k for k, (verdict, _) in enumerate(back) if verdict is Verdict.OK)
+    assert first_ok == round(HEAL_S / DT) == 200
     assert all(r == (Verdict.SUBSTITUTED, pytest.approx(0.37)) for r in back[:first_ok])
     assert all(r == (Verdict.OK, 0.37) for r in back[first_ok:])
 
 
 def test_an_intermittent_stuck_zero_adds_up():
     """Stuck for 9 cycles in 10 at 0.3 m/s: each good cycle takes back only tol x 10 ms (0.1 mm), so the 9 x 2.9 mm
-    of the stuck ones add up: caught in the second burst."""
+    of the stuck ones add up: caught in the second burst. (Braking, so that the vote is judged alone: unbraked,
+    the first step back to 0.3 m/s is impossible and substitutes at once, next test.)"""
     check = voter()
     cycles = [(0.3 if k % 10 == 9 else 0.0, 0.3, 0.3) for k in range(40)]
-    out = run(check, cycles)
+    out = run(check, cycles, braked=True)
     first = next(k for k, (verdict, _) in enumerate(out) if verdict is not Verdict.OK)
     assert 10 < first < 20 and all(verdict is Verdict.SUBSTITUTED for verdict, _ in out[first:])
+
+
+def test_the_step_bounds_by_hand():
+    """Coasting: g (sin 0.25 + 0.123 cos 0.25) = 3.60 m/s^2 (+10 %: 4); grip: 1.2 g + g sin 0.25 = 14.2 m/s^2; in
+    one 10-ms frame, with two half steps of VehicleSpeed (1 mm/s): -41 mm/s .. +143 mm/s."""
+    g = 9.81
+    assert g * (math.sin(0.25) + 0.123 * math.cos(0.25)) == pytest.approx(3.596, abs=0.001)
+    assert A_COAST_MPS2 == pytest.approx(1.1 * 3.596, abs=0.05)
+    assert A_GRIP_MPS2 == pytest.approx(1.2 * g + g * math.sin(0.25), abs=0.02)
+    q = 0.0005
+    assert plausible_step(-0.0409, DT, q) and not plausible_step(-0.0411, DT, q)
+    assert plausible_step(0.1429, DT, q) and not plausible_step(0.1431, DT, q)
+    assert plausible_step(-0.12, 3 * DT, q)  # three frames: three times the change
+
+
+def test_vehicle_speed_stuck_at_zero_while_creeping_unbraked_is_replaced_at_the_step():
+    """0.187 m/s, then 0 (r00450 of the 1,000-run sample): the shafts' speed from the first cycle at 0, then the
+    vote takes over (40 mm after 0.23 s) and keeps it; before, the controller saw 0 for those 0.23 s."""
+    check = voter()
+    out = run(check, [(0.187, 0.187, 0.187)] * 10 + [(0.0, 0.187, 0.187)] * 60)
+    assert all(r == (Verdict.OK, 0.187) for r in out[:10])
+    assert all(r == (Verdict.SUBSTITUTED, pytest.approx(0.187)) for r in out[10:])
+    assert check.pairs[0].last_over is not None  # the vote confirmed it
+    # braking: the plant's brake may stop the vehicle within a cycle, so the vote alone judges: 1.81 mm per cycle
+    # beyond the tolerance (6.3 mm/s), past 40 mm in the 23rd cycle at 0
+    check = voter()
+    out = run(check, [(0.187, 0.187, 0.187)] * 10 + [(0.0, 0.187, 0.187)] * 60, braked=True)
+    first = next(k for k, (verdict, _) in enumerate(out) if verdict is not Verdict.OK)
+    assert first == 10 + 22 and all(r == (Verdict.OK, 0.0) for r in out[10:first])
+
+
+def test_a_step_within_what_a_vehicle_can_do_is_left_to_the_vote():
+    """0.035 m/s -> 0 in one frame is a plausible coasting stop (3.5 m/s^2): no substitution before the vote."""
+    check = voter()
+    out = run(check, [(0.035, 0.035, 0.035)] * 10 + [(0.0, 0.035, 0.035)] * 20)
+    assert all(verdict is Verdict.OK for verdict, _ in out)
+
+
+def test_a_one_cycle_spike_is_substituted_until_the_distances_are_back_to_zero():
+    """One frame at 0 while creeping at 0.2 m/s: the shafts' speed for that cycle and while VehicleSpeed's
+    distance to the shafts (2 mm, taken back at the tolerance, 7.7 mm/s) lasts: 0.25 s; then VehicleSpeed again."""
+    check = voter()
+    out = run(check, [(0.2, 0.2, 0.2)] * 10 + [(0.0, 0.2, 0.2)] + [(0.2, 0.2, 0.2)] * 100)
+    back = next(k for k, (verdict, _) in enumerate(out) if k > 10 and verdict is Verdict.OK)
+    assert all(r == (Verdict.SUBSTITUTED, pytest.approx(0.2)) for r in out[10:back])
+    assert 10 + 20 <= back <= 10 + 30 and all(r == (Verdict.OK, 0.2) for r in out[back:])
+
+
+def test_the_step_is_timed_by_the_frame_counter():
+    """A frame not renewed (the same counter) is no step; a counter that moved by 4 allows four frames' change;
+    after a gap the control cycles' time counts if longer; a step beyond the bounds in one frame is caught."""
+    check = voter()
+    steps = [(0.3, 1, 0.0), (0.3, 1, 0.01), (0.2, 5, 0.02), (0.0, 6, 3.0)]  # -0.1 m/s over 4 frames: 2.5 m/s^2
+    out = [check.update(v, rpm(v, R_CL), rpm(v, R_CH), t, counter=n) for v, n, t in steps]
+    assert all(verdict is Verdict.OK for verdict, _ in out) and check.stepped_at is None
+    # +0.3 m/s in one frame while the shafts stay at rest: impossible, the shafts' speed used
+    assert check.update(0.3, 0.0, 0.0, 3.01, counter=7) == (Verdict.SUBSTITUTED, 0.0)
+    assert check.stepped_at == 3.01
 
 
 def test_a_gap_in_the_frames_counts_one_timeout_at_most():
@@ -158,7 +237,7 @@ def bus():
 
 
 def tcu_with(speeds: dict, vehicle: dict, now: float, tcu: TcuRunner | can.BusABC,
-             plant: TxScheduler | None = None) -> tuple[TcuRunner, TxScheduler]:
+             plant: TxScheduler | None = None, driver: dict | None = None) -> tuple[TcuRunner, TxScheduler]:
     """Given a bus: a TCU on it (real time), given one set of plant frames at ``now``; given that TCU and its plant
     schedule, the next set of frames."""
     if not isinstance(tcu, TcuRunner):
@@ -166,7 +245,7 @@ def tcu_with(speeds: dict, vehicle: dict, now: float, tcu: TcuRunner | can.BusAB
         plant = TxScheduler(Codec(load_dbc(), PLANT_USES), ["PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE",
                                                             "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"])
     assert plant is not None
-    values = {"PLANT_SPEEDS": speeds, "PLANT_VEHICLE": vehicle}
+    values = {"PLANT_SPEEDS": speeds, "PLANT_VEHICLE": vehicle, "DRIVER": driver or {}}
     for name in ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"):
         tcu.handle(plant.frame(name, values.get(name, {})), now)
     return tcu, plant
@@ -200,10 +279,28 @@ def test_runner_keeps_vehicle_speed_through_slip_and_replaces_a_stuck_one(bus):
     for k in range(100, 140):  # VehicleSpeed stuck at 0 (CRC and counter valid)
         tcu_with(slipping, {"TransOutputSpeed": 41.2, "VehicleSpeed": 0.0}, k * DT, tcu, plant)
         got.append(tcu.inputs(k * DT))
-    assert got[0].v_mps == 0.0 and got[0].fault_bits == 0  # not yet: 40 mm at 0.2 m/s take 22 cycles
-    assert got[-1].plant_valid and got[-1].v_mps == pytest.approx(v, abs=0.001)
-    assert got[-1].fault_bits == FAULT_IMPLAUSIBLE
-    assert 0 < tcu.frame_counts()["implausible"]["VehicleSpeed"] < 40
+    # at once: 0.2 m/s to 0 in one frame is more than an unbraked vehicle decelerates (the vote would take 22 cycles)
+    assert all(inp.plant_valid and inp.v_mps == pytest.approx(v, abs=0.001) for inp in got)
+    assert all(inp.fault_bits == FAULT_IMPLAUSIBLE for inp in got)
+    assert tcu.frame_counts()["implausible"]["VehicleSpeed"] == 40
+
+
+def test_runner_leaves_a_step_while_the_driver_brakes_to_the_vote(bus):
+    """The driver's foot on the pedal (2 %): the brake may stop the vehicle within a frame, so the step to 0 is
+    left to the vote (22 cycles at 0.2 m/s)."""
+    v, drag = 0.2, {"BrakePedal": 2.0}
+    slipping = {"ClutchInputSpeed": 149.3, "CLOutputSpeed": round(rpm(v, R_CL), 1), "CHOutputSpeed":
+                round(rpm(v, R_CH), 1)}
+    tcu, plant = tcu_with(slipping, {"VehicleSpeed": v}, 0.0, bus, driver=drag)
+    for k in range(1, 10):
+        assert tcu.inputs(k * DT).v_mps == v
+        tcu_with(slipping, {"VehicleSpeed": v}, k * DT, tcu, plant, driver=drag)
+    got = []
+    for k in range(10, 40):
+        tcu_with(slipping, {"VehicleSpeed": 0.0}, k * DT, tcu, plant, driver=drag)
+        got.append(tcu.inputs(k * DT))
+    assert got[0].brake_pct == 2.0 and got[0].v_mps == 0.0 and got[0].fault_bits == 0
+    assert got[-1].v_mps == pytest.approx(v, abs=0.001) and got[-1].fault_bits == FAULT_IMPLAUSIBLE
 
 
 def test_runner_goes_to_fault_when_no_speed_can_be_trusted(bus):
