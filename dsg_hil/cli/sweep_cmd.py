@@ -50,6 +50,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 def _do_sweep(args: argparse.Namespace) -> int:
     from ..sweep import load_space, run_search, run_sweep, write_page  # noqa: PLC0415 - Dask when it runs
+    from ..sweep.code import code_digest, code_note  # noqa: PLC0415
     from ..sweep.results import ResultStore  # noqa: PLC0415
 
     space = load_space(args.space)
@@ -69,6 +70,8 @@ def _do_sweep(args: argparse.Namespace) -> int:
         result = run_sweep(space, out, n=args.n, **options)
     page = write_page(space, result, ResultStore(out, resume=True).record)
     progress(f"wrote {page}, {out}/table ({len(result.rows)} rows)")
+    if (note := code_note(result.rows, code_digest())) is not None:
+        progress(f"warning: {note}")
     violating, failed = result.violations, [r for r in result.rows if r.get("verdict") == "error"]
     progress(f"verdict: {len(violating)} of {len(result.rows)} runs violate"
              + (f" ({', '.join(sorted({v for r in violating for v in r['violations'].split(',')}))})"

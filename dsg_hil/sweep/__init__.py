@@ -7,6 +7,7 @@ One entry point, :func:`run_sweep` (and :func:`run_search`), built on :func:`dsg
     controllers.py the controller under test   worker.py  one run (plain data in and out)   verdict.py  the judgement
     engine.py      Dask: LocalCluster or --scheduler, as_completed, retries               results.py  Parquet + JSON
     page.py        sweep.md, figures, the reproducing commands                             search.py   Optuna
+    code.py        which code made the runs (a digest per row and in sweep.json)
 
 The names are imported when first used (PEP 562): importing this package loads neither Dask nor the plant.
 """

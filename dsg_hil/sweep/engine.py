@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..common.errors import InputError, RunError
+from .code import code_digest
 from .results import ResultStore, read_manifest, write_manifest
 from .space import Space
 from .worker import run_task, warm
@@ -168,8 +169,12 @@ def run_sweep(space: Space, out: str | Path, *, n: int | None = None, workers: i
     n = resumed_n(space, out, n) if resume else (space.n if n is None else n)
     tasks = space.tasks(n)
     store = ResultStore(out, resume=resume)
+    before = read_manifest(out) if resume else None
+    if progress is not None and before is not None and before.get("code", code_digest()) != code_digest():
+        progress(f"sweep: warning: {out}'s runs were made by other code ({before['code']}) than this install "
+                 f"({code_digest()}); the table will mix the two (column 'code')")
     write_manifest(out, {"space": space.name, "origin": space.origin, "digest": space.digest,
-                         "sampler": space.sampler, "n": n})
+                         "sampler": space.sampler, "n": n, "code": code_digest()})
     todo = [t for t in tasks if t["run_id"] not in store.done]
     skipped = len(tasks) - len(todo)
     if progress is not None and skipped:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ..physics.params import load_params
+from .code import code_digest, code_note
 from .engine import SweepResult
 from .space import Space
 
@@ -81,6 +82,10 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
              f"Wall time {result.wall_s:.0f} s.", "",
              "Judged on the plant's truth, limits: " + ", ".join(f"{k} {v:g}" for k, v in space.limits.items()),
              ""]
+    here = code_digest()
+    note = code_note(rows, here)
+    lines += [f"**Code: {note}.**" if note else f"Code: all runs by {here} (`dsg_hil` and `ecu_stub`: "
+              f"dsg_hil.sweep.code).", ""]
     violating = result.violations
     errors = [r for r in rows if r.get("verdict") == "error"]
     lines += [f"**Verdict: {len(violating)} violating run(s)**, {len(errors)} failed run(s).", ""]

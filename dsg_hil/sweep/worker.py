@@ -23,6 +23,7 @@ from ..protocol.faults import parse_fault
 from ..sim.run import RunConfig, open_run
 from ..results.thresholds import STOP_MIN_S
 from ..sim.scenario import Scenario, parse_scenario
+from .code import code_digest
 from .controllers import config_for
 from .verdict import UnexplainedFault, fault_windows, in_windows, summary_row, violations
 
@@ -121,7 +122,7 @@ def run_task(task: dict[str, Any], keep_log: bool = False) -> dict[str, Any]:
     _warm_in_worker()
     t0 = time.perf_counter()
     inputs = {f"in.{k}": v if not isinstance(v, list) else ";".join(map(str, v)) for k, v in task["inputs"].items()}
-    base = {"run_id": task["run_id"], "index": task["index"], **inputs}
+    base = {"run_id": task["run_id"], "index": task["index"], **inputs, "code": code_digest()}
     with tempfile.TemporaryDirectory(prefix="dsg-hil-sweep-") as tmp:
         log = Path(tmp) / "run.log"
         try:

@@ -5,6 +5,7 @@ runnable scenario."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -13,6 +14,7 @@ import time
 from pathlib import Path
 
 from dsg_hil.sim.scenario import load_scenario
+from dsg_hil.sweep.code import code_digest
 from dsg_hil.sweep.results import read_table
 from dsg_hil.sweep.space import load_space
 from dsg_hil.testing import run_plant
@@ -62,11 +64,17 @@ def test_resume_with_a_larger_n_extends_a_sobol_sweep_with_only_the_missing_runs
     assert first.returncode in (0, 3), first.stderr[-3000:]
     before = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
     assert len(before) == 3
+    manifest = json.loads((out / "sweep.json").read_text(encoding="utf-8"))
+    assert manifest["code"] == code_digest() and set(read_table(out).column("code").to_pylist()) == {code_digest()}
+    assert "other code" not in first.stderr
+    # as if the code had changed since: the resume says the table will mix the two
+    (out / "sweep.json").write_text(json.dumps({**manifest, "code": "0123456789ab"}), encoding="utf-8")
     fewer = _error_line(sweep(str(space), "--out", str(out), "--resume", "--n", "2"))
     assert "--n 2" in fewer and "--n 3 or more" in fewer
     more = sweep(str(space), "--out", str(out), "--workers", "1", "--resume", "--n", "5")
     assert more.returncode in (0, 3), more.stderr[-3000:]
     assert f"3 of 5 runs already in {out} (--resume): skipped" in more.stderr and "sweep: 2/2 runs" in more.stderr
+    assert f"runs were made by other code (0123456789ab) than this install ({code_digest()})" in more.stderr
     after = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
     assert all(after[name] == mtime for name, mtime in before.items())  # none run again
     ids = read_table(out).column("run_id").to_pylist()
