@@ -79,12 +79,13 @@ class Launch:
 
 @dataclass(frozen=True)
 class Vehicle:
-    """Vehicle data-sheet values the TCU is flashed with (used for gains and the pre-fill only)."""
+    """Vehicle data-sheet values the TCU is flashed with (gains, the pre-fill, the plausibility checks)."""
 
     m_kg: float = c("kg", 100.0, 1e5)
     delta: float = c("1", 1.0, 3.0)  # rotating-mass factor
     eta: float = c("1", 0.5, 1.0)  # clutch-to-wheel torque efficiency
     input_ratio: float = c("1", 0.1, 20.0)  # engine speed / clutch input speed (i_a): the input speed check
+    brake_decel_mps2: float = c("m/s^2", 0.0, 1000.0)  # full pedal's deceleration of the lightest vehicle: the vote
 
 
 @dataclass(frozen=True)

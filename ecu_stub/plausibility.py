@@ -70,9 +70,11 @@ the bus delays; the control cycles' time if longer) is a sensor fault at once: V
 speed (``SUBSTITUTED``, if the shafts agree) from that cycle on, until the vote takes over or VehicleSpeed's distances
 to both shafts are back to zero (at most :data:`HEAL_S`). Measured over bench/tcu_envelope.py's cases without a
 brake, VehicleSpeed changes by at most 11 mm/s per cycle against 42 mm/s allowed: a run without a sensor fault gives
-the same frames as before. Not while braking (the driver's pedal above 0, or the TCU's brake request within
-:data:`BRAKE_SETTLE_S`): the plant's brake is a torque up to ``vehicle.M_brake_max`` that grip does not limit (53 m/s^2
-on the lightest vehicle of the sweep's space), so there only the vote judges.
+the same frames as before. A brake adds deceleration: the driver's pedal p (its largest over the last
+:data:`BRAKE_SETTLE_S`) up to p times the calibration's ``vehicle.brake_decel_mps2`` (the service brakes' full torque
+over the wheel radius and the lightest vehicle: 52.7 m/s^2; the plant's brake is a torque up to
+``vehicle.M_brake_max`` that grip does not limit), so a 1 % drag allows 4.5 m/s^2; the TCU's own brake request
+(within :data:`BRAKE_SETTLE_S`) allows any, and only the vote judges.
 """
 
 from __future__ import annotations
@@ -93,7 +95,7 @@ HEAL_S = 2.0  # a pair is disagreeing this long after its distance last passed D
 MAX_DT_S = 0.03  # a cycle counts at most the DBC's receive timeout (3 cycles of 10 ms) [s]
 A_COAST_MPS2 = 4.0  # fastest deceleration without a brake: g (sin 0.25 + 0.123 cos 0.25) = 3.60, +10 % [m/s^2]
 A_GRIP_MPS2 = 14.2  # fastest acceleration: the tyres' grip, 1.2 g, + g sin 0.25 [m/s^2]
-BRAKE_SETTLE_S = 0.2  # a brake request acts this long after it ends (TCU_STATUS every 100 ms, read at the next) [s]
+BRAKE_SETTLE_S = 0.2  # a brake acts this long after its request or pedal ends (TCU_STATUS, DRIVER cycles) [s]
 _RPM_TO_RAD_S = math.pi / 30.0
 _EPS_S = 1e-9  # times are sums of float cycle times: 50 x 10 ms may come out a hair under 0.5 s
 _HEALED_S = HEAL_S - _EPS_S  # failing while the bound was passed less than this ago [s]
@@ -118,11 +120,11 @@ def tolerance_mps(a: float, b: float, q_a: float, q_b: float) -> float:
     return q_a + q_b + REL_TOL * max(abs(a), abs(b))
 
 
-def plausible_step(dv_mps: float, span_s: float, q_mps: float) -> bool:
-    """A change ``dv_mps`` of VehicleSpeed over ``span_s`` [s] of the plant's time that an unbraked vehicle can make:
-    -:data:`A_COAST_MPS2` span - 2 q <= dv <= :data:`A_GRIP_MPS2` span + 2 q, with ``q`` half a DBC step (module
-    docstring)."""
-    return -(A_COAST_MPS2 * span_s + 2.0 * q_mps) <= dv_mps <= A_GRIP_MPS2 * span_s + 2.0 * q_mps
+def plausible_step(dv_mps: float, span_s: float, q_mps: float, brake_mps2: float = 0.0) -> bool:
+    """A change ``dv_mps`` of VehicleSpeed over ``span_s`` [s] of the plant's time that a vehicle can make:
+    -(:data:`A_COAST_MPS2` + ``brake_mps2``) span - 2 q <= dv <= :data:`A_GRIP_MPS2` span + 2 q, with ``q`` half a
+    DBC step and ``brake_mps2`` the most deceleration the brake may add (module docstring)."""
+    return -((A_COAST_MPS2 + brake_mps2) * span_s + 2.0 * q_mps) <= dv_mps <= A_GRIP_MPS2 * span_s + 2.0 * q_mps
 
 
 @dataclass(slots=True)
@@ -227,7 +229,7 @@ class SpeedVoter:
         self.pairs = (PairCheck(q_v, q_cl), PairCheck(q_v, q_ch), PairCheck(q_cl, q_ch))
         self.verdict, self.last_now, self.last_v, self.stepped_at = Verdict.OK, None, None, None
 
-    def _stepped(self, v_mps: float, counter: int | None, now: float) -> bool:
+    def _stepped(self, v_mps: float, counter: int | None, now: float, brake_mps2: float) -> bool:
         """True if VehicleSpeed stepped impossibly since its last frame (:func:`plausible_step`): the span is the
         frames' counter step times :attr:`v_cycle_s` (the plant's clock), or the time since, if longer."""
         last, self.last_v = self.last_v, (v_mps, -1 if counter is None else counter, now)
@@ -242,16 +244,16 @@ class SpeedVoter:
         else:
             frames = 1
         span = max(frames * self.v_cycle_s, now - t_last)
-        return not plausible_step(v_mps - v_last, span, 0.5 * self.v_step_mps)
+        return not plausible_step(v_mps - v_last, span, 0.5 * self.v_step_mps, brake_mps2)
 
     def update(self, v_mps: float, cl_out_rpm: float, ch_out_rpm: float, now: float, counter: int | None = None,
-               braked: bool = False) -> tuple[Verdict, float]:
+               brake_mps2: float = 0.0) -> tuple[Verdict, float]:
         """One cycle at ``now`` [s]: (verdict, the vehicle speed to use [m/s]): ``v_mps`` itself unless the verdict
         is SUBSTITUTED (then the mean of the two shaft-derived speeds). The cycle's length counts up to
         :data:`MAX_DT_S` (after a longer gap, e.g. FAULT on missing frames, the values held did not describe it).
-        ``counter``: PLANT_VEHICLE's frame counter (None: every cycle a new frame); ``braked``: a brake may act
-        (no step check then, module docstring)."""
-        if self._stepped(v_mps, counter, now) and not braked:
+        ``counter``: PLANT_VEHICLE's frame counter (None: every cycle a new frame); ``brake_mps2``: the most
+        deceleration a brake may add now (``math.inf``: any; module docstring)."""
+        if self._stepped(v_mps, counter, now, brake_mps2):
             self.stepped_at = now
         last, self.last_now = self.last_now, now
         dt = 0.0 if last is None else now - last

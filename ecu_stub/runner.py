@@ -118,12 +118,16 @@ class TcuRunner:
         # whose VehicleSpeed the vote replaced ("VehicleSpeed") or whose speeds it found all implausible ("speeds")
         self.speed_vote: SpeedVoter | None = None
         self.sensor_checks: SensorChecks | None = None
-        self._braked_at = -math.inf  # the last cycle whose outputs requested the brake (the speed vote's step check)
+        # the speed vote's step check: the last cycle whose outputs requested the brake; the driver's largest pedal
+        # [%] over the last BRAKE_SETTLE_S and when it was last pressed; a full pedal's deceleration [m/s^2]
+        self._braked_at = self._pedal_at = -math.inf
+        self._pedal_pct, self._brake_full_mps2 = 0.0, math.inf
         cal = getattr(self.controller, "cal", None)
         if isinstance(cal, TcuCalibration):
             def scale(message: str, signal: str) -> float:
                 return float(codec.message(message).get_signal_by_name(signal).scale)
 
+            self._brake_full_mps2 = cal.vehicle.brake_decel_mps2
             self.speed_vote = SpeedVoter(cal.CL.speed_ratio_m, cal.CH.speed_ratio_m,
                                          scale("PLANT_VEHICLE", "VehicleSpeed"),
                                          max(scale("PLANT_SPEEDS", "CLOutputSpeed"),
@@ -181,9 +185,8 @@ class TcuRunner:
         v_mps, vote = v["VehicleSpeed"], self.speed_vote
         verdict = Verdict.OK
         if vote is not None:
-            braked = d["BrakePedal"] > 0.0 or now - self._braked_at <= BRAKE_SETTLE_S
             verdict, v_mps = vote.update(v_mps, s["CLOutputSpeed"], s["CHOutputSpeed"], now, required[2].last_counter,
-                                         braked)
+                                         self._brake_mps2(d["BrakePedal"], now))
         if verdict is not Verdict.OK:  # a sensor fault: VehicleSpeed replaced by the shafts' speed, or none trusted
             faults |= FAULT_IMPLAUSIBLE
             if verdict is Verdict.FAULT:
@@ -204,6 +207,16 @@ class TcuRunner:
         return TcuInputs(True, e["EngineSpeed"], clutch_in, s["CLOutputSpeed"], s["CHOutputSpeed"],
                          v_mps, P_CL, P_CH, T_CL, T_CH, o["T_Sump"],
                          d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults, trusted)
+
+    def _brake_mps2(self, pedal_pct: float, now: float) -> float:
+        """The most deceleration a brake may add now [m/s^2] (the speed vote's step check): any while the TCU's own
+        request may act (:data:`BRAKE_SETTLE_S` after it), else the driver's pedal times the calibration's full-pedal
+        deceleration, a pedal's peak held for :data:`BRAKE_SETTLE_S`."""
+        if now - self._braked_at <= BRAKE_SETTLE_S:
+            return math.inf
+        if pedal_pct >= self._pedal_pct or now - self._pedal_at > BRAKE_SETTLE_S:  # a new peak, or the last expired
+            self._pedal_pct, self._pedal_at = pedal_pct, now
+        return self._pedal_pct / 100.0 * self._brake_full_mps2
 
     def control(self, now: float, echo: int = 0) -> Frames:
         """One controller cycle at ``now``, its frames sent (see :meth:`_step`); returns them, as (ID, data)."""
@@ -238,7 +251,8 @@ class TcuRunner:
         self.controller = type(self.controller)(self.controller.cal)
         if self.speed_vote is not None:
             self.speed_vote.reset()
-        self._braked_at = -math.inf
+        self._braked_at = self._pedal_at = -math.inf
+        self._pedal_pct = 0.0
         if self.sensor_checks is not None:
             self.sensor_checks.reset()
         self.now = now
