@@ -1,6 +1,6 @@
 #!/bin/sh
 # Re-identify the TCU calibration on the current plant (issue 18): record the identification runs (eleven of creep,
-# fourteen short torque handovers: ecu_stub/data/identification) in
+# 29 short torque handovers: ecu_stub/data/identification) in
 # lock-step with the bundled ecu-stub and its current calibration, then fit and write the calibration, with the
 # commit and calibration the logs were recorded with in its header (identify --provenance).
 #
@@ -8,7 +8,7 @@
 #   bench/reidentify.sh --check LOGDIR             record the runs, fit nothing: exit 1 if the shipped
 #                                                  calibration's predictor exceeds its own prediction_error_k
 #
-# PYTHON: the interpreter (default: python). About 2 min on one core (1 min creep runs, 0.5 min handovers, fit).
+# PYTHON: the interpreter (default: python). About 2 min on one core (1 min creep runs, 1 min handovers, fit).
 # Re-run after any plant change, then
 # tests/sim/test_closed_loop.py, tests/ecu_stub and tests/paper (docs/safety.md, section 1).
 set -eu
