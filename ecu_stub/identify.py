@@ -8,7 +8,8 @@ thermocouples and torque sensor:
 * ``k_geom_m3`` per clutch: torque / (mu P) (median while slipping under pressure);
 * the friction map mu(T, slip, P): regularised least squares over the truth mu samples (trilinear grid, first
   differences penalised so that cells without data take their neighbours' values), each sample at the slip of
-  its own control period; ``--cross-validate`` scores the smoothing by leave-one-run-out on crossover samples;
+  its own control period; ``--cross-validate`` scores the smoothing by leave-one-run-out on crossover samples,
+  ``--map-error`` a calibration's map against held-out runs;
 * ``cooling_w_k`` per clutch, for the start-up observer: K (T - T_oil_out) = cooling (T_oil_out - T_sump) while
   no friction heat flows;
 * ``C_plate_j_k`` and ``K_plate_oil_w_k`` per clutch: C dT/dt = Q - K (T - T_oil_out) fitted by output error to
@@ -47,11 +48,11 @@ from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.logs import decoded_frames
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
-from .clutch_model import friction_heat, plate_step
+from .clutch_model import friction_heat, mu_lookup, plate_step
 
 __all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "EXIT_STALE", "HEADER", "MuSamples", "P_GRID", "Record", "SLIP_GRID",
            "SMOOTHING", "T_GRID", "USES", "check", "cross_validate", "fit_cooling", "fit_friction_map", "fit_k_geom",
-           "fit_speed_ratio", "fit_thermal", "identify", "main", "mu_samples", "read_log", "replay",
+           "fit_speed_ratio", "fit_thermal", "identify", "main", "map_error", "mu_samples", "read_log", "replay",
            "write_calibration"]
 
 USES = {
@@ -412,6 +413,9 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--map-only", nargs="+", default=[], metavar="LOG",
                         help="runs for the friction map, k_geom and the replay only, not the thermal, cooling and "
                              "speed-ratio fits (the short torque-handover runs: they start far from equilibrium)")
+    parser.add_argument("--map-error", action="store_true",
+                        help="fit nothing: the base calibration's friction map against the truth of these logs "
+                             "(held-out runs), on their crossover samples and on all")
     parser.add_argument("--cross-validate", action="store_true",
                         help="fit nothing: print the friction map's leave-one-run-out error on the held-out runs' "
                              "crossover samples for each candidate SMOOTHING (minutes)")
@@ -509,6 +513,26 @@ def _check_and_print(args: argparse.Namespace) -> int:
     return 0 if worst <= e_k else EXIT_STALE
 
 
+def map_error(fm: FrictionMap, s: MuSamples) -> np.ndarray:
+    """The map minus the truth at each sample."""
+    mu = mu_lookup(fm)
+    return np.array([mu(T, n, P) for T, n, P in zip(s.T, s.n, s.P)]) - s.mu
+
+
+def _map_error_and_print(args: argparse.Namespace) -> None:
+    codec = Codec(load_dbc(args.dbc), USES)
+    records = [read_log(p, codec) for p in [*args.logs, *args.map_only]]
+    s = mu_samples([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
+    e = map_error(load_calibration(args.calibration).friction, s)
+    for name, m in (("crossover samples", s.crossover), ("all samples", np.ones(len(e), bool))):
+        if not m.any():
+            print(f"{name}: none")
+            continue
+        rel = e[m] / s.mu[m]
+        print(f"{name} ({int(m.sum())}): map - truth RMS {np.sqrt(np.mean(e[m] ** 2)):.5f}, mean {e[m].mean():+.5f}; "
+              f"relative RMS {100 * np.sqrt(np.mean(rel ** 2)):.1f} %, worst {100 * np.abs(rel).max():.1f} %")
+
+
 def _cross_validate_and_print(args: argparse.Namespace) -> None:
     codec = Codec(load_dbc(args.dbc), USES)
     records = [read_log(p, codec) for p in [*args.logs, *args.map_only]]
@@ -526,6 +550,9 @@ def _identify_and_print(args: argparse.Namespace) -> int | None:
         return _check_and_print(args)
     if args.cross_validate:
         _cross_validate_and_print(args)
+        return None
+    if args.map_error:
+        _map_error_and_print(args)
         return None
     check_output_path("--write", args.write)
     cal, rep = identify(args.logs, load_calibration(args.calibration), args.dbc, args.map_only)

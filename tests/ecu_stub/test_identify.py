@@ -62,7 +62,7 @@ def test_a_file_that_is_no_log_is_one_clear_error(tmp_path, capsys):
 # ---- the shipped calibration on the current plant ---------------------------------------------------------------
 IDENTIFICATION = Path(__file__).resolve().parents[2] / "ecu_stub" / "data" / "identification"
 # the identification runs, and how much of each, where the calibration identified before issue 16's plant was
-# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all eleven in full:
+# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all forty in full:
 # bench/reidentify.sh --check LOGDIR
 FRESH_SUBSET = {"heavy_fast": 30.0, "paper": 10.0}
 
@@ -137,3 +137,9 @@ def test_map_only_logs_enter_the_map_and_the_command(recorded, tmp_path, capsys)
     assert "# Identified by: python -m ecu_stub.identify run.log --map-only run.log\n" in out.read_text(
         encoding="utf-8")
     load_calibration(out)
+
+
+def test_map_error_scores_the_base_calibrations_map_on_held_out_logs(recorded, capsys):
+    assert main([str(recorded), "--map-error"]) == 0
+    printed = capsys.readouterr().out
+    assert "crossover samples (" in printed and "all samples (" in printed
