@@ -75,8 +75,10 @@ SMOOTHING_CANDIDATES = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
 SMOOTHING = 0.1  # weight of the first-difference penalty per grid node (relative to one sample); see below
 # SMOOTHING: chosen by leave-one-run-out cross-validation over the identification runs, scored on the held-out run's
 # crossover samples (both clutches pressurised: where the map's errors move the vehicle), ``python -m
-# ecu_stub.identify LOGS --cross-validate``; measured with this grid on the 25 runs (12,412 samples, 772 in
-# crossovers): RMS 0.00312 (0.003), 0.00287 (0.01), 0.00276 (0.03), 0.00273 (0.1), 0.00290 (0.3), 0.00342 (1.0).
+# ecu_stub.identify LOGS --cross-validate``, 9 min); measured with this grid on the 40 runs of bench/reidentify.sh
+# (14,258 samples, 1,260 in crossovers): RMS 0.00298 (0.003), 0.00264 (0.01), 0.00242 (0.03), 0.00229 (0.1),
+# 0.00240 (0.3), 0.00287 (1.0); on the first 25 (fourteen handover runs): 0.00312, 0.00287, 0.00276, 0.00273,
+# 0.00290, 0.00342.
 # History: 0.02 until the plant's contact law (issue 16), whose scatter the map then followed into bumps that made
 # the speed controller hunt (settled tracking 6.6 mm/s RMS, tests/sim/test_closed_loop.py allows 5); 0.2 after it,
 # chosen by hand from 0.02, 0.2 and 1.0 on the old, coarser P grid and penalty.
