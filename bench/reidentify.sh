@@ -1,5 +1,6 @@
 #!/bin/sh
-# Re-identify the TCU calibration on the current plant (issue 18): record the eleven identification runs in
+# Re-identify the TCU calibration on the current plant (issue 18): record the identification runs (eleven of creep,
+# 29 short torque handovers: ecu_stub/data/identification) in
 # lock-step with the bundled ecu-stub and its current calibration, then fit and write the calibration, with the
 # commit and calibration the logs were recorded with in its header (identify --provenance).
 #
@@ -7,7 +8,8 @@
 #   bench/reidentify.sh --check LOGDIR             record the runs, fit nothing: exit 1 if the shipped
 #                                                  calibration's predictor exceeds its own prediction_error_k
 #
-# PYTHON: the interpreter (default: python). About 2 min on one core. Re-run after any plant change, then
+# PYTHON: the interpreter (default: python). About 2 min on one core (1 min creep runs, 1 min handovers, fit).
+# Re-run after any plant change, then
 # tests/sim/test_closed_loop.py, tests/ecu_stub and tests/paper (docs/safety.md, section 1).
 set -eu
 check=
@@ -26,5 +28,6 @@ done
 if [ -n "$check" ]; then
     exec "$py" -m ecu_stub.identify "$logs"/*.log --check
 fi
-"$py" -m ecu_stub.identify "$logs"/*.log --write "$out" \
+# the short torque-handover runs (handover_*): for the friction map, not the thermal fits (identify --map-only)
+"$py" -m ecu_stub.identify $(ls "$logs"/*.log | grep -v /handover_) --map-only "$logs"/handover_*.log --write "$out" \
     --provenance "recorded by bench/reidentify.sh at commit $commit with ecu_stub/data/calibration.toml sha256 $cal..."

@@ -7,7 +7,9 @@ thermocouples and torque sensor:
 * ``speed_ratio_m`` per clutch: vehicle speed per clutch output speed (median while moving);
 * ``k_geom_m3`` per clutch: torque / (mu P) (median while slipping under pressure);
 * the friction map mu(T, slip, P): regularised least squares over the truth mu samples (trilinear grid, first
-  differences penalised so that cells without data take their neighbours' values);
+  differences penalised so that cells without data take their neighbours' values), each sample at the slip of
+  its own control period; ``--cross-validate`` scores the smoothing by leave-one-run-out on crossover samples,
+  ``--map-error`` a calibration's map against held-out runs;
 * ``cooling_w_k`` per clutch, for the start-up observer: K (T - T_oil_out) = cooling (T_oil_out - T_sump) while
   no friction heat flows;
 * ``C_plate_j_k`` and ``K_plate_oil_w_k`` per clutch: C dT/dt = Q - K (T - T_oil_out) fitted by output error to
@@ -46,11 +48,12 @@ from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.logs import decoded_frames
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
-from .clutch_model import friction_heat, plate_step
+from .clutch_model import friction_heat, mu_lookup, plate_step
 
-__all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "EXIT_STALE", "HEADER", "P_GRID", "Record", "SLIP_GRID", "SMOOTHING",
-           "T_GRID", "USES", "check", "fit_cooling", "fit_friction_map", "fit_k_geom", "fit_speed_ratio", "fit_thermal",
-           "identify", "main", "read_log", "replay", "write_calibration"]
+__all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "EXIT_STALE", "HEADER", "MuSamples", "P_GRID", "Record", "SLIP_GRID",
+           "SMOOTHING", "T_GRID", "USES", "check", "cross_validate", "fit_cooling", "fit_friction_map", "fit_k_geom",
+           "fit_speed_ratio", "fit_thermal", "identify", "main", "map_error", "mu_samples", "read_log", "replay",
+           "write_calibration"]
 
 USES = {
     "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
@@ -62,14 +65,23 @@ USES = {
 }
 T_GRID = tuple(float(t) for t in range(20, 321, 10))
 SLIP_GRID = tuple(float(n) for n in range(0, 401, 10))
-P_GRID = (0.0, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5)
-SMOOTHING = 0.2  # weight of the first-difference penalty per grid node (relative to one sample); see below
-# SMOOTHING: 0.02 until the plant's contact law (issue 16): its mu samples then scatter about the map six times more
-# (fit RMS 0.0011 vs 0.0002: stick/slip transitions and the hub's ringing seen through 10-ms samples), and at 0.02
-# the map followed that scatter into bumps of up to +-20 % between neighbouring cells, whose feedforward gain
-# ripple made the speed controller hunt (settled tracking 6.6 mm/s RMS, tests/sim/test_closed_loop.py allows 5).
-# 0.2 (3.2 x the penalty's weight lam): 3.5 mm/s, at the cost of a larger replay error (worst 1.64 K, e 3.5 K,
-# vs 1.18 K); 1.0: 2.2 mm/s, e 4.5 K. Chosen from these three; e is measured with the map it ships with.
+P_GRID = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.75, 1.0, 1.25, 1.5)
+# P_GRID: 0.05 MPa up to 0.5 MPa, where (6)'s Stribeck term falls off a cliff in P at creep slips and a handover
+# ramps both clutches through (was 0, 0.1, 0.2, 0.35, 0.5, ...: too coarse for the cliff, the map overestimated mu
+# by 10-25 % at intermediate pressures through the crossovers)
+GRID_STEP = (10.0, 10.0, 0.1)  # reference steps of the smoothing penalty per axis: degC, r/min, MPa
+CROSSOVER_MPA = 0.02  # a sample of one clutch while the other is pressurised above this: a torque handover
+SMOOTHING_CANDIDATES = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+SMOOTHING = 0.1  # weight of the first-difference penalty per grid node (relative to one sample); see below
+# SMOOTHING: chosen by leave-one-run-out cross-validation over the identification runs, scored on the held-out run's
+# crossover samples (both clutches pressurised: where the map's errors move the vehicle), ``python -m
+# ecu_stub.identify LOGS --cross-validate``, 9 min); measured with this grid on the 40 runs of bench/reidentify.sh
+# (14,258 samples, 1,260 in crossovers): RMS 0.00298 (0.003), 0.00264 (0.01), 0.00242 (0.03), 0.00229 (0.1),
+# 0.00240 (0.3), 0.00287 (1.0); on the first 25 (fourteen handover runs): 0.00312, 0.00287, 0.00276, 0.00273,
+# 0.00290, 0.00342.
+# History: 0.02 until the plant's contact law (issue 16), whose scatter the map then followed into bumps that made
+# the speed controller hunt (settled tracking 6.6 mm/s RMS, tests/sim/test_closed_loop.py allows 5); 0.2 after it,
+# chosen by hand from 0.02, 0.2 and 1.0 on the old, coarser P grid and penalty.
 ERROR_FACTOR = 2.0  # prediction_error_k: the replay's worst error times this (conditions between/beyond the runs)
 ERROR_ROUND_K = 0.5  # ... rounded up to this step
 EXIT_STALE = 1  # --check: the calibration's predictor exceeds its own error bound on these logs
@@ -108,6 +120,9 @@ def read_log(path: str | Path, codec: Codec) -> Record:
     return Record(Path(path).name, t, {k: np.array([r[1].get(k, np.nan) for r in rows]) for k in keys})
 
 
+OTHER = {"CL": "CH", "CH": "CL"}
+
+
 def _clutch_columns(r: Record, c: str) -> dict[str, np.ndarray]:
     s = r.signals
     return {"slip": s["PLANT_SPEEDS.ClutchInputSpeed"] - s[f"PLANT_SPEEDS.{c}OutputSpeed"],
@@ -115,7 +130,8 @@ def _clutch_columns(r: Record, c: str) -> dict[str, np.ndarray]:
             "P": s[f"PLANT_PRESSURE.P_{c}"], "T_oil": s[f"PLANT_OIL_TEMP.T_Oil{c}"],
             "T_sump": s["PLANT_OIL_TEMP.T_Sump"],
             "T": s[f"SIM_TRUTH_{c}.T_Plate"], "mu": s[f"SIM_TRUTH_{c}.Mu"], "M": s[f"SIM_TRUTH_{c}.Torque"],
-            "Q": s[f"SIM_TRUTH_{c}.HeatFlux"], "fresh": s[f"SIM_TRUTH_{c}.fresh"] == 1.0}
+            "Q": s[f"SIM_TRUTH_{c}.HeatFlux"], "fresh": s[f"SIM_TRUTH_{c}.fresh"] == 1.0,
+            "P_other": s[f"PLANT_PRESSURE.P_{OTHER[c]}"]}
 
 
 def fit_speed_ratio(cols: list[dict]) -> float:
@@ -146,42 +162,119 @@ def _cell(grid: tuple[float, ...], x: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return i, np.clip((x - g[i]) / (g[i + 1] - g[i]), 0.0, 1.0)
 
 
-def fit_friction_map(cols: list[dict]) -> tuple[FrictionMap, float]:
-    """Regularised least squares of the trilinear map; returns it and the RMS of the fit over the samples."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.linalg import spsolve
+def _truth_slip(d: dict) -> np.ndarray:
+    """The slip of the control period a truth frame belongs to: a row starts at its PLANT_SPEEDS frame, and the
+    plant sends the period's speeds, then its pressures, then its truth, so the truth (and the pressure) of a fresh
+    row are the previous row's period, whose speeds are the previous row's."""
+    return np.concatenate([[np.nan], d["slip"][:-1]])
 
-    pick = [_slipping(d, P_min=0.02) for d in cols]  # low pressures too: the handovers pass through them
-    T, n, P, mu = (np.concatenate([f(d)[m] for d, m in zip(cols, pick)]) for f in (
-        lambda d: d["T"], lambda d: np.abs(d["slip"]), lambda d: d["P"], lambda d: d["mu"]))
-    if len(mu) < 50:
-        raise LogError("friction map: fewer than 50 slipping samples")
-    shape = (len(T_GRID), len(SLIP_GRID), len(P_GRID))
-    (i, wt), (j, ws), (k, wp) = _cell(T_GRID, T), _cell(SLIP_GRID, n), _cell(P_GRID, P)
+
+@dataclass
+class MuSamples:
+    """The friction map's samples (fresh truth rows of a slipping clutch): plate temperature, |slip| of the truth's
+    period, measured pressure, truth mu, the index of the run each came from and whether both clutches were
+    pressurised (a torque handover, the crossover)."""
+
+    T: np.ndarray
+    n: np.ndarray
+    P: np.ndarray
+    mu: np.ndarray
+    run: np.ndarray
+    crossover: np.ndarray
+
+
+def mu_samples(cols: list[dict], runs: list[int] | None = None) -> MuSamples:
+    """The friction map's samples of the clutch columns ``cols`` (``runs``: the run index of each, default its
+    position). Rows: a fresh truth frame, the clutch slipping (> 5 r/min, at the truth's period as well as at the
+    row's) under a pressure above 0.02 MPa (the handovers pass through low pressures) with torque."""
+    runs = list(range(len(cols))) if runs is None else runs
+    parts = []
+    for d, run in zip(cols, runs):
+        n = np.abs(_truth_slip(d))
+        m = _slipping(d, P_min=0.02) & np.isfinite(n) & (n > 5.0) & np.isfinite(d["T"])
+        parts.append((d["T"][m], n[m], d["P"][m], d["mu"][m], np.full(int(m.sum()), run),
+                      (d["P_other"][m] > CROSSOVER_MPA)))
+    return MuSamples(*(np.concatenate([p[i] for p in parts]) for i in range(6)))
+
+
+def _design(grid: tuple[tuple[float, ...], ...], s: MuSamples):  # type: ignore[no-untyped-def]
+    from scipy.sparse import coo_matrix
+
+    shape = tuple(len(g) for g in grid)
+    (i, wt), (j, ws), (k, wp) = _cell(grid[0], s.T), _cell(grid[1], s.n), _cell(grid[2], s.P)
     rows, cols_, vals = [], [], []
     for di, w_i in ((0, 1 - wt), (1, wt)):
         for dj, w_j in ((0, 1 - ws), (1, ws)):
             for dk, w_k in ((0, 1 - wp), (1, wp)):
-                rows.append(np.arange(len(mu)))
+                rows.append(np.arange(len(s.mu)))
                 cols_.append(np.ravel_multi_index((i + di, j + dj, k + dk), shape))
                 vals.append(w_i * w_j * w_k)
+    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols_))),
+                      shape=(len(s.mu), int(np.prod(shape)))).tocsr()
+
+
+def _penalty(grid: tuple[tuple[float, ...], ...]):  # type: ignore[no-untyped-def]
+    """First differences between neighbouring nodes, each weighted sqrt(h_ref / h) for its spacing h (h_ref: the
+    axis' reference step, GRID_STEP): the sum of squares approximates the integral of the squared gradient times
+    h_ref, the same whatever the grid's density (flat, bounded where there is no data)."""
+    from scipy.sparse import coo_matrix
+
+    shape = tuple(len(g) for g in grid)
     size = int(np.prod(shape))
-    A = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols_))),
-                   shape=(len(mu), size)).tocsr()
-    lam = math.sqrt(SMOOTHING * len(mu) / size)
     index = np.arange(size).reshape(shape)
-    pairs = [(index[:-1, :, :], index[1:, :, :]), (index[:, :-1, :], index[:, 1:, :]),
-             (index[:, :, :-1], index[:, :, 1:])]  # first differences: flat, bounded where there is no data
-    lo = np.concatenate([p[0].ravel() for p in pairs])
-    hi = np.concatenate([p[1].ravel() for p in pairs])
-    r = np.arange(len(lo))
-    R = coo_matrix((np.concatenate([-lam * np.ones(len(lo)), lam * np.ones(len(hi))]),
-                    (np.concatenate([r, r]), np.concatenate([lo, hi]))), shape=(len(lo), size)).tocsr()
-    x = spsolve((A.T @ A + R.T @ R).tocsc(), A.T @ mu)  # normal equations: sparse, well posed
-    rms = float(np.sqrt(np.mean((A @ x - mu) ** 2)))
-    grid = np.round(x.reshape(shape), 5)
-    fm = FrictionMap(T_GRID, SLIP_GRID, P_GRID, tuple(tuple(tuple(float(v) for v in cell) for cell in row)
-                                                    for row in grid))
+    lo, hi, w = [], [], []
+    for axis, (g, h_ref) in enumerate(zip(grid, GRID_STEP)):
+        a = np.moveaxis(index, axis, 0)
+        h = np.diff(np.asarray(g))
+        lo.append(a[:-1].ravel())
+        hi.append(a[1:].ravel())
+        w.append(np.broadcast_to(np.sqrt(h_ref / h).reshape((-1,) + (1,) * (len(shape) - 1)), a[:-1].shape).ravel())
+    lo_, hi_, w_ = np.concatenate(lo), np.concatenate(hi), np.concatenate(w)
+    r = np.arange(len(lo_))
+    return coo_matrix((np.concatenate([-w_, w_]), (np.concatenate([r, r]), np.concatenate([lo_, hi_]))),
+                      shape=(len(lo_), size)).tocsr()
+
+
+def _solve(A, R, mu: np.ndarray, smoothing: float) -> np.ndarray:  # type: ignore[no-untyped-def]
+    from scipy.sparse.linalg import spsolve
+
+    lam2 = smoothing * A.shape[0] / A.shape[1]
+    return np.asarray(spsolve((A.T @ A + lam2 * (R.T @ R)).tocsc(), A.T @ mu))  # normal equations: sparse
+
+
+def cross_validate(s: MuSamples, smoothings: tuple[float, ...] = SMOOTHING_CANDIDATES,
+                   grid: tuple[tuple[float, ...], ...] = (T_GRID, SLIP_GRID, P_GRID)) -> dict[float, float]:
+    """Leave-one-run-out: for each smoothing, the map fitted without each run in turn, against that run's
+    crossover samples (both clutches pressurised); the RMS over all held-out crossover samples per smoothing."""
+    R = _penalty(grid)
+    A_all = _design(grid, s)
+    out = {}
+    for smoothing in smoothings:
+        err = []
+        for run in np.unique(s.run):
+            held = s.run == run
+            test = held & s.crossover
+            if not test.any():
+                continue
+            x = _solve(A_all[~held], R, s.mu[~held], smoothing)
+            err.append(A_all[test] @ x - s.mu[test])
+        out[smoothing] = float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+    return out
+
+
+def fit_friction_map(cols: list[dict], smoothing: float = SMOOTHING,
+                     grid: tuple[tuple[float, ...], ...] = (T_GRID, SLIP_GRID, P_GRID),
+                     samples: MuSamples | None = None) -> tuple[FrictionMap, float]:
+    """Regularised least squares of the trilinear map; returns it and the RMS of the fit over the samples."""
+    s = mu_samples(cols) if samples is None else samples
+    if len(s.mu) < 50:
+        raise LogError("friction map: fewer than 50 slipping samples")
+    A = _design(grid, s)
+    x = _solve(A, _penalty(grid), s.mu, smoothing)
+    rms = float(np.sqrt(np.mean((A @ x - s.mu) ** 2)))
+    values = np.round(x.reshape(tuple(len(g) for g in grid)), 5)
+    mu = tuple(tuple(tuple(float(v) for v in cell) for cell in row) for row in values)
+    fm = FrictionMap(grid[0], grid[1], grid[2], mu)
     return fm, rms
 
 
@@ -267,32 +360,40 @@ def check(paths: list[str], cal: TcuCalibration, dbc: str | None = None) -> dict
     return {r.name: replay(r, cal) for r in (read_log(p, codec) for p in paths)}
 
 
-def identify(paths: list[str], base: TcuCalibration, dbc: str | None = None) -> tuple[TcuCalibration, dict]:
+def identify(paths: list[str], base: TcuCalibration, dbc: str | None = None,
+             map_only: list[str] | tuple[str, ...] = ()) -> tuple[TcuCalibration, dict]:
     """The calibration identified from the logs at ``paths`` (``base`` for the rest) and the report of the fits;
-    :class:`LogError` naming the logs when they lack what a fit needs."""
+    :class:`LogError` naming the logs when they lack what a fit needs. The logs at ``map_only`` enter the friction
+    map, k_geom and the replay only: the short torque-handover runs, which start a plate far out of thermal
+    equilibrium (CL at 225 degC in oil down to 40 degC) to reach a handover within seconds; in the thermal,
+    cooling and speed-ratio fits they moved K_plate_oil of CL by 18 % and tripled the observer's fit RMS."""
     codec = Codec(load_dbc(dbc), USES)
     records = [read_log(p, codec) for p in paths]
+    extra = [read_log(p, codec) for p in map_only]
     try:
-        return _identify(records, base)
+        return _identify(records, base, extra)
     except LogError as exc:
-        raise LogError(f"{', '.join(str(p) for p in paths)}: {exc}") from exc
+        raise LogError(f"{', '.join(str(p) for p in [*paths, *map_only])}: {exc}") from exc
 
 
-def _identify(records: list[Record], base: TcuCalibration) -> tuple[TcuCalibration, dict]:
-    report: dict = {"logs": [r.name for r in records]}
+def _identify(records: list[Record], base: TcuCalibration,
+              map_records: list[Record] | None = None) -> tuple[TcuCalibration, dict]:
+    every = records + (map_records or [])
+    report: dict = {"logs": [r.name for r in every]}
     clutches = {}
     for c in ("CL", "CH"):
         cols = [_clutch_columns(r, c) for r in records]
         C, K, rms_dTdt = fit_thermal(cols, [r.t for r in records])
         cooling, rms_obs = fit_cooling(cols, K) or (base.clutch(c).cooling_w_k, math.nan)
-        clutches[c] = replace(base.clutch(c), k_geom_m3=round(fit_k_geom(cols), 6), C_plate_j_k=round(C, 1),
+        k_geom = fit_k_geom([_clutch_columns(r, c) for r in every])
+        clutches[c] = replace(base.clutch(c), k_geom_m3=round(k_geom, 6), C_plate_j_k=round(C, 1),
                               K_plate_oil_w_k=round(K, 2), speed_ratio_m=round(fit_speed_ratio(cols), 6),
                               cooling_w_k=round(cooling, 2))
         report[c] = {"thermal_fit_rms_k": rms_dTdt, "observer_fit_rms_k": rms_obs}
-    fmap, mu_rms = fit_friction_map([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
+    fmap, mu_rms = fit_friction_map([_clutch_columns(r, c) for r in every for c in ("CL", "CH")])
     report["friction_map_rms"] = mu_rms
     cal = replace(base, friction=fmap, CL=clutches["CL"], CH=clutches["CH"])
-    report["replay"] = {r.name: replay(r, cal) for r in records}
+    report["replay"] = {r.name: replay(r, cal) for r in every}
     worst = max(e["max_under_k"] for rep in report["replay"].values() for e in rep.values())
     error_k = max(ERROR_ROUND_K, math.ceil(ERROR_FACTOR * worst / ERROR_ROUND_K) * ERROR_ROUND_K)
     report["worst_under_prediction_k"] = worst
@@ -311,17 +412,27 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--check", action="store_true",
                         help="no fit: replay the base calibration's predictor over the logs; exit 1 if its worst "
                              "under-prediction exceeds its prediction_error_k")
+    parser.add_argument("--map-only", nargs="+", default=[], metavar="LOG",
+                        help="runs for the friction map, k_geom and the replay only, not the thermal, cooling and "
+                             "speed-ratio fits (the short torque-handover runs: they start far from equilibrium)")
+    parser.add_argument("--map-error", action="store_true",
+                        help="fit nothing: the base calibration's friction map against the truth of these logs "
+                             "(held-out runs), on their crossover samples and on all")
+    parser.add_argument("--cross-validate", action="store_true",
+                        help="fit nothing: print the friction map's leave-one-run-out error on the held-out runs' "
+                             "crossover samples for each candidate SMOOTHING (minutes)")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
     parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
     return parser.parse_args(argv)
 
 
 def write_calibration(path: str, cal: TcuCalibration, base: str | None, logs: list[str], rep: dict,
-                      provenance: str | None = None) -> None:
+                      provenance: str | None = None, map_only: list[str] | tuple[str, ...] = ()) -> None:
     """The base calibration file with the identified entries replaced (source = identified, how = this run);
     ``provenance`` (where the logs come from) and the command close the header."""
     raw = raw_sections(base)
-    cmd = "python -m ecu_stub.identify " + " ".join(Path(p).name for p in logs)
+    cmd = "python -m ecu_stub.identify " + " ".join(Path(p).name for p in logs) + (
+        " --map-only " + " ".join(Path(p).name for p in map_only) if map_only else "")
     for c in ("CL", "CH"):
         k, fit = cal.clutch(c), rep[c]["thermal_fit_rms_k"]
         for key, how in (("k_geom_m3", "median of truth torque / (truth mu x measured P) while slipping"),
@@ -343,7 +454,8 @@ def write_calibration(path: str, cal: TcuCalibration, base: str | None, logs: li
         "slip_grid_rpm": {"value": list(f.slip_grid_rpm), "unit": "rpm", "source": "chosen",
                           "how": "10 r/min steps: (6) falls steeply with slip around 80-230 r/min"},
         "P_grid_mpa": {"value": list(f.P_grid_mpa), "unit": "MPa", "source": "chosen",
-                       "how": "denser at low pressure, where (6) changes fastest with pressure (handovers)"},
+                       "how": "0.05 MPa steps up to 0.5 MPa, where (6) changes fastest with pressure at creep slips "
+                              "(the handovers ramp both clutches through it)"},
         "mu": {"value": [[list(cell) for cell in row] for row in f.mu], "unit": "1", "source": "identified",
                "how": how}}
     raw["strategy"]["prediction_error_k"] = {
@@ -376,7 +488,7 @@ T_pred + prediction_error_k + Q_w tau / C_plate and limits the pressure, or stop
 the truth stays at or below T_safe as long as the prediction error stays within prediction_error_k
 (docs/safety.md).
 The identification runs: dsg-hil run --scenario ecu_stub/data/identification/NAME.toml --log NAME.log
-(all eleven, then this fit and this file: bench/reidentify.sh LOGDIR)"""
+(all of them, then this fit and this file: bench/reidentify.sh LOGDIR)"""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -403,13 +515,49 @@ def _check_and_print(args: argparse.Namespace) -> int:
     return 0 if worst <= e_k else EXIT_STALE
 
 
+def map_error(fm: FrictionMap, s: MuSamples) -> np.ndarray:
+    """The map minus the truth at each sample."""
+    mu = mu_lookup(fm)
+    return np.array([mu(T, n, P) for T, n, P in zip(s.T, s.n, s.P)]) - s.mu
+
+
+def _map_error_and_print(args: argparse.Namespace) -> None:
+    codec = Codec(load_dbc(args.dbc), USES)
+    records = [read_log(p, codec) for p in [*args.logs, *args.map_only]]
+    s = mu_samples([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
+    e = map_error(load_calibration(args.calibration).friction, s)
+    for name, m in (("crossover samples", s.crossover), ("all samples", np.ones(len(e), bool))):
+        if not m.any():
+            print(f"{name}: none")
+            continue
+        rel = e[m] / s.mu[m]
+        print(f"{name} ({int(m.sum())}): map - truth RMS {np.sqrt(np.mean(e[m] ** 2)):.5f}, mean {e[m].mean():+.5f}; "
+              f"relative RMS {100 * np.sqrt(np.mean(rel ** 2)):.1f} %, worst {100 * np.abs(rel).max():.1f} %")
+
+
+def _cross_validate_and_print(args: argparse.Namespace) -> None:
+    codec = Codec(load_dbc(args.dbc), USES)
+    records = [read_log(p, codec) for p in [*args.logs, *args.map_only]]
+    cols = [_clutch_columns(r, c) for r in records for c in ("CL", "CH")]
+    s = mu_samples(cols, [i for i in range(len(records)) for _ in ("CL", "CH")])
+    print(f"friction map samples: {len(s.mu)}, {int(s.crossover.sum())} in crossovers, {len(records)} runs")
+    for smoothing, rms in cross_validate(s).items():
+        print(f"SMOOTHING {smoothing:g}: leave-one-run-out RMS on the held-out crossover samples {rms:.5f}")
+
+
 def _identify_and_print(args: argparse.Namespace) -> int | None:
     if args.check:
         if args.write or args.provenance:
             raise InputError("--check fits nothing: no --write or --provenance with it")
         return _check_and_print(args)
+    if args.cross_validate:
+        _cross_validate_and_print(args)
+        return None
+    if args.map_error:
+        _map_error_and_print(args)
+        return None
     check_output_path("--write", args.write)
-    cal, rep = identify(args.logs, load_calibration(args.calibration), args.dbc)
+    cal, rep = identify(args.logs, load_calibration(args.calibration), args.dbc, args.map_only)
     print(f"logs: {', '.join(rep['logs'])}")
     for c in ("CL", "CH"):
         k = cal.clutch(c)
@@ -424,7 +572,7 @@ def _identify_and_print(args: argparse.Namespace) -> int | None:
     print(f"worst under-prediction {rep['worst_under_prediction_k']:.2f} K (x {ERROR_FACTOR:g}) -> "
           f"prediction_error_k = {cal.strategy.prediction_error_k:g} K")
     if args.write:
-        write_calibration(args.write, cal, args.calibration, args.logs, rep, args.provenance)
+        write_calibration(args.write, cal, args.calibration, args.logs, rep, args.provenance, args.map_only)
         print(f"wrote {args.write}")
     return None
 

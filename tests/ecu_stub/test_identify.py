@@ -62,7 +62,7 @@ def test_a_file_that_is_no_log_is_one_clear_error(tmp_path, capsys):
 # ---- the shipped calibration on the current plant ---------------------------------------------------------------
 IDENTIFICATION = Path(__file__).resolve().parents[2] / "ecu_stub" / "data" / "identification"
 # the identification runs, and how much of each, where the calibration identified before issue 16's plant was
-# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all eleven in full:
+# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all forty in full:
 # bench/reidentify.sh --check LOGDIR
 FRESH_SUBSET = {"heavy_fast": 30.0, "paper": 10.0}
 
@@ -93,3 +93,53 @@ def test_check_fails_a_calibration_whose_bound_its_predictor_exceeds(recorded, t
     assert main([str(recorded), "--check", "--calibration", str(tight)]) == EXIT_STALE
     assert "STALE: above the calibration's prediction_error_k" in capsys.readouterr().out
     assert main([str(recorded), "--check", "--write", str(tmp_path / "x.toml")]) == 2
+
+
+# ---- the friction map's samples and smoothing ---------------------------------------------------------------------
+def _columns(slip, P, P_other, mu, fresh, T=150.0):
+    import numpy as np
+
+    n = len(slip)
+    return {"slip": np.asarray(slip, float), "P": np.asarray(P, float), "P_other": np.asarray(P_other, float),
+            "mu": np.asarray(mu, float), "M": np.full(n, 500.0), "T": np.full(n, T), "fresh": np.asarray(fresh)}
+
+
+def test_a_mu_sample_takes_the_slip_of_the_truths_own_period_and_marks_crossovers():
+    """The plant sends a period's speeds, then its pressures, then its truth: a row starts at PLANT_SPEEDS, so a
+    fresh row's truth and pressure are of the previous row's period, and so is its slip."""
+    from ecu_stub.identify import mu_samples
+
+    d = _columns(slip=[100.0, 120.0, 140.0, 160.0], P=[0.3] * 4, P_other=[0.0, 0.0, 0.2, 0.0],
+                 mu=[0.05] * 4, fresh=[True, True, True, True])
+    s = mu_samples([d])
+    assert list(s.n) == [100.0, 120.0, 140.0]  # the first row has no previous period: no sample
+    assert list(s.crossover) == [False, True, False]
+
+
+def test_cross_validation_scores_each_smoothing_on_held_out_runs():
+    import numpy as np
+
+    from ecu_stub.identify import MuSamples, cross_validate
+
+    rng = np.random.default_rng(1)
+    k = 400
+    T, n, P = rng.uniform(100, 200, k), rng.uniform(50, 250, k), rng.uniform(0.05, 0.8, k)
+    mu = 0.05 + 0.01 * np.tanh(5 * (P - 0.3)) + rng.normal(0, 0.001, k)
+    s = MuSamples(T, n, P, mu, np.arange(k) % 4, np.ones(k, bool))
+    cv = cross_validate(s, (0.01, 1.0, 1000.0))
+    assert set(cv) == {0.01, 1.0, 1000.0} and all(np.isfinite(list(cv.values())))
+    assert cv[1000.0] > cv[1.0]  # a flat map misses the pressure dependence on the held-out runs
+
+
+def test_map_only_logs_enter_the_map_and_the_command(recorded, tmp_path, capsys):
+    out = tmp_path / "cal.toml"
+    assert main([str(recorded), "--map-only", str(recorded), "--write", str(out)]) == 0
+    assert "# Identified by: python -m ecu_stub.identify run.log --map-only run.log\n" in out.read_text(
+        encoding="utf-8")
+    load_calibration(out)
+
+
+def test_map_error_scores_the_base_calibrations_map_on_held_out_logs(recorded, capsys):
+    assert main([str(recorded), "--map-error"]) == 0
+    printed = capsys.readouterr().out
+    assert "crossover samples (" in printed and "all samples (" in printed
