@@ -521,9 +521,14 @@ def map_error(fm: FrictionMap, s: MuSamples) -> np.ndarray:
     return np.array([mu(T, n, P) for T, n, P in zip(s.T, s.n, s.P)]) - s.mu
 
 
-def _map_error_and_print(args: argparse.Namespace) -> None:
+def _every_record(args: argparse.Namespace) -> list[Record]:
+    """The logs and the ``--map-only`` logs, read (``--map-error``, ``--cross-validate``)."""
     codec = Codec(load_dbc(args.dbc), USES)
-    records = [read_log(p, codec) for p in [*args.logs, *args.map_only]]
+    return [read_log(p, codec) for p in [*args.logs, *args.map_only]]
+
+
+def _map_error_and_print(args: argparse.Namespace) -> None:
+    records = _every_record(args)
     s = mu_samples([_clutch_columns(r, c) for r in records for c in ("CL", "CH")])
     e = map_error(load_calibration(args.calibration).friction, s)
     for name, m in (("crossover samples", s.crossover), ("all samples", np.ones(len(e), bool))):
@@ -536,8 +541,7 @@ def _map_error_and_print(args: argparse.Namespace) -> None:
 
 
 def _cross_validate_and_print(args: argparse.Namespace) -> None:
-    codec = Codec(load_dbc(args.dbc), USES)
-    records = [read_log(p, codec) for p in [*args.logs, *args.map_only]]
+    records = _every_record(args)
     cols = [_clutch_columns(r, c) for r in records for c in ("CL", "CH")]
     s = mu_samples(cols, [i for i in range(len(records)) for _ in ("CL", "CH")])
     print(f"friction map samples: {len(s.mu)}, {int(s.crossover.sum())} in crossovers, {len(records)} runs")

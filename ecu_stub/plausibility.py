@@ -69,7 +69,7 @@ these between two PLANT_VEHICLE frames (their counter's step times the DBC's cyc
 the bus delays; the control cycles' time if longer) is a sensor fault at once: VehicleSpeed is replaced by the shafts'
 speed (``SUBSTITUTED``, if the shafts agree) from that cycle on, until the vote takes over or VehicleSpeed's distances
 to both shafts are back to zero (at most :data:`HEAL_S`). Measured over bench/tcu_envelope.py's cases without a
-brake, VehicleSpeed changes by at most 11 mm/s per cycle against 42 mm/s allowed: a run without a sensor fault gives
+brake, VehicleSpeed changes by at most 11 mm/s per cycle against 41 mm/s allowed: a run without a sensor fault gives
 the same frames as before. A brake adds deceleration: the driver's pedal p (its largest over the last
 :data:`BRAKE_SETTLE_S`) up to p times the calibration's ``vehicle.brake_decel_mps2`` (the service brakes' full torque
 over the wheel radius and the lightest vehicle: 52.7 m/s^2; the plant's brake is a torque up to
