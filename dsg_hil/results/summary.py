@@ -146,6 +146,18 @@ def driving_clutch(s: Sample) -> tuple[str | None, bool]:
     return ("CL" if cl else "CH" if ch else None), False
 
 
+@dataclass(frozen=True)
+class _Status:
+    """A TCU_STATUS frame awaiting the next one's confirmation: its time, state names, predictions and the truth."""
+
+    t: float
+    state: str
+    clutch: str
+    T_CL_pred: float
+    T_CH_pred: float
+    truth: Sample
+
+
 @dataclass
 class _Run:
     """A run of one driving clutch (None: none slips). Samples at which it slips alone: the first, the one
@@ -264,7 +276,10 @@ class CreepMetrics:
     overspeed: float | None = None  # largest speed minus desired speed while creep is requested
     rollback_guarded: float = 0.0  # distance rolled backwards while creep is requested or the TCU is in GUARDED
     fault_time: float = 0.0  # time TCU_STATUS reported FAULT
+    status_unconfirmed: int = 0  # TCU_STATUS frames whose stop or active clutch the next one did not confirm
     _status_t: float | None = None  # time of the last TCU_STATUS
+    _clutch: str | None = None  # the active clutch as the record took it (confirmed)
+    _held: _Status | None = None  # the latest TCU_STATUS: its stop and clutch confirmed or not by the next one
     _sq_speed_error: float = 0.0
     _driven_time: float = 0.0
     _moved: bool = False
@@ -485,19 +500,23 @@ class CreepMetrics:
 
     def status(self, t: float, state: float, active: float, T_CL_pred: float, T_CH_pred: float,
                truth: Sample) -> None:
-        """A TCU_STATUS frame at ``t`` (raw State/ActiveClutch values), with the truth at that time."""
-        state_name = STATES.get(int(state), f"UNKNOWN_{int(state)}")
+        """A TCU_STATUS frame at ``t`` (raw State/ActiveClutch values), with the truth at that time.
+
+        Its state, the time in FAULT and the predictions count at once. A stop (STOPPED_OVERHEAT) and a change of
+        the active clutch (a handover) are states the TCU holds, never a single frame: the record takes them when
+        the next frame confirms them (or the record ends), dated at their first frame. A random frame with
+        TCU_STATUS's ID passes the CRC (1 in 256) and the counter (3 in 16) once in ~1,400 (a frame flood); taken,
+        it could end the creep with a stop the TCU never made. Such frames are counted in
+        ``status_unconfirmed``."""
+        frame = _Status(t, STATES.get(int(state), f"UNKNOWN_{int(state)}"), CLUTCHES.get(int(active), "NONE"),
+                        T_CL_pred, T_CH_pred, truth)
         if self.tcu_state == "FAULT" and self._status_t is not None:
             self.fault_time += t - self._status_t
         self._status_t = t
-        clutch = CLUTCHES.get(int(active), "NONE")
-        if clutch in ("CL", "CH") and self.active_clutch in ("CL", "CH") and clutch != self.active_clutch:
-            self.handovers.append({"t_s": round(t, 3), "from": self.active_clutch, "to": clutch,
-                                   "T_CL_c": _r(truth.T_CL, 2), "T_CH_c": _r(truth.T_CH, 2),
-                                   "T_CL_pred_c": round(T_CL_pred, 1), "T_CH_pred_c": round(T_CH_pred, 1)})
-        if state_name == "STOPPED_OVERHEAT" and self.tcu_stop_s is None:
-            self.tcu_stop_s = round(t, 3)
-        self.tcu_state, self.active_clutch = state_name, clutch
+        self.tcu_state, self.active_clutch = frame.state, frame.clutch
+        held, self._held = self._held, frame
+        if held is not None:
+            self._confirm(held, frame)
         for name, pred, true in (("CL", T_CL_pred, truth.T_CL), ("CH", T_CH_pred, truth.T_CH)):
             peak, worst = self.max_pred[name], self.pred_error[name]
             if peak is None or pred > peak:
@@ -507,9 +526,35 @@ class CreepMetrics:
                 if worst is None or abs(err) > abs(worst[0]):
                     self.pred_error[name] = (err, t)
 
+    def _confirm(self, frame: _Status, after: _Status | None) -> None:
+        """Take ``frame``'s stop and active clutch if ``after`` (the next frame; None: the record ends there, and
+        nothing refutes it) reports them too; the first frame's clutch at once."""
+        clutch, before = frame.clutch, self._clutch
+        unconfirmed = False
+        if frame.state == "STOPPED_OVERHEAT" and self.tcu_stop_s is None:
+            if after is None or after.state == frame.state:
+                self.tcu_stop_s = round(frame.t, 3)
+            else:
+                unconfirmed = True
+        if clutch != before:
+            if before is None or after is None or after.clutch == clutch:  # (the first frame: no change to confirm)
+                self._clutch = clutch
+                if clutch in ("CL", "CH") and before in ("CL", "CH"):
+                    truth = frame.truth
+                    self.handovers.append({"t_s": round(frame.t, 3), "from": before, "to": clutch,
+                                           "T_CL_c": _r(truth.T_CL, 2), "T_CH_c": _r(truth.T_CH, 2),
+                                           "T_CL_pred_c": round(frame.T_CL_pred, 1),
+                                           "T_CH_pred_c": round(frame.T_CH_pred, 1)})
+            else:
+                unconfirmed = True
+        self.status_unconfirmed += unconfirmed
+
     def as_json(self) -> dict:
         self._materialise()
         self._end_rest()  # the record ends: a vehicle resting since long enough has stopped
+        if self._held is not None:  # the record ends: its last TCU_STATUS has no frame after it
+            self._confirm(self._held, None)
+            self._held = None
         ph = phases(self.runs)
         first_ch = next((p for p in ph if p.clutch == "CH"), None)
         stop_t, stop_s = self.stop if self.stop is not None else (None, None)
@@ -548,6 +593,7 @@ class CreepMetrics:
             "rollback_guarded_m": round(self.rollback_guarded, 4),
             "fault_time_s": round(self.fault_time, 3),
             "min_margin_c": {"truth": _margin(self.max_T), "predicted": _margin(self.max_pred)},
+            "status_unconfirmed": self.status_unconfirmed,
         }
 
 

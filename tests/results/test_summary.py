@@ -142,6 +142,43 @@ def test_prediction_error_is_the_worst_by_magnitude_with_its_time():
     assert [(h["from"], h["to"]) for h in j["handovers"]] == [("CL", "CH")]
 
 
+def test_a_stop_or_clutch_the_next_frame_does_not_confirm_is_not_taken():
+    """The CI flood (test_robustness): one random frame with TCU_STATUS's ID passed CRC and counter and said
+    STOPPED_OVERHEAT between ENGAGE and CREEP frames; the record took it as the TCU's stop. A stop or a change of the
+    active clutch is taken when the next frame confirms it, dated at its first frame; the rest counts at once."""
+    m = CreepMetrics()
+    m.status(1.1, 1, 1, 100.1, 100.0, out(1.1))  # ENGAGE on CL
+    m.status(1.2, 4, 0, 154.2, -20.7, out(1.2))  # the CI flood's frame: STOPPED_OVERHEAT, no clutch
+    assert m.tcu_state == "STOPPED_OVERHEAT"  # at once: roll-back from here counts as the TCU's (the safe side)
+    m.status(1.5, 2, 1, 101.0, 100.0, out(1.5))  # CREEP on CL
+    m.status(1.6, 2, 2, 102.0, 100.0, out(1.6))  # a single frame on CH: no handover
+    m.status(1.7, 2, 1, 103.0, 100.0, out(1.7))
+    m.status(1.8, 2, 2, 104.0, 101.0, out(1.8, T_CL=200.0))  # a handover, confirmed by the next frame
+    m.status(1.9, 4, 2, 105.0, 101.0, out(1.9))  # a stop, confirmed by the next frame
+    m.status(2.0, 4, 2, 105.0, 101.0, out(2.0))
+    j = m.as_json()
+    assert j["status_unconfirmed"] == 2
+    assert (j["tcu_stop_time_s"], j["stop_reason"]) == (1.9, "STOPPED_OVERHEAT")
+    assert [(h["t_s"], h["from"], h["to"], h["T_CL_c"]) for h in j["handovers"]] == [(1.8, "CL", "CH", 200.0)]
+    assert j["max_predicted_temp_c"] == {"CL": 154.2, "CH": 101.0}  # predictions as heard, each frame
+
+
+def test_the_last_frame_has_nothing_to_refute_it():
+    m = CreepMetrics()
+    m.status(0.1, 2, 1, 100.0, 100.0, out(0.1))
+    m.status(0.2, 4, 2, 100.0, 100.0, out(0.2))
+    j = m.as_json()
+    assert (j["tcu_stop_time_s"], j["stop_reason"], j["status_unconfirmed"]) == (0.2, "STOPPED_OVERHEAT", 0)
+    assert [(h["from"], h["to"]) for h in j["handovers"]] == [("CL", "CH")]
+
+
+def test_fault_time_runs_from_each_fault_frame_to_the_next():
+    m = CreepMetrics()
+    for t, state in ((0.1, 2), (0.2, 5), (0.3, 2), (0.4, 5), (0.5, 5), (0.6, 2)):
+        m.status(t, state, 1, 100.0, 100.0, out(t))
+    assert m.as_json()["fault_time_s"] == pytest.approx(0.3)
+
+
 def test_run_summary_json_has_no_sentinels_and_one_wall_time():
     s = RunSummary(dt=DT)
     s.on_step(out(DT), False, False)
