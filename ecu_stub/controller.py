@@ -25,7 +25,11 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   or when the prediction has stayed within ``dwell_band_k`` under the limit for ``dwell_time_s``.
   The other clutch takes over if it is predicted ``takeover_headroom_k`` under its limit, the limit taken at the
   power it will have once it carries the wheel force (its own gear's torque, :meth:`takeover_heat`), not the
-  power of the moment; otherwise STOPPED_OVERHEAT.
+  power of the moment, and if it can give the wheel force demanded (:meth:`carries`); otherwise STOPPED_OVERHEAT.
+* A clutch that cannot carry the vehicle (CREEP with the wheel force at the clutch's capacity and the vehicle under
+  half its target for ``STALL_S``: CH's gear needs 1.73 times CL's torque, so a heavy vehicle on a steep grade is
+  beyond CH at its pressure limit) hands over as at its limit: to the other clutch if that one may take over and
+  can carry, otherwise STOPPED_OVERHEAT (the vehicle held, not left standing under a slipping clutch).
 * Clutches not following their commands (a measured pressure implausible: a dead valve, or the commands lost on
   the bus): with the vehicle standing, rolling back or running away, the brake is requested and held; the speed
   controller's integral is held meanwhile; the creep resumes as a launch (ENGAGE) once the pressures are plausible.
@@ -58,8 +62,8 @@ from .clutch_model import heat_w, mu_lookup, nm_per_mpa
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 
-__all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "TcuInputs",
-           "TcuOutputs"]
+__all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "STALL_FRACTION",
+           "STALL_S", "TcuInputs", "TcuOutputs"]
 
 OTHER = {"CL": "CH", "CH": "CL"}
 FAULT_PLANT_MISSING = 0x01
@@ -70,6 +74,9 @@ SETTLED_FRACTION = 0.05  # a creep within 5 % of its target (reference ramp done
 SLIP_FILTER_S = 0.1  # the slip behind a torque's pressure, low-passed: a 14-Hz ringing (70-ms period, aliased in the
 # 10-ms samples) / 9, a launch's slip late by 0.1 s (about 6 of its 90 r/min)
 RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (issue 18: +-20 %), speeding up
+STALL_FRACTION = 0.5  # stalled: under half the target speed with the wheel force at the clutch's capacity ...
+STALL_S = 1.0  # ... for this long (10 time constants of the speed loop, 1/9.7 rad/s: not a transient)
+SATURATED_FRACTION = 0.98  # the wheel force at its limit: within 2 % of the capacity (which moves with the slip)
 
 
 @dataclass(slots=True)  # not frozen: built every control period, a frozen one costs several times more
@@ -142,6 +149,7 @@ class CreepController:
         self.inp = TcuInputs(plant_valid=False)  # the inputs of the last cycle
         self.F_creep = 0.0  # wheel force of the last creep settled on its target [N] (prefill_force)
         self.slip_mean: dict[str, float] | None = None  # the clutches' slips low-passed [r/min] (mean_slip_rpm)
+        self.stalled_since: float | None = None  # CREEP at the clutch's capacity under half the target (_stalled)
 
     # ---- the clutch model ------------------------------------------------------------------------------------
     def observed_plate_c(self, clutch: str, inp: TcuInputs) -> float:
@@ -290,6 +298,26 @@ class CreepController:
         worst = max(worst, self.worst_heat("CL"), self.worst_heat("CH"))
         return self._T_pred[clutch] <= self.limit(clutch, load, worst) - self.cal.strategy.takeover_headroom_k
 
+    def carries(self, clutch: str, inp: TcuInputs) -> bool:
+        """Whether the clutch can give the wheel force demanded now (:meth:`force_capacity` at its present slip)."""
+        return self.force_capacity(clutch, inp) >= self.F_cmd
+
+    def _stalled(self, inp: TcuInputs, now: float) -> bool:
+        """CREEP with the wheel force at the active clutch's capacity (the speed controller's limit) and the vehicle
+        under ``1 - STALL_FRACTION`` of its target, for ``STALL_S``: the clutch cannot carry the vehicle (CH's gear
+        needs 1.73 times CL's torque for a wheel force: a heavy vehicle on a steep grade is beyond CH at its
+        pressure limit). Found by the 5,000-run sample: 11.0 t on 0.175 rad at 1,486 r/min, CL at its limit after
+        13 s of creep, handed over to CH, which at 1.5 MPa slowed the vehicle to 9 mm/s and held it there while
+        creep was requested (CH heating at 7.5 K/s)."""
+        stalled = (self.state == "CREEP" and self.F_cmd >= SATURATED_FRACTION * self.pid.out_max
+                   and inp.v_mps < (1.0 - STALL_FRACTION) * inp.desired_speed_mps)
+        if not stalled:
+            self.stalled_since = None
+            return False
+        if self.stalled_since is None:
+            self.stalled_since = now
+        return now - self.stalled_since >= STALL_S
+
     def _limit_reached(self, now: float) -> bool:
         c = self.active
         limit = self.limit(c)
@@ -370,9 +398,9 @@ class CreepController:
             if x >= 1.0:
                 self.state = "CREEP"
 
-        if self.state in ("CREEP", "ENGAGE") and self._limit_reached(now):
+        if self.state in ("CREEP", "ENGAGE") and (self._stalled(inp, now) or self._limit_reached(now)):
             other = OTHER[self.active]
-            if not self.can_take_over(other):
+            if not (self.can_take_over(other) and self.carries(other, inp)):
                 return self._stop(now, faults)
             if self.state == "ENGAGE":  # hold the pre-fill on the other clutch, as a fresh engage
                 self.P_cmd[self.active], self.active = 0.0, other
@@ -380,7 +408,7 @@ class CreepController:
                 return self._supervised(inp, now, faults)
             self.state, self.handover_from, self.active = "HANDOVER", self.active, other
             self.handover_t0 = now
-            self.near_limit_since = None
+            self.near_limit_since = self.stalled_since = None
         return self._supervised(inp, now, faults)
 
     def _supervised(self, inp: TcuInputs, now: float, faults: int) -> TcuOutputs:

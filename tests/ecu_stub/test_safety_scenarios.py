@@ -164,6 +164,25 @@ def test_search_found_a_stuck_zero_vehicle_speed_under_a_light_brake_drag_is_rep
     assert s["max_speed_creep_mps"] <= 1.2 * v_desired  # before: 0.548 m/s
 
 
+def test_sample_found_a_clutch_that_cannot_carry_the_vehicle_stops_it_rather_than_stall_under_creep():
+    """11.0 t on 0.175 rad at 1,486 r/min, creep requested (found by the 5,000-run sample of the shipped space,
+    r00468): CL reached its limit after 13 s and handed over to CH, whose gear needs 1.73 times CL's torque; at its
+    pressure limit CH slowed the vehicle to 9 mm/s and held it there, heating at 7.5 K/s, until the driver withdrew
+    the request (the sweep's standstill: creep requested, vehicle at rest, no stop). CL too hot, CH too weak: the
+    TCU stops (brake held) once the force has stayed at CH's capacity with the vehicle under half its target."""
+    s = sweep_run({"duration_s": 20.0, "grade_rad": 0.17519253268197146, "engine_speed_rpm": 1486.4046314130019,
+                   "initial.T_clutch_c": 52.37771165391007, "initial.T_oil_c": 87.79366488680176,
+                   "params.vehicle.m": 11037.077433300437, "driver.behaviour": "creep_toggles",
+                   "driver.desired_speed_mps": 0.28723038538861795, "driver.toggle_s": 19.358877229205213,
+                   "driver.toggle_brake": False, "driver.drag_level": 0.051262641830609273,
+                   "driver.drag_onset_s": 47.31397985738239, "driver.drag_duration_s": 142.37711020942905})
+    assert [(h["from"], h["to"]) for h in s["handovers"]] == [("CL", "CH")]
+    assert s["stop_reason"] == "STOPPED_OVERHEAT"  # before: vehicle_stopped at 17.1 s, creep requested
+    assert s["tcu_stop_time_s"] <= 17.1  # before the vehicle came to rest under the creep request
+    assert s["max_plate_temp_c"]["CL"] >= 235.0  # CL used to its limit first (not giving up early)
+    assert s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["rollback_guarded_m"] <= LIMITS["rollback_m"]
+
+
 @pytest.mark.slow
 def test_sweep_found_a_slow_creep_with_a_light_drag_on_a_steep_grade_does_not_roll_back():
     """Creeping at 0.068 m/s on a 0.22 rad grade with a 3.4 % brake drag from 160 s (found by dsg-hil sweep --search
