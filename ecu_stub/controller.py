@@ -350,9 +350,8 @@ class CreepController:
             self.state = "IDLE"
 
         if self.state == "STOPPED_OVERHEAT":
-            if not inp.creep_request:
-                self.state, self.brake_request = "IDLE", False
-                self._open_both()
+            if not inp.creep_request:  # IDLE, still held (_idle): the next TCU_STATUS may be the plant's for 100 ms
+                self._idle(inp, inp.brake_pct >= BRAKE_PRESSED_PCT)
             else:
                 x = 1.0 if self.cal.strategy.stop_release_s <= 0 else min(
                     (now - self.stop_t0) / self.cal.strategy.stop_release_s, 1.0)

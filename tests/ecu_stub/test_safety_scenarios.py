@@ -183,6 +183,21 @@ def test_sample_found_a_clutch_that_cannot_carry_the_vehicle_stops_it_rather_tha
     assert s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["rollback_guarded_m"] <= LIMITS["rollback_m"]
 
 
+def test_sample_found_withdrawing_creep_after_an_overheat_stop_keeps_the_vehicle_held():
+    """Creep-request toggles without the brake, 5.0 t on 0.234 rad, stopped for overheat at 46.7 s (found by the
+    5,000-run sample, r01017): leaving STOPPED_OVERHEAT for IDLE the TCU cleared its brake request for one cycle
+    (IDLE sets it again the next); when TCU_STATUS was due in that cycle the plant had no brake for 100 ms and the
+    vehicle rolled back at 95 mm/s. IDLE holds the vehicle from its first cycle."""
+    s = sweep_run({"grade_rad": 0.23404840022804244, "engine_speed_rpm": 1823.1654226933797,
+                   "initial.T_clutch_c": 134.76339876078418, "initial.T_oil_c": 135.39255433656524,
+                   "params.vehicle.m": 4986.114192342171, "driver.behaviour": "creep_toggles",
+                   "driver.desired_speed_mps": 0.10453544926761907, "driver.toggle_s": 19.108611831864515,
+                   "driver.toggle_brake": False, "driver.drag_level": 0.030971739677655083,
+                   "driver.drag_onset_s": 0.08657669862627064, "driver.drag_duration_s": 179.93374127459654})
+    assert s["tcu_stop_time_s"] is not None  # the overheat stop and the request withdrawn after it were in the run
+    assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS  # before: -0.0949 m/s at 211.3 s
+
+
 @pytest.mark.slow
 def test_sweep_found_a_slow_creep_with_a_light_drag_on_a_steep_grade_does_not_roll_back():
     """Creeping at 0.068 m/s on a 0.22 rad grade with a 3.4 % brake drag from 160 s (found by dsg-hil sweep --search
