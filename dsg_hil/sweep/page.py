@@ -17,9 +17,10 @@ from .code import code_digest, code_note
 from .engine import SweepResult
 from .space import Space
 
-__all__ = ["params_toml", "repro_files", "write_page"]
+__all__ = ["ROLLBACK_DRIVABLE_MPS", "drivability_lines", "params_toml", "repro_files", "write_page"]
 
 WORST = 10  # rows in the table of the hottest runs
+ROLLBACK_DRIVABLE_MPS = 0.01  # issue 18's drivability target: at most 10 mm/s backwards at a brake release
 
 
 def params_toml(overrides: Mapping[str, float]) -> str:
@@ -110,10 +111,29 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
                   "|" + "---|" * len(columns)]
         lines += ["| " + " | ".join(_fmt(r.get(c)) for c in columns) + " |" for r in worst]
         lines.append("")
+    lines += drivability_lines(ok, inputs)
     lines += _figures(space, out, ok, inputs, record(worst[0]["run_id"])["task"] if worst else None)
     page = out / "sweep.md"
     page.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return page
+
+
+def drivability_lines(rows: Sequence[Mapping[str, Any]], inputs: list[str]) -> list[str]:
+    """The page's drivability section: reported, not judged (the verdict's roll-back limit is a distance). The runs
+    whose fastest backward speed (``rollback_mps``, at any time of the run: brake releases, fault reactions)
+    exceeds :data:`ROLLBACK_DRIVABLE_MPS`, the worst first."""
+    rolled = sorted((r for r in rows if r.get("rollback_mps") is not None
+                     and -float(r["rollback_mps"]) > ROLLBACK_DRIVABLE_MPS), key=lambda r: float(r["rollback_mps"]))
+    lines = ["## Drivability (reported, not judged)", "",
+             f"Runs rolling backwards faster than {ROLLBACK_DRIVABLE_MPS * 1000:g} mm/s at some time (the drivability "
+             f"target at a brake release; here at any time, fault reactions included): **{len(rolled)} of "
+             f"{len(rows)}**.", ""]
+    if rolled:
+        columns = ["run_id", "rollback_mps", "rollback_m", *inputs]
+        lines += ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+        lines += ["| " + " | ".join(_fmt(r.get(c)) for c in columns) + " |" for r in rolled[:WORST]]
+        lines.append("")
+    return lines
 
 
 def _figures(space: Space, out: Path, rows: Sequence[Mapping[str, Any]], inputs: list[str],

@@ -1,0 +1,24 @@
+"""The sweep page's sections on hand-built rows (dsg_hil.sweep.page)."""
+
+from __future__ import annotations
+
+from dsg_hil.sweep.page import ROLLBACK_DRIVABLE_MPS, drivability_lines
+
+
+def row(run_id: str, rollback_mps: float | None) -> dict:
+    return {"run_id": run_id, "rollback_mps": rollback_mps, "rollback_m": 0.001, "in.grade_rad": 0.2}
+
+
+def test_drivability_lists_the_runs_rolling_back_faster_than_the_target_worst_first():
+    rows = [row("slow", -0.005), row("fast", -0.095), row("edge", -ROLLBACK_DRIVABLE_MPS), row("mid", -0.02),
+            row("none", None)]
+    text = "\n".join(drivability_lines(rows, ["in.grade_rad"]))
+    assert "**2 of 5**" in text
+    table = [line for line in text.splitlines() if line.startswith("| ") and "run_id" not in line]
+    assert [line.split(" | ")[0].removeprefix("| ") for line in table] == ["fast", "mid"]
+    assert "| fast | -0.095 | 0.001 | 0.2 |" in table
+
+
+def test_drivability_without_a_fast_roll_back_has_no_table():
+    lines = drivability_lines([row("slow", -0.005)], [])
+    assert "**0 of 1**" in "\n".join(lines) and not any(line.startswith("|") for line in lines)
