@@ -25,7 +25,9 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   or when the prediction has stayed within ``dwell_band_k`` under the limit for ``dwell_time_s``.
   The other clutch takes over if it is predicted ``takeover_headroom_k`` under its limit, the limit taken at the
   power it will have once it carries the wheel force (its own gear's torque, :meth:`takeover_heat`), not the
-  power of the moment, and if it can give the wheel force demanded (:meth:`carries`); otherwise STOPPED_OVERHEAT.
+  power of the moment; otherwise STOPPED_OVERHEAT. If it may but cannot give the wheel force demanded
+  (:meth:`carries`), the active clutch carries on past its handover limit (whose crossover allowance is then moot)
+  until the thermal monitor stops the vehicle: the plate is used up to the monitor's bound, not given up early.
 * A clutch that cannot carry the vehicle (CREEP with the wheel force at the clutch's capacity and the vehicle under
   half its target for ``STALL_S``: CH's gear needs 1.73 times CL's torque, so a heavy vehicle on a steep grade is
   beyond CH at its pressure limit) hands over as at its limit: to the other clutch if that one may take over and
@@ -303,13 +305,13 @@ class CreepController:
         return self.force_capacity(clutch, inp) >= self.F_cmd
 
     def _stalled(self, inp: TcuInputs, now: float) -> bool:
-        """CREEP with the wheel force at the active clutch's capacity (the speed controller's limit) and the vehicle
-        under ``1 - STALL_FRACTION`` of its target, for ``STALL_S``: the clutch cannot carry the vehicle (CH's gear
-        needs 1.73 times CL's torque for a wheel force: a heavy vehicle on a steep grade is beyond CH at its
-        pressure limit). Found by the 5,000-run sample: 11.0 t on 0.175 rad at 1,486 r/min, CL at its limit after
-        13 s of creep, handed over to CH, which at 1.5 MPa slowed the vehicle to 9 mm/s and held it there while
-        creep was requested (CH heating at 7.5 K/s)."""
-        stalled = (self.state == "CREEP" and self.F_cmd >= SATURATED_FRACTION * self.pid.out_max
+        """(Called in CREEP, every cycle; a launch, ENGAGE, starts it afresh.) The wheel force at the active clutch's
+        capacity (the speed controller's limit) and the vehicle under ``1 - STALL_FRACTION`` of its target, for
+        ``STALL_S``: the clutch cannot carry the vehicle (CH's gear needs 1.73 times CL's torque for a wheel force: a
+        heavy vehicle on a steep grade is beyond CH at its pressure limit). Found by the 5,000-run sample: 11.0 t on
+        0.175 rad at 1,486 r/min, CL at its limit after 13 s of creep, handed over to CH, which at 1.5 MPa slowed the
+        vehicle to 9 mm/s and held it there while creep was requested (CH heating at 7.5 K/s)."""
+        stalled = (self.F_cmd >= SATURATED_FRACTION * self.pid.out_max
                    and inp.v_mps < (1.0 - STALL_FRACTION) * inp.desired_speed_mps)
         if not stalled:
             self.stalled_since = None
@@ -397,10 +399,16 @@ class CreepController:
             if x >= 1.0:
                 self.state = "CREEP"
 
-        if self.state in ("CREEP", "ENGAGE") and (self._stalled(inp, now) or self._limit_reached(now)):
+        stalled = self.state == "CREEP" and self._stalled(inp, now)
+        if self.state in ("CREEP", "ENGAGE") and (stalled or self._limit_reached(now)):
             other = OTHER[self.active]
-            if not (self.can_take_over(other) and self.carries(other, inp)):
+            if not self.can_take_over(other):
                 return self._stop(now, faults)
+            if not self.carries(other, inp):
+                if stalled:  # neither clutch can carry the vehicle
+                    return self._stop(now, faults)
+                # the other clutch could not carry the vehicle: this one carries on, up to the monitor's stop
+                return self._supervised(inp, now, faults)
             if self.state == "ENGAGE":  # hold the pre-fill on the other clutch, as a fresh engage
                 self.P_cmd[self.active], self.active = 0.0, other
                 self.near_limit_since = None
@@ -481,7 +489,7 @@ class CreepController:
 
     def _engage(self, clutch: str) -> None:
         """A launch on ``clutch``: ENGAGE, the pre-fill's force (:meth:`prefill_force`), no dwell running."""
-        self.state, self.active, self.near_limit_since = "ENGAGE", clutch, None
+        self.state, self.active, self.near_limit_since, self.stalled_since = "ENGAGE", clutch, None, None
         self.F_cmd = self.prefill_force()
 
     def prefill_force(self) -> float:

@@ -183,6 +183,19 @@ def test_sample_found_a_clutch_that_cannot_carry_the_vehicle_stops_it_rather_tha
     assert s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["rollback_guarded_m"] <= LIMITS["rollback_m"]
 
 
+def test_sample_found_a_clutch_whose_partner_cannot_carry_is_used_to_the_monitors_stop_not_given_up_early():
+    """10.3 t on 0.246 rad at 1,746 r/min, 0.344 m/s requested (found by the 5,000-run sample on d146527, r00071):
+    CL's handover limit at this power is low (the crossover's heat allowance, about 17 K), CH could not give the
+    33 kN, and the TCU stopped at CL's handover limit with the hotter plate at 233.5 degC (issue 18: used to >= 235
+    degC before a stop). With no handover possible the allowance is moot: CL carries on until the monitor stops."""
+    s = sweep_run({"duration_s": 25.0, "grade_rad": 0.24610819144805687, "engine_speed_rpm": 1745.994521005034,
+                   "initial.T_clutch_c": 41.21347795847542, "params.vehicle.m": 10254.863273226438,
+                   "driver.behaviour": "creep", "driver.desired_speed_mps": 0.34408601910639397})
+    assert s["handovers"] == [] and s["stop_reason"] == "STOPPED_OVERHEAT"
+    assert 235.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C  # before: 233.54 degC
+    assert s["rollback_guarded_m"] <= LIMITS["rollback_m"]
+
+
 def test_sample_found_withdrawing_creep_after_an_overheat_stop_keeps_the_vehicle_held():
     """Creep-request toggles without the brake, 5.0 t on 0.234 rad, stopped for overheat at 46.7 s (found by the
     5,000-run sample, r01017): leaving STOPPED_OVERHEAT for IDLE the TCU cleared its brake request for one cycle
