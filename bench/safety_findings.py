@@ -16,7 +16,9 @@ import json
 import sys
 from pathlib import Path
 
-ROLLBACK_DRIVABLE_MPS = 0.01  # the drivability target at a brake release (issue 18)
+from dsg_hil.results.thresholds import SAFETY_TEMPERATURE_C
+from dsg_hil.sweep.page import ROLLBACK_DRIVABLE_MPS
+
 USED_C = 235.0  # the hotter clutch used to at least this before an overheat stop (issue 18)
 
 
@@ -39,7 +41,7 @@ def findings(out: Path) -> dict:
         "violating": [(r["run_id"], r["violations"]) for r in rows if r["verdict"] == "violation"],
         "failed": [(r["run_id"], r["error"]) for r in rows if r["verdict"] == "error"],
         "hottest_plate_c": round(hottest["max_plate_temp_c"], 2), "hottest_run": hottest["run_id"],
-        "above_250_runs": sum(r["max_plate_temp_c"] > 250.0 for r in judged),
+        f"above_{SAFETY_TEMPERATURE_C:g}_c_runs": sum(r["max_plate_temp_c"] > SAFETY_TEMPERATURE_C for r in judged),
         "min_margin_predicted_c": min(predicted) if predicted else None,
         "overheat_stops": len(stops),
         "stop_hotter_plate_min_c": min(hotter)[0] if hotter else None,
@@ -47,9 +49,9 @@ def findings(out: Path) -> dict:
         f"stops_below_{USED_C:g}_c": sum(t < USED_C for t, _ in hotter),
         "rollback_max_m": max(r["rollback_m"] for r in judged),
         "rollback_guarded_max_m": max(r["rollback_guarded_m"] or 0.0 for r in judged),
-        "rollback_faster_than_10mm_s": {"runs": len(fast), "with_a_frame_fault": sum(bool(r["in.fault"]) for r in fast),
-                                        "worst_without": min((r["rollback_mps"] for r in fast if not r["in.fault"]),
-                                                             default=None)},
+        f"rollback_faster_than_{ROLLBACK_DRIVABLE_MPS * 1000:g}mm_s": {
+            "runs": len(fast), "with_a_frame_fault": sum(bool(r["in.fault"]) for r in fast),
+            "worst_without": min((r["rollback_mps"] for r in fast if not r["in.fault"]), default=None)},
         "top_speed_over_desired_max_mps": round(over["v_max_mps"] - over["v_desired_max_mps"], 4),
         "top_speed_over_desired_run": over["run_id"],
         "top_speed_above_1.2x_desired_runs": sum(x > 1.2 for x in ratio),

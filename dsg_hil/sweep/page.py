@@ -107,10 +107,7 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
     if worst:
         columns = ["run_id", "max_plate_temp_c", "margin_c", "time_above_limit_s.CL", "time_above_limit_s.CH",
                    "stop_reason", *inputs]
-        lines += ["## Hottest runs (true plate temperature)", "", "| " + " | ".join(columns) + " |",
-                  "|" + "---|" * len(columns)]
-        lines += ["| " + " | ".join(_fmt(r.get(c)) for c in columns) + " |" for r in worst]
-        lines.append("")
+        lines += ["## Hottest runs (true plate temperature)", "", *_table(columns, worst)]
     lines += drivability_lines(ok, inputs)
     lines += _figures(space, out, ok, inputs, record(worst[0]["run_id"])["task"] if worst else None)
     page = out / "sweep.md"
@@ -129,11 +126,14 @@ def drivability_lines(rows: Sequence[Mapping[str, Any]], inputs: list[str]) -> l
              f"target at a brake release; here at any time, fault reactions included): **{len(rolled)} of "
              f"{len(rows)}**.", ""]
     if rolled:
-        columns = ["run_id", "rollback_mps", "rollback_m", *inputs]
-        lines += ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-        lines += ["| " + " | ".join(_fmt(r.get(c)) for c in columns) + " |" for r in rolled[:WORST]]
-        lines.append("")
+        lines += _table(["run_id", "rollback_mps", "rollback_m", *inputs], rolled[:WORST])
     return lines
+
+
+def _table(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """A Markdown table of ``columns`` of ``rows`` (:func:`_fmt` cells), and the blank line after it."""
+    return ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns),
+            *("| " + " | ".join(_fmt(r.get(c)) for c in columns) + " |" for r in rows), ""]
 
 
 def _figures(space: Space, out: Path, rows: Sequence[Mapping[str, Any]], inputs: list[str],
