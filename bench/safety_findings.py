@@ -25,9 +25,12 @@ USED_C = 235.0  # the hotter clutch used to at least this before an overheat sto
 def findings(out: Path) -> dict:
     import pyarrow.dataset as ds  # noqa: PLC0415 - the sweep extra
 
-    rows = ds.dataset(out / "table").to_table().to_pylist()
+    try:
+        rows = ds.dataset(out / "table").to_table().to_pylist()
+    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError: a file that is not Parquet
+        raise ValueError(f"{out}/table: not a sweep's table ({str(exc).splitlines()[0]})") from exc
     if not rows:
-        raise SystemExit(f"{out}/table: no rows")
+        raise ValueError(f"{out}/table: no rows")
     judged = [r for r in rows if r["verdict"] in ("ok", "violation")]
     hottest = max(judged, key=lambda r: r["max_plate_temp_c"])
     stops = [r for r in judged if r["stop_reason"] == "STOPPED_OVERHEAT"]
@@ -67,7 +70,12 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.out / "table").is_dir():
         print(f"safety_findings: {args.out}/table: no such directory (not a sweep's --out)", file=sys.stderr)
         return 2
-    result = findings(args.out)
+    try:
+        result = findings(args.out)
+    except (ImportError, ValueError, KeyError) as exc:  # no pyarrow; not a sweep's table; a column missing
+        print(f"safety_findings: {exc if not isinstance(exc, KeyError) else f'{args.out}/table: no column {exc}'}",
+              file=sys.stderr)
+        return 2
     if args.json:
         print(json.dumps(result, indent=1))
     else:
