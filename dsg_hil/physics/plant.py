@@ -86,7 +86,7 @@ S_F = S_GOV + 1
 S_MEM = S_F + 3
 N_S = S_MEM + 2
 # Outputs at the end of a step, in the order of PlantOutputs' fields (bool fields as 0.0 / 1.0).
-N_OUT = 27
+N_OUT = 28
 _O_LOCKED = 22
 # The period's extremes and sums (Plant.period): peak plate temperatures [degC], friction energy [J].
 PERIOD = ("T_CL_max", "T_CH_max", "E_CL", "E_CH")
@@ -199,6 +199,7 @@ class PlantOutputs(NamedTuple):
     vehicle_held: bool
     Q_diss_CL: float = 0.0  # heat leaving the plates (to their oil and E) over the step, W: Q - C dT/dt
     Q_diss_CH: float = 0.0
+    a_x: float = 0.0  # longitudinal accelerometer (as from the ESC), m/s^2: dv/dt over the step + g sin(grade)
 
 
 class Plant:
@@ -262,8 +263,10 @@ class Plant:
         self.period = self._b[_B_PERIOD:_B_PERIOD + len(PERIOD)]  # of the last advance, see PERIOD
         self._no_trace = np.zeros((0, N_OUT))
         self._steps = advance_steps.specialize(self._b, self._K, self._no_trace, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
+        # before the first step: at rest on the parameter file's grade (the accelerometer reads its gradient)
+        v_0 = vehicle_speed(self._s[S_X + _5], params.powertrain.i_b, params.vehicle.r_w)
         write_outputs(self._b, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, params.powertrain.i_b,
-                      params.vehicle.r_w)
+                      params.vehicle.r_w, v_0, params.vehicle.g * math.sin(params.vehicle.beta), self._K[0]["dt"])
         self._last = self.sample(self._out)
 
     def _initial_state(self, T_init: float | dict[str, float], v_init: float) -> np.ndarray:
@@ -344,14 +347,17 @@ def outputs_of(b):
     Python as one tuple, built by compiled code (cheaper than reading the array from Python)."""
     o = b[_B_OUT:_B_OUT + N_OUT]
     return (o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9], o[10], o[11], o[12], o[13], o[14], o[15],
-            o[16], o[17], o[18], o[19], o[20], o[21], o[22] != 0.0, o[23] != 0.0, o[24] != 0.0, o[25], o[26])
+            o[16], o[17], o[18], o[19], o[20], o[21], o[22] != 0.0, o[23] != 0.0, o[24] != 0.0, o[25], o[26],
+            o[27])
 
 
 @compiled
 def write_outputs(b, M_e, mu_CL, mu_CH, M_CL, M_CH, Q_CL, Q_CH, stuck_CL, stuck_CH, held, Q_diss_CL, Q_diss_CH,
-                  i_b, r_w):
+                  i_b, r_w, v_start, g_sin_grade, dt):
     """The outputs (:class:`PlantOutputs`' fields in order) from the state and the step's torques and heat: the
-    state at the start of the plant's array b, the outputs written at _B_OUT."""
+    state at the start of the plant's array b, the outputs written at _B_OUT. The accelerometer reads the step's
+    mean acceleration (the speed's change from ``v_start`` over ``dt``) plus the gradient's ``g sin(grade)``: what
+    a body-fixed sensor measures along the vehicle (a standing vehicle reads the grade)."""
     o = _B_OUT
     b[o] = b[S_T]
     b[o + 1] = b[S_X + _E]
@@ -380,6 +386,7 @@ def write_outputs(b, M_e, mu_CL, mu_CH, M_CL, M_CH, Q_CL, Q_CH, stuck_CL, stuck_
     b[o + 24] = held
     b[o + 25] = Q_diss_CL
     b[o + 26] = Q_diss_CH
+    b[o + 27] = (b[o + 7] - v_start) / dt + g_sin_grade
 
 
 _I_CLO, _I_CHO, _I_FO, _I_RO = (NODES.index(n) for n in ("CLo", "CHo", "Fo", "Ro"))
@@ -514,6 +521,7 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
     T_new_by_4 = T_new.reshape((_N_T_4 // 4, 4))
     f, v_ramp = b[_B_F:_B_F + 3], k.v_ramp
     M_hold = holding_torque(grade, brake, k)  # what holds the vehicle at rest; the rest of M_resist needs motion
+    g_sin_grade = k.g * math.sin(grade)  # the accelerometer's reading of the gradient
     sources = b[_B_SOURCES:_B_SOURCES + 4]
     decay_P, decay_slip = math.exp(-dt / k.tau), math.exp(-dt / k.tau_slip)  # of pressure_step, slip_memory_step
     decay_half = math.exp(-0.5 * dt / k.tau_slip)  # the slip memory half a step on
@@ -531,7 +539,8 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
         P_CL, P_CH = b[S_P], b[S_P + 1]
         P_CL_mean = target_CL + (P_CL - target_CL) * mean_P  # the exact means over the step [Pa]
         P_CH_mean = target_CH + (P_CH - target_CH) * mean_P
-        M_fixed, M_resist = road_load(vehicle_speed(b[S_X + _5], i_b, k.r_w), grade, brake, k)
+        v_start = vehicle_speed(b[S_X + _5], i_b, k.r_w)
+        M_fixed, M_resist = road_load(v_start, grade, brake, k)
         fuel, d_integral = governor(b[S_X + _E], b[S_GOV], setpoint, k)
         M_e = net_torque(fuel, k)
         # clutch capacities (5)-(6) at the mean pressures, mu at the remembered slip (static mu once stuck long
@@ -583,7 +592,7 @@ def advance_steps(b, K, trace, P_CL_cmd, P_CH_cmd, brake, grade, setpoint, n_ste
         b[S_T] = b[S_K] * dt_ns / 1e9  # the exact time in ns (an integer below 2**53), rounded once
         write_outputs(b, M_e, mu_CL, mu_CH, f[0], f[1], Q_CL, Q_CH, b[_B_STUCK], b[_B_STUCK + 1], b[_B_STUCK + 2],
                       Q_CL - k.C_CL * (T_new[I_CL] - T_plate_CL) / dt, Q_CH - k.C_CH * (T_new[I_CH] - T_plate_CH) / dt,
-                      i_b, k.r_w)
+                      i_b, k.r_w, v_start, g_sin_grade, dt)
         b[_B_PERIOD] = max(b[_B_PERIOD], T_new[I_CL])
         b[_B_PERIOD + 1] = max(b[_B_PERIOD + 1], T_new[I_CH])
         b[_B_PERIOD + 2] += Q_CL * dt

@@ -14,7 +14,7 @@ EXAMPLE_COUNTER = 3
 EXAMPLE_VALUES: dict[str, dict[str, float]] = {
     "PLANT_ENGINE": {"EngineSpeed": 800.0, "EngineTorque": 171.3},
     "PLANT_SPEEDS": {"ClutchInputSpeed": 149.3, "CLOutputSpeed": 60.6, "CHOutputSpeed": 35.1},
-    "PLANT_VEHICLE": {"TransOutputSpeed": 41.2, "VehicleSpeed": 0.22},
+    "PLANT_VEHICLE": {"TransOutputSpeed": 41.2, "VehicleSpeed": 0.22, "LongAccel": 1.698},
     "PLANT_PRESSURE": {"P_CL": 0.5012, "P_CH": 0.0},
     "PLANT_OIL_TEMP": {"T_OilCL": 104.2, "T_OilCH": 96.5, "T_Sump": 92.0, "T_RadiatorOut": 88.4},
     "DRIVER": {"CreepRequest": 1, "BrakePedal": 0.0, "DesiredCreepSpeed": 0.22},

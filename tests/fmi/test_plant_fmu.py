@@ -38,7 +38,7 @@ def test_the_plant_fmu_has_the_dbc_s_signals_and_every_parameter(fmus):
     assert [v.name for v in by["input"]] == ["P_CL_Cmd", "P_CH_Cmd", "BrakeRequest", "CreepRequest", "BrakePedal",
                                              "DesiredCreepSpeed"]
     sent = [(m, s) for m, names in PLANT_TX.items() if m != "DRIVER" for s in names]
-    assert len(by["output"]) == len(sent) == 23
+    assert len(by["output"]) == len(sent) == 24
     for variable, (message, signal) in zip(by["output"], sent):
         assert variable.name.rpartition(".")[2] == signal
         unit = db.get_message_by_name(message).get_signal_by_name(signal).unit

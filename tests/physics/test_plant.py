@@ -283,3 +283,22 @@ def test_a_held_vehicle_breaks_away_when_the_gradient_exceeds_what_holds_it(para
         v = -veh.v_stick * (gradient - holding) / rise
         assert v < -0.0002 and outs[-1].v == pytest.approx(v, rel=1e-3)
         assert outs[20].v < 0.0  # from the start
+
+
+@pytest.mark.parametrize("grade", [0.0, 0.2, -0.15])
+def test_the_accelerometer_reads_dv_dt_plus_g_sin_grade(params, grade):
+    """A standing, braked vehicle reads the gradient alone, g sin(grade); a moving one adds each step's mean
+    acceleration (the speed's change over the step): what a body-fixed sensor measures along the vehicle."""
+    plant = Plant(params, T_init=80.0)
+    g, dt = params.vehicle.g, plant.dt
+    assert plant.outputs().a_x == pytest.approx(g * math.sin(params.vehicle.beta), abs=1e-12)  # before any step
+    out = run(plant, PlantInputs(brake=1.0, grade=grade), 0.5)
+    assert abs(out.v) < 1e-12 and out.a_x == pytest.approx(g * math.sin(grade), abs=1e-9)
+    v_before = out.v
+    trace = np.empty((500, len(out)))
+    plant.advance(PlantInputs(P_CL_cmd=1.0e6, grade=grade), len(trace), trace)  # launched: the vehicle speeds up
+    v, a_x = trace[:, out._fields.index("v")], trace[:, out._fields.index("a_x")]
+    assert v[-1] > 0.01
+    expected = np.diff(np.concatenate(([v_before], v))) / dt + g * math.sin(grade)
+    np.testing.assert_allclose(a_x, expected, rtol=0.0, atol=1e-9)
+    assert np.ptp(a_x) > 0.1  # the acceleration is in it, not only the gradient
