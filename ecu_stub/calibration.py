@@ -75,6 +75,8 @@ class Launch:
     prefill_ready_fraction: float = c("1", 0.1, 1.0)  # measured pressure / pre-fill pressure to release the brake
     standstill_mps: float = c("m/s", 0.0, 0.5)
     accel_mps2: float = c("m/s^2", 0.01, 5.0)  # the speed reference rises to the desired creep speed at this rate
+    grade_max_rad: float = c("rad", 0.0, 0.8)  # the steepest grade the accelerometer's reading is taken as
+    push_fraction: float = c("1", 0.0, 1.0)  # a first launch's pre-fill: at most this of the lightest's road load
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,9 @@ class Vehicle:
     """Vehicle data-sheet values the TCU is flashed with (gains, the pre-fill, the plausibility checks)."""
 
     m_kg: float = c("kg", 100.0, 1e5)
+    m_max_kg: float = c("kg", 100.0, 1e5)  # the heaviest the vehicle may be (laden): a first launch's pre-fill
+    m_min_kg: float = c("kg", 100.0, 1e5)  # the lightest (empty): a first launch's pre-fill must not push it off
+    f_roll: float = c("1", 0.0, 1.0)  # rolling resistance coefficient while moving (13)
     delta: float = c("1", 1.0, 3.0)  # rotating-mass factor
     eta: float = c("1", 0.5, 1.0)  # clutch-to-wheel torque efficiency
     input_ratio: float = c("1", 0.1, 20.0)  # engine speed / clutch input speed (i_a): the input speed check

@@ -55,7 +55,7 @@ log = logging.getLogger(__name__)
 TCU_RX = {
     "PLANT_ENGINE": ("EngineSpeed",),
     "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
-    "PLANT_VEHICLE": ("VehicleSpeed",),
+    "PLANT_VEHICLE": ("VehicleSpeed", "LongAccel"),
     "PLANT_PRESSURE": ("P_CL", "P_CH"),
     "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH", "T_Sump"),
     "DRIVER": ("CreepRequest", "BrakePedal", "DesiredCreepSpeed"),
@@ -206,7 +206,8 @@ class TcuRunner:
                 trusted = "P_CL" not in failing and "P_CH" not in failing
         return TcuInputs(True, e["EngineSpeed"], clutch_in, s["CLOutputSpeed"], s["CHOutputSpeed"],
                          v_mps, P_CL, P_CH, T_CL, T_CH, o["T_Sump"],
-                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults, trusted)
+                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults, trusted,
+                         v["LongAccel"])
 
     def _brake_mps2(self, pedal_pct: float, now: float) -> float:
         """The most deceleration a brake may add now [m/s^2] (the speed vote's step check): any while the TCU's own

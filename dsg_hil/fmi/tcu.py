@@ -25,7 +25,8 @@ __all__ = ["INPUT_FIELDS", "OUTPUT_FIELDS", "ValueTables", "input_values", "outp
 
 # DBC signal (FMU variable) -> the field of ecu-stub's TcuInputs / TcuOutputs (as ecu_stub.runner fills them)
 INPUT_FIELDS = {"EngineSpeed": "engine_speed_rpm", "ClutchInputSpeed": "clutch_in_rpm", "CLOutputSpeed": "cl_out_rpm",
-                "CHOutputSpeed": "ch_out_rpm", "VehicleSpeed": "v_mps", "P_CL": "P_CL_mpa", "P_CH": "P_CH_mpa",
+                "CHOutputSpeed": "ch_out_rpm", "VehicleSpeed": "v_mps", "LongAccel": "accel_mps2",
+                "P_CL": "P_CL_mpa", "P_CH": "P_CH_mpa",
                 "T_OilCL": "T_oil_CL_c", "T_OilCH": "T_oil_CH_c", "T_Sump": "T_sump_c",
                 "CreepRequest": "creep_request", "BrakePedal": "brake_pct", "DesiredCreepSpeed": "desired_speed_mps",
                 **BUS_INPUTS}

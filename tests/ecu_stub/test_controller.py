@@ -90,6 +90,68 @@ def test_engage_prefills_under_the_brake_then_releases_it_and_tracks_speed():
     assert fast.P_CL_cmd_mpa < slow.P_CL_cmd_mpa
 
 
+def standing(grade_rad, cal=CAL):
+    """A controller in IDLE, held on the brake, its accelerometer reading g sin(grade) (dv/dt 0)."""
+    ctrl, clock = CreepController(cal), Clock()
+    run(ctrl, clock, replace(BRAKED, accel_mps2=9.81 * math.sin(grade_rad)), cal.strategy.startup_observer_s + 0.1)
+    return ctrl, clock
+
+
+@pytest.mark.parametrize("grade, prefill_n", [
+    # the heaviest, 11,760 kg: m g (sin a - f cos a) = 115,365.6 N x (0.198669 - 0.123 x 0.980067)
+    (0.2, 9012.2),
+    # 115,365.6 x (0.247404 - 0.123 x 0.968912) = 14,793 N would push the lightest off: 0.85 of its road load,
+    # 0.85 x 38,455.2 N x (0.247404 + 0.123 x 0.968912) = 11,982.3 N
+    (0.25, 11982.3),
+    (0.5, 11982.3),  # a reading beyond the steepest grade (a faulty one): taken as 0.25 rad
+    (0.1, 7850.0),  # m g (sin a - f cos a) < 0: the least pre-fill, launch.F_prefill_n
+    (-0.15, 7850.0),
+])
+def test_a_first_launch_prefills_for_the_grade_read_at_the_standstill(grade, prefill_n):
+    ctrl, clock = standing(grade)
+    assert ctrl.prefill_force() == pytest.approx(prefill_n, rel=2e-4)
+    out = ctrl.update(replace(CREEP, accel_mps2=9.81 * math.sin(grade)), clock.tick())
+    assert out.state == "ENGAGE" and ctrl.F_cmd == pytest.approx(prefill_n, rel=2e-4)
+
+
+def test_the_grade_is_read_only_while_the_vehicle_stands_held():
+    ctrl, clock = standing(0.2)
+    s = ctrl.sin_grade
+    assert s == pytest.approx(math.sin(0.2), abs=1e-12)
+    run(ctrl, clock, replace(BRAKED, v_mps=0.1, accel_mps2=-3.0), 0.1)  # braking a moving vehicle: dv/dt in it
+    run(ctrl, clock, replace(CREEP, v_mps=0.05, accel_mps2=4.0), 0.1)  # launching
+    assert ctrl.sin_grade == s
+
+
+def test_after_a_settled_creep_the_prefill_is_the_learned_weight_times_sin_a():
+    """The settled creep's force is the road load m g (sin a + f cos a): the pre-fill m g sin a is the middle of
+    the window where a standing vehicle stays."""
+    ctrl, clock = standing(0.2, FLAT)
+    run(ctrl, clock, replace(CREEP, P_CL_mpa=1.0, v_mps=0.2), 0.5)
+    assert ctrl.state == "CREEP" and ctrl.F_creep > 0.0
+    s, c = math.sin(0.2), math.cos(0.2)
+    weight_n = ctrl.F_creep / (s + 0.123 * c)
+    assert ctrl.prefill_force() == pytest.approx(max(weight_n * s, 7850.0), rel=1e-9)
+
+
+@pytest.mark.parametrize("pedal, ramped", [(0.0, True), (100.0, False)])
+def test_creep_withdrawn_without_the_brake_ramps_the_clutch_out_while_the_brake_comes_in(pedal, ramped):
+    """Without the driver's brake, the TCU's brake request reaches the brakes with the next TCU_STATUS (100 ms):
+    the clutch ramps out over stop_release_s meanwhile (as at a stop). With the pedal pressed it opens at once."""
+    ctrl, clock = creeping()
+    P0 = ctrl.P_cmd["CL"]
+    assert P0 > 0.1
+    withdrawn = replace(CREEP, creep_request=False, brake_pct=pedal, v_mps=0.2, P_CL_mpa=P0)
+    out = ctrl.update(withdrawn, clock.tick())
+    assert out.state == "IDLE" and out.brake_request == (not pedal)
+    release_s = FLAT.strategy.stop_release_s
+    assert out.P_CL_cmd_mpa == (P0 if ramped else 0.0)  # the ramp starts from the last command
+    out = run(ctrl, clock, withdrawn, release_s / 2)
+    assert out.P_CL_cmd_mpa == (pytest.approx(P0 * 0.5) if ramped else 0.0)
+    out = run(ctrl, clock, withdrawn, release_s)
+    assert out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0 and not ctrl.releasing
+
+
 def test_limit_is_t_safe_minus_prediction_error_minus_crossover_rise():
     ctrl, clock = creeping()
     inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
