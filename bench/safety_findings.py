@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 from dsg_hil.results.thresholds import SAFETY_TEMPERATURE_C
-from dsg_hil.sweep.page import ROLLBACK_DRIVABLE_MPS
+from dsg_hil.sweep.page import HANDOVER_DRIVABLE_PCT, ROLLBACK_DRIVABLE_MPS
 
 USED_C = 235.0  # the hotter clutch used to at least this before an overheat stop (issue 18)
 
@@ -39,6 +39,8 @@ def findings(out: Path) -> dict:
     over = max(judged, key=lambda r: r["v_max_mps"] - r["v_desired_max_mps"])
     ratio = [r["v_max_mps"] / r["v_desired_max_mps"] for r in judged if r["v_desired_max_mps"]]
     predicted = [r["min_margin_c.predicted"] for r in judged if r.get("min_margin_c.predicted") is not None]
+    through = [(r["handover_deviation_pct"], r["run_id"]) for r in judged
+               if r.get("handover_deviation_pct") is not None]  # (a table of a sweep before the key: none)
     return {
         "runs": len(rows), "judged": len(judged), "codes": sorted({r.get("code") for r in rows} - {None}),
         "violating": [(r["run_id"], r["violations"]) for r in rows if r["verdict"] == "violation"],
@@ -58,6 +60,9 @@ def findings(out: Path) -> dict:
         "top_speed_over_desired_max_mps": round(over["v_max_mps"] - over["v_desired_max_mps"], 4),
         "top_speed_over_desired_run": over["run_id"],
         "top_speed_above_1.2x_desired_runs": sum(x > 1.2 for x in ratio),
+        "handover_judged_runs": len(through),
+        f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_runs": sum(d > HANDOVER_DRIVABLE_PCT for d, _ in through),
+        "handover_deviation_max": max(through) if through else None,
         "fault_unexplained_max_s": max(r["fault_unexplained_s"] or 0.0 for r in judged),
     }
 

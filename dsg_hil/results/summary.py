@@ -68,6 +68,8 @@ __all__ = ["CLUTCHES", "ESTABLISHED", "MIN_PHASE_S", "P_ENGAGED", "SAFETY_TEMPER
 
 BATCH_ROWS = 256  # RunSummary.on_period: rows held for one CreepMetrics.add_rows call, at most
 GUARDED = ("FAULT", "STOPPED_OVERHEAT")  # TCU states in which the vehicle's roll-back counts as the TCU's
+HANDOVER_AFTER_S = 1.0  # a handover's speed is judged through the crossover and this long after it
+HANDOVER_BAND = 0.2  # ... if it began with the speed within this fraction of the desired speed (issue 18's band)
 _IN_ACC_ORDER = itemgetter(*ACC)  # values by accumulator name -> the tuple in the order of creep_rows' acc
 _ACC_UNPACKED = ("slip_CL", "slip_CH", "overlap", "max_T_CL", "max_T_CH", "above_CL", "above_CH", "energy_CL",
                  "energy_CH", "rollback_speed", "rollback_distance", "creep", "standstill", "moved", "sq_speed_error",
@@ -277,6 +279,9 @@ class CreepMetrics:
     rollback_guarded: float = 0.0  # distance rolled backwards while creep is requested or the TCU is in GUARDED
     fault_time: float = 0.0  # time TCU_STATUS reported FAULT
     status_unconfirmed: int = 0  # TCU_STATUS frames whose stop or active clutch the next one did not confirm
+    handover_deviation: float | None = None  # worst |v - desired| / desired through handovers begun in the band
+    _handover_until: float = -math.inf  # the handover window's end (inf: HANDOVER reported now)
+    _handover_judged: bool | None = None  # this window: None not yet decided, False begun outside the band
     _status_t: float | None = None  # time of the last TCU_STATUS
     _clutch: str | None = None  # the active clutch as the record took it (confirmed)
     _held: _Status | None = None  # the latest TCU_STATUS: its stop and clutch confirmed or not by the next one
@@ -333,6 +338,7 @@ class CreepMetrics:
                 self.rollback_guarded -= moved * dt
         if creep_request:
             self._creep_speed(v, desired_speed)
+            self._handover_speed(v, v, v, desired_speed)
         if not creep_request:
             self._end_rest()
             return
@@ -442,6 +448,7 @@ class CreepMetrics:
             self.rollback_guarded = guarded
         if creep_request:
             self._creep_speed(max(v), desired_speed)
+            self._handover_speed(v[0], min(v), max(v), desired_speed)
 
     def _rollback_and_speed(self, v: np.ndarray, v_prev: float, dt: float, creep_request: bool,
                             desired_speed: float) -> None:
@@ -455,6 +462,20 @@ class CreepMetrics:
                 self.rollback_guarded = _in_order(self.rollback_guarded, -back * dt)  # as add, row by row
         if creep_request:
             self._creep_speed(float(v.max()), desired_speed)
+            self._handover_speed(float(v[0]), float(v.min()), float(v.max()), desired_speed)
+
+    def _handover_speed(self, v_first: float, v_min: float, v_max: float, desired_speed: float) -> None:
+        """Creep requested at speeds from ``v_min`` to ``v_max`` (the first ``v_first``): inside a handover's window
+        (the TCU reporting HANDOVER, and HANDOVER_AFTER_S after) that began with the speed within HANDOVER_BAND of
+        the desired speed, the worst deviation from it (a handover begun during a launch's ramp is not judged)."""
+        if self._status_t is None or self._status_t > self._handover_until or not desired_speed > 0.0:
+            return
+        if self._handover_judged is None:
+            self._handover_judged = abs(v_first - desired_speed) <= HANDOVER_BAND * desired_speed
+        if self._handover_judged:
+            worst = max(v_max - desired_speed, desired_speed - v_min) / desired_speed
+            if worst == worst and (self.handover_deviation is None or worst > self.handover_deviation):
+                self.handover_deviation = worst
 
     def _creep_speed(self, v_max: float, desired_speed: float) -> None:
         """Creep requested at speeds up to ``v_max`` [m/s]: the highest speed and overspeed."""
@@ -513,6 +534,11 @@ class CreepMetrics:
         if self.tcu_state == "FAULT" and self._status_t is not None:
             self.fault_time += t - self._status_t
         self._status_t = t
+        if frame.state == "HANDOVER":
+            if self._handover_until != math.inf:  # a new window
+                self._handover_until, self._handover_judged = math.inf, None
+        elif self._handover_until == math.inf:
+            self._handover_until = t + HANDOVER_AFTER_S
         self.tcu_state, self.active_clutch = frame.state, frame.clutch
         held, self._held = self._held, frame
         if held is not None:
@@ -594,6 +620,8 @@ class CreepMetrics:
             "fault_time_s": round(self.fault_time, 3),
             "min_margin_c": {"truth": _margin(self.max_T), "predicted": _margin(self.max_pred)},
             "status_unconfirmed": self.status_unconfirmed,
+            "handover_deviation_pct": _r(None if self.handover_deviation is None else 100.0 * self.handover_deviation,
+                                         1),
         }
 
 

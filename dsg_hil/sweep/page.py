@@ -21,6 +21,7 @@ __all__ = ["ROLLBACK_DRIVABLE_MPS", "drivability_lines", "params_toml", "repro_f
 
 WORST = 10  # rows in the table of the hottest runs
 ROLLBACK_DRIVABLE_MPS = 0.01  # issue 18's drivability target: at most 10 mm/s backwards at a brake release
+HANDOVER_DRIVABLE_PCT = 20.0  # ... and the speed within +-20 % of the desired speed through handovers
 
 
 def params_toml(overrides: Mapping[str, float]) -> str:
@@ -118,15 +119,24 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
 def drivability_lines(rows: Sequence[Mapping[str, Any]], inputs: list[str]) -> list[str]:
     """The page's drivability section: reported, not judged (the verdict's roll-back limit is a distance). The runs
     whose fastest backward speed (``rollback_mps``, at any time of the run: brake releases, fault reactions)
-    exceeds :data:`ROLLBACK_DRIVABLE_MPS`, the worst first."""
+    exceeds :data:`ROLLBACK_DRIVABLE_MPS`, and those whose speed left :data:`HANDOVER_DRIVABLE_PCT` of the desired
+    through a handover (``handover_deviation_pct``), the worst first."""
     rolled = sorted((r for r in rows if r.get("rollback_mps") is not None
                      and -float(r["rollback_mps"]) > ROLLBACK_DRIVABLE_MPS), key=lambda r: float(r["rollback_mps"]))
+    judged = [r for r in rows if r.get("handover_deviation_pct") is not None]
+    off = sorted((r for r in judged if float(r["handover_deviation_pct"]) > HANDOVER_DRIVABLE_PCT),
+                 key=lambda r: -float(r["handover_deviation_pct"]))
     lines = ["## Drivability (reported, not judged)", "",
              f"Runs rolling backwards faster than {ROLLBACK_DRIVABLE_MPS * 1000:g} mm/s at some time (the drivability "
              f"target at a brake release; here at any time, fault reactions included): **{len(rolled)} of "
              f"{len(rows)}**.", ""]
     if rolled:
         lines += _table(["run_id", "rollback_mps", "rollback_m", *inputs], rolled[:WORST])
+    lines += [f"Runs whose speed left ±{HANDOVER_DRIVABLE_PCT:g} % of the desired speed through a handover (one "
+              f"begun within the band; to 1 s after it): **{len(off)} of the {len(judged)} with such a "
+              f"handover**.", ""]
+    if off:
+        lines += _table(["run_id", "handover_deviation_pct", "max_speed_creep_mps", *inputs], off[:WORST])
     return lines
 
 

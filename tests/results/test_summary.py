@@ -172,6 +172,29 @@ def test_the_last_frame_has_nothing_to_refute_it():
     assert [(h["from"], h["to"]) for h in j["handovers"]] == [("CL", "CH")]
 
 
+def test_the_speed_through_a_handover_begun_in_the_band_is_judged_until_1_s_after_it():
+    """Through each handover (TCU_STATUS HANDOVER, and 1 s after its last frame) that began with the speed within
+    20 % of the desired: the worst |v - desired| / desired. Not before, not 1 s after, not one begun launching."""
+    m = CreepMetrics()
+    t = feed(m, 0.5, 0.0, desired=0.2, v=0.5)  # before any handover: not judged (+150 %)
+    m.status(t, 2, 1, 100.0, 100.0, out(t))
+    m.status(t, 3, 2, 100.0, 100.0, out(t))  # HANDOVER to CH, begun at 0.21 m/s (in the band)
+    t = feed(m, 0.3, t, desired=0.2, v=0.21)
+    t = feed(m, 0.2, t, desired=0.2, v=0.17)  # a dip: -15 %
+    m.status(t, 2, 2, 100.0, 100.0, out(t))  # CREEP on CH from 1.0 s: the window runs to 2.0 s
+    t = feed(m, 0.9, t, desired=0.2, v=0.25)  # an overshoot after the crossover: +25 %
+    m.status(t, 2, 2, 100.0, 100.0, out(t))  # 1.9 s
+    t = feed(m, 0.2, t, desired=0.2, v=0.26)  # within the window until the status of 2.1 s: +30 %
+    m.status(t, 2, 2, 100.0, 100.0, out(t))  # 2.1 s: past 2.0 s, the window is closed
+    feed(m, 0.5, t, desired=0.2, v=0.4)  # not judged
+    assert m.as_json()["handover_deviation_pct"] == pytest.approx(30.0)
+    launching = CreepMetrics()
+    launching.status(0.0, 3, 2, 100.0, 100.0, out(0.0))  # a handover begun at 0.1 m/s of 0.2: not judged
+    feed(launching, 1.0, 0.0, desired=0.2, v=0.1)
+    assert launching.as_json()["handover_deviation_pct"] is None
+    assert CreepMetrics().as_json()["handover_deviation_pct"] is None
+
+
 def test_fault_time_runs_from_each_fault_frame_to_the_next():
     m = CreepMetrics()
     for t, state in ((0.1, 2), (0.2, 5), (0.3, 2), (0.4, 5), (0.5, 5), (0.6, 2)):

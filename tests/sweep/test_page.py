@@ -22,3 +22,14 @@ def test_drivability_lists_the_runs_rolling_back_faster_than_the_target_worst_fi
 def test_drivability_without_a_fast_roll_back_has_no_table():
     lines = drivability_lines([row("slow", -0.005)], [])
     assert "**0 of 1**" in "\n".join(lines) and not any(line.startswith("|") for line in lines)
+
+
+def test_drivability_lists_the_runs_whose_speed_left_the_band_through_a_handover_worst_first():
+    rows = [row("a", -0.001) | {"handover_deviation_pct": 42.7, "max_speed_creep_mps": 0.436},
+            row("b", -0.001) | {"handover_deviation_pct": 20.0, "max_speed_creep_mps": 0.24},
+            row("c", -0.001) | {"handover_deviation_pct": 25.1, "max_speed_creep_mps": 0.25},
+            row("d", -0.001) | {"handover_deviation_pct": None, "max_speed_creep_mps": 0.5}]
+    text = "\n".join(drivability_lines(rows, ["in.grade_rad"]))
+    assert "**2 of the 3 with such a handover**" in text
+    assert "| a | 42.7 | 0.436 | 0.2 |" in text and "| c | 25.1 | 0.25 | 0.2 |" in text
+    assert text.index("| a |") < text.index("| c |") and "| b |" not in text
