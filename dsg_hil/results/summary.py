@@ -282,6 +282,7 @@ class CreepMetrics:
     handover_deviation: float | None = None  # worst |v - desired| / desired through handovers begun in the band
     _handover_until: float = -math.inf  # the handover window's end (inf: HANDOVER reported now)
     _handover_judged: bool | None = None  # this window: None not yet decided, False begun outside the band
+    _handover_pending: float | None = None  # this window's worst so far: taken when it ends in CREEP
     _status_t: float | None = None  # time of the last TCU_STATUS
     _clutch: str | None = None  # the active clutch as the record took it (confirmed)
     _held: _Status | None = None  # the latest TCU_STATUS: its stop and clutch confirmed or not by the next one
@@ -466,16 +467,24 @@ class CreepMetrics:
 
     def _handover_speed(self, v_first: float, v_min: float, v_max: float, desired_speed: float) -> None:
         """Creep requested at speeds from ``v_min`` to ``v_max`` (the first ``v_first``): inside a handover's window
-        (the TCU reporting HANDOVER, and HANDOVER_AFTER_S after) that began with the speed within HANDOVER_BAND of
-        the desired speed, the worst deviation from it (a handover begun during a launch's ramp is not judged)."""
+        (the TCU reporting HANDOVER, and HANDOVER_AFTER_S after while it reports CREEP) that began with the speed
+        within HANDOVER_BAND of the desired speed, the worst deviation from it; counted when the window ends in
+        CREEP (:meth:`_take_handover`). Not judged: a handover begun during a launch's ramp, or one whose window a
+        stop, a fault, the driver's brake or the creep withdrawn interrupts (the speed then is not the handover's)."""
         if self._status_t is None or self._status_t > self._handover_until or not desired_speed > 0.0:
             return
         if self._handover_judged is None:
             self._handover_judged = abs(v_first - desired_speed) <= HANDOVER_BAND * desired_speed
         if self._handover_judged:
             worst = max(v_max - desired_speed, desired_speed - v_min) / desired_speed
-            if worst == worst and (self.handover_deviation is None or worst > self.handover_deviation):
-                self.handover_deviation = worst
+            if worst == worst and (self._handover_pending is None or worst > self._handover_pending):
+                self._handover_pending = worst
+
+    def _take_handover(self) -> None:
+        """The window's worst deviation counts: it ended in CREEP (or the record ended)."""
+        worst, self._handover_pending = self._handover_pending, None
+        if worst is not None and (self.handover_deviation is None or worst > self.handover_deviation):
+            self.handover_deviation = worst
 
     def _creep_speed(self, v_max: float, desired_speed: float) -> None:
         """Creep requested at speeds up to ``v_max`` [m/s]: the highest speed and overspeed."""
@@ -536,9 +545,14 @@ class CreepMetrics:
         self._status_t = t
         if frame.state == "HANDOVER":
             if self._handover_until != math.inf:  # a new window
+                self._take_handover()
                 self._handover_until, self._handover_judged = math.inf, None
+        elif frame.state != "CREEP":  # a stop, a fault, the driver's brake or the creep withdrawn: not judged
+            self._handover_until, self._handover_pending = -math.inf, None
         elif self._handover_until == math.inf:
             self._handover_until = t + HANDOVER_AFTER_S
+        elif t > self._handover_until:
+            self._take_handover()
         self.tcu_state, self.active_clutch = frame.state, frame.clutch
         held, self._held = self._held, frame
         if held is not None:
@@ -581,6 +595,7 @@ class CreepMetrics:
         if self._held is not None:  # the record ends: its last TCU_STATUS has no frame after it
             self._confirm(self._held, None)
             self._held = None
+        self._take_handover()
         ph = phases(self.runs)
         first_ch = next((p for p in ph if p.clutch == "CH"), None)
         stop_t, stop_s = self.stop if self.stop is not None else (None, None)

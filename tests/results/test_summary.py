@@ -193,6 +193,13 @@ def test_the_speed_through_a_handover_begun_in_the_band_is_judged_until_1_s_afte
     feed(launching, 1.0, 0.0, desired=0.2, v=0.1)
     assert launching.as_json()["handover_deviation_pct"] is None
     assert CreepMetrics().as_json()["handover_deviation_pct"] is None
+    stopped = CreepMetrics()
+    stopped.status(0.0, 3, 2, 100.0, 100.0, out(0.0))
+    feed(stopped, 0.5, 0.0, desired=0.2, v=0.2)
+    feed(stopped, 0.1, 0.5, desired=0.2, v=0.0)  # the driver's brake: its stop is not the handover's
+    stopped.status(0.6, 0, 0, 100.0, 100.0, out(0.6))  # IDLE: the window ends, not judged
+    feed(stopped, 0.5, 0.6, desired=0.2, v=0.0)
+    assert stopped.as_json()["handover_deviation_pct"] is None
 
 
 def test_fault_time_runs_from_each_fault_frame_to_the_next():
