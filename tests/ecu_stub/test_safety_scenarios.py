@@ -47,6 +47,9 @@ def test_light_brake_drag_across_a_handover_decision_keeps_the_true_plate_under_
     assert dragged["max_plate_temp_c"]["CL"] <= T_SAFE_C and dragged["time_above_limit_s"]["CL"] == 0.0
     assert dragged["min_margin_c"]["truth"] >= 0.0
     assert dragged["max_plate_temp_c"]["CL"] >= 240.0  # CL was used to its limit, not given up early
+    # the monitor released CL faster than its share: CH takes the rest, so the vehicle, braked by the drag, is not
+    # driven to an overshoot by a wound-up integral (before: 0.302 m/s, +46 %; now 0.231 m/s)
+    assert dragged["max_speed_creep_mps"] <= 1.2 * V_CREEP
 
 
 def test_downhill_creep_does_not_run_away():
@@ -176,7 +179,9 @@ def test_sample_found_a_clutch_that_cannot_carry_the_vehicle_stops_it_rather_tha
                    "driver.desired_speed_mps": 0.28723038538861795, "driver.toggle_s": 19.358877229205213,
                    "driver.toggle_brake": False, "driver.drag_level": 0.051262641830609273,
                    "driver.drag_onset_s": 47.31397985738239, "driver.drag_duration_s": 142.37711020942905})
-    assert [(h["from"], h["to"]) for h in s["handovers"]] == [("CL", "CH")]
+    # since CARRY_MARGIN, CH (its modelled capacity within 10 % of the force) is not handed the vehicle at all: CL
+    # carries on to the monitor's stop
+    assert s["handovers"] == []
     assert s["stop_reason"] == "STOPPED_OVERHEAT"  # before: vehicle_stopped at 17.1 s, creep requested
     assert s["tcu_stop_time_s"] <= 17.1  # before the vehicle came to rest under the creep request
     assert s["max_plate_temp_c"]["CL"] >= 235.0  # CL used to its limit first (not giving up early)
@@ -288,9 +293,10 @@ def test_stop_and_go_beyond_the_prefill_s_design_keeps_the_speed_within_20_perce
     force fell to 28-29 kN against 31-46 kN commanded (34 kN road load): the vehicle dipped to 0.193 m/s, the
     integral wound up to 46 kN and the vehicle overshot to 0.436 m/s (+43 %; +19.6 % on 387ed20, whose slightly
     slower launch moved the decision). The on-coming clutch now takes the force the off-going one no longer gives:
-    0.302-0.326 m/s through the crossover."""
+    0.302-0.326 m/s through the crossover, 0.356 m/s at its end. Since CH must also carry with CARRY_MARGIN to
+    spare, this handover is not made at all (CL carries on to the monitor's stop): the speed band holds either way."""
     s = _search_stop_and_go()
-    assert s["handover_deviation_pct"] <= 20.0 and s["max_speed_creep_mps"] <= 1.2 * 0.3055
+    assert (s["handover_deviation_pct"] or 0.0) <= 20.0 and s["max_speed_creep_mps"] <= 1.2 * 0.3055
     assert max(s["max_plate_temp_c"].values()) <= T_SAFE_C
 
 
@@ -349,3 +355,19 @@ def test_sample_found_a_monitor_stop_ramps_the_carrying_clutch_out_while_the_bra
     assert s["stop_reason"] == "STOPPED_OVERHEAT" and s["handovers"] == []
     assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS  # before: -11.8 mm/s at 8.7 s
     assert 235.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["time_above_limit_s"]["CL"] == 0.0
+
+
+def test_sample_found_a_partner_at_its_capacity_is_not_handed_the_vehicle():
+    """11.0 t on 0.22 rad at 1,775 r/min, 0.284 m/s (found by the 5,000-run sample on e407739, r00252): CL at its
+    handover limit after 5.4 s was handed over to CH with the force 0.2 % under CH's modelled capacity; at 1.5 MPa CH
+    gave 8 % less than the map says and the vehicle slowed from 0.28 to 0.01 m/s (handover_deviation_pct 92.6)
+    before the stall rule stopped it. CH must carry with CARRY_MARGIN to spare, so CL carries on to the monitor's
+    stop, the speed held."""
+    s = sweep_run({"duration_s": 12.0, "grade_rad": 0.2198423841179961, "engine_speed_rpm": 1774.9569517945345,
+                   "initial.T_clutch_c": 121.39856965158725, "initial.T_oil_c": 51.05841232418737,
+                   "params.vehicle.m": 11043.488571026677, "driver.behaviour": "stop_and_go",
+                   "driver.desired_speed_mps": 0.2840411088274388, "driver.creep_s": 56.44340329119722,
+                   "driver.stop_s": 4.362994694889822})
+    assert s["handovers"] == [] and s["stop_reason"] == "STOPPED_OVERHEAT"  # before: CL -> CH at 6.4 s
+    assert s["tcu_stop_time_s"] <= 9.4  # the stop comes no later than the stall's (at 9.4 s, the vehicle at 8 mm/s)
+    assert 235.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C
