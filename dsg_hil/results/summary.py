@@ -283,6 +283,7 @@ class CreepMetrics:
     _handover_until: float = -math.inf  # the handover window's end (inf: HANDOVER reported now)
     _handover_judged: bool | None = None  # this window: None not yet decided, False begun outside the band
     _handover_pending: float | None = None  # this window's worst so far: taken when it ends in CREEP
+    _handover_desired: float = math.nan  # the desired speed the window began with
     _status_t: float | None = None  # time of the last TCU_STATUS
     _clutch: str | None = None  # the active clutch as the record took it (confirmed)
     _held: _Status | None = None  # the latest TCU_STATUS: its stop and clutch confirmed or not by the next one
@@ -470,11 +471,15 @@ class CreepMetrics:
         (the TCU reporting HANDOVER, and HANDOVER_AFTER_S after while it reports CREEP) that began with the speed
         within HANDOVER_BAND of the desired speed, the worst deviation from it; counted when the window ends in
         CREEP (:meth:`_take_handover`). Not judged: a handover begun during a launch's ramp, or one whose window a
-        stop, a fault, the driver's brake or the creep withdrawn interrupts (the speed then is not the handover's)."""
+        stop, a fault, the driver's brake, the creep withdrawn or a new desired speed interrupts (the speed then is
+        not the handover's)."""
         if self._status_t is None or self._status_t > self._handover_until or not desired_speed > 0.0:
             return
         if self._handover_judged is None:
             self._handover_judged = abs(v_first - desired_speed) <= HANDOVER_BAND * desired_speed
+            self._handover_desired = desired_speed
+        elif desired_speed != self._handover_desired:  # a new desired speed: the speed follows its ramp, not judged
+            self._handover_judged, self._handover_pending = False, None
         if self._handover_judged:
             worst = max(v_max - desired_speed, desired_speed - v_min) / desired_speed
             if worst == worst and (self._handover_pending is None or worst > self._handover_pending):

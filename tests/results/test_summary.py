@@ -200,6 +200,14 @@ def test_the_speed_through_a_handover_begun_in_the_band_is_judged_until_1_s_afte
     stopped.status(0.6, 0, 0, 100.0, 100.0, out(0.6))  # IDLE: the window ends, not judged
     feed(stopped, 0.5, 0.6, desired=0.2, v=0.0)
     assert stopped.as_json()["handover_deviation_pct"] is None
+    changed = CreepMetrics()
+    changed.status(0.0, 3, 2, 100.0, 100.0, out(0.0))
+    feed(changed, 0.5, 0.0, desired=0.2, v=0.2)
+    feed(changed, 0.5, 0.5, desired=0.05, v=0.2)  # the driver asks for 0.05 m/s: the speed follows a new ramp
+    changed.status(1.0, 2, 2, 100.0, 100.0, out(1.0))
+    feed(changed, 1.2, 1.0, desired=0.05, v=0.1)
+    changed.status(2.2, 2, 2, 100.0, 100.0, out(2.2))
+    assert changed.as_json()["handover_deviation_pct"] is None
 
 
 def test_fault_time_runs_from_each_fault_frame_to_the_next():
