@@ -18,8 +18,9 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
 * HANDOVER: a torque handover as in a DCT shift: over ``handover_time_s`` the on-coming clutch takes a growing
   share x of the wheel force and the off-going the rest (1 - x), each converted to pressure by its own model,
   while the speed controller keeps running; if the thermal monitor releases the off-going clutch faster than its
-  share, the on-coming one takes the force it no longer gives. Downhill (no clutch can brake at creep speed) the brake is requested
-  once the vehicle is ``speed.overspeed_fraction`` over its target and still speeding up, until it stands.
+  share, the on-coming one takes the force it no longer gives. Downhill (no clutch can brake at creep speed) the
+  brake is requested once the vehicle is ``speed.overspeed_fraction`` over its target and still speeding up, until
+  it stands.
 * The handover starts when the active clutch's *predicted* plate temperature reaches its limit
   ``T_safe - prediction_error_k - dT_crossover`` (``dT_crossover``: the heat still coming into the off-going plate
   while its share ramps out and its pressure lags, at the friction power it would have through the crossover
@@ -373,7 +374,7 @@ class CreepController:
         if self.state == "STOPPED_OVERHEAT":
             if not inp.creep_request:  # IDLE, still held (_idle): the next TCU_STATUS may be the plant's for 100 ms
                 self.releasing = True  # (the stop's ramp goes on)
-                self._idle(inp, inp.brake_pct >= BRAKE_PRESSED_PCT)
+                self._idle(inp, inp.brake_pct >= BRAKE_PRESSED_PCT, now)
             else:
                 self._release_ramp(now)
             return self._supervised(inp, now, faults)
@@ -385,7 +386,7 @@ class CreepController:
                 # TCU_STATUS (up to 100 ms); the clutches ramp out meanwhile, as at a stop, instead of dropping the
                 # vehicle (the 5,000-run sample: up to 15 mm/s of roll-back on 0.2-0.24 rad)
                 self.releasing, self.stop_t0, self.stop_P0 = True, now, dict(self.P_cmd)
-            self._idle(inp, pedal)
+            self._idle(inp, pedal, now)
             return self._supervised(inp, now, faults) if self.releasing else self._outputs(faults)
 
         if self.state == "IDLE":
@@ -575,14 +576,14 @@ class CreepController:
                         launch.push_fraction * self.cal.vehicle.m_min_kg * G_MPS2 * (s + f * c))
         return max(launch.F_prefill_n, force)
 
-    def _idle(self, inp: TcuInputs, pedal: bool) -> None:
+    def _idle(self, inp: TcuInputs, pedal: bool, now: float) -> None:
         """No creep wanted (or not yet allowed): clutches open (ramping out over ``stop_release_s`` if
         :attr:`releasing`), and the vehicle held by the brake request unless the driver brakes a moving vehicle
         himself (a standing one stays held when his foot comes off)."""
         self.state, self.active = "IDLE", "NONE"
         self._open_both()
-        if self.releasing and self.last_now is not None:
-            self.releasing = self._release_ramp(self.last_now)
+        if self.releasing:
+            self.releasing = self._release_ramp(now)
         self.held_untrusted = False
         self.brake_request = abs(inp.v_mps) < self.cal.launch.standstill_mps or not pedal
 

@@ -339,8 +339,7 @@ class CreepMetrics:
             if creep_request or self.tcu_state in GUARDED:
                 self.rollback_guarded -= moved * dt
         if creep_request:
-            self._creep_speed(v, desired_speed)
-            self._handover_speed(v, v, v, desired_speed)
+            self._creep_speed(v, v, v, desired_speed)
         if not creep_request:
             self._end_rest()
             return
@@ -449,8 +448,7 @@ class CreepMetrics:
                     guarded -= moved * dt
             self.rollback_guarded = guarded
         if creep_request:
-            self._creep_speed(max(v), desired_speed)
-            self._handover_speed(v[0], min(v), max(v), desired_speed)
+            self._creep_speed(v[0], min(v), max(v), desired_speed)
 
     def _rollback_and_speed(self, v: np.ndarray, v_prev: float, dt: float, creep_request: bool,
                             desired_speed: float) -> None:
@@ -463,8 +461,7 @@ class CreepMetrics:
             if len(back):
                 self.rollback_guarded = _in_order(self.rollback_guarded, -back * dt)  # as add, row by row
         if creep_request:
-            self._creep_speed(float(v.max()), desired_speed)
-            self._handover_speed(float(v[0]), float(v.min()), float(v.max()), desired_speed)
+            self._creep_speed(float(v[0]), float(v.min()), float(v.max()), desired_speed)
 
     def _handover_speed(self, v_first: float, v_min: float, v_max: float, desired_speed: float) -> None:
         """Creep requested at speeds from ``v_min`` to ``v_max`` (the first ``v_first``): inside a handover's window
@@ -491,13 +488,15 @@ class CreepMetrics:
         if worst is not None and (self.handover_deviation is None or worst > self.handover_deviation):
             self.handover_deviation = worst
 
-    def _creep_speed(self, v_max: float, desired_speed: float) -> None:
-        """Creep requested at speeds up to ``v_max`` [m/s]: the highest speed and overspeed."""
+    def _creep_speed(self, v_first: float, v_min: float, v_max: float, desired_speed: float) -> None:
+        """Creep requested at speeds from ``v_min`` to ``v_max`` [m/s] (the first ``v_first``): the highest speed and
+        overspeed, and the speed through a handover (:meth:`_handover_speed`)."""
         if self.max_speed_creep is None or v_max > self.max_speed_creep:
             self.max_speed_creep = v_max
         over = v_max - desired_speed
         if self.overspeed is None or over > self.overspeed:
             self.overspeed = over
+        self._handover_speed(v_first, v_min, v_max, desired_speed)
 
     def _accumulators(self) -> np.ndarray:
         """The state the compiled code accumulates into, as its ``acc``: by the names of

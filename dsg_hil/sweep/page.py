@@ -17,7 +17,8 @@ from .code import code_digest, code_note
 from .engine import SweepResult
 from .space import Space
 
-__all__ = ["ROLLBACK_DRIVABLE_MPS", "drivability_lines", "params_toml", "repro_files", "write_page"]
+__all__ = ["HANDOVER_DRIVABLE_PCT", "ROLLBACK_DRIVABLE_MPS", "drivability_lines", "params_toml", "repro_files",
+           "write_page"]
 
 WORST = 10  # rows in the table of the hottest runs
 ROLLBACK_DRIVABLE_MPS = 0.01  # issue 18's drivability target: at most 10 mm/s backwards at a brake release
