@@ -1,6 +1,6 @@
 #!/bin/sh
 # Re-identify the TCU calibration on the current plant (issue 18): record the identification runs (eleven of creep,
-# 29 short torque handovers: ecu_stub/data/identification) in
+# 44 short torque handovers, 6 heavy launches on a cool CH: ecu_stub/data/identification) in
 # lock-step with the bundled ecu-stub and its current calibration, then fit and write the calibration, with the
 # commit and calibration the logs were recorded with in its header (identify --provenance).
 #
@@ -22,12 +22,17 @@ commit=$(git rev-parse --short=12 HEAD)$(git diff --quiet HEAD -- dsg_hil ecu_st
 cal=$(sha256sum ecu_stub/data/calibration.toml | cut -c1-12)
 for scenario in ecu_stub/data/identification/*.toml; do
     name=$(basename "$scenario" .toml)
-    echo "recording $name"
-    "$py" -m dsg_hil run -i virtual -q --scenario "$scenario" --log "$logs/$name.log"
+    # the parameters a run sets (its documented command's --set options, e.g. the heaviest vehicle's mass)
+    sets=$(sed -n 's/^#   dsg-hil run .*--scenario [^ ]* \(.*\)--log .*/\1/p' "$scenario")
+    echo "recording $name $sets"
+    # shellcheck disable=SC2086  # the --set options split into words
+    "$py" -m dsg_hil run -i virtual -q --scenario "$scenario" $sets --log "$logs/$name.log"
 done
 if [ -n "$check" ]; then
     exec "$py" -m ecu_stub.identify "$logs"/*.log --check
 fi
-# the short torque-handover runs (handover_*): for the friction map, not the thermal fits (identify --map-only)
-"$py" -m ecu_stub.identify $(ls "$logs"/*.log | grep -v /handover_) --map-only "$logs"/handover_*.log --write "$out" \
+# the short torque-handover runs (handover_*) and heavy launches on a cool CH (map_*): for the friction map, not the
+# thermal fits (identify --map-only)
+"$py" -m ecu_stub.identify $(ls "$logs"/*.log | grep -v -e /handover_ -e /map_) \
+    --map-only "$logs"/handover_*.log "$logs"/map_*.log --write "$out" \
     --provenance "recorded by bench/reidentify.sh at commit $commit with ecu_stub/data/calibration.toml sha256 $cal..."

@@ -22,7 +22,7 @@ from dsg_hil.common.units import CV
 from .calibration import Clutch, FrictionMap
 
 __all__ = ["friction_coefficient", "friction_heat", "heat_w", "mu_lookup", "nm_per_mpa", "plate_step",
-           "torque_per_mpa"]
+           "pressure_for_torque", "torque_per_mpa"]
 
 _MPA_TO_PA, _RPM_TO_RAD_S = CV.MPA_TO_PA, CV.RPM_TO_RAD_S
 
@@ -111,6 +111,39 @@ def nm_per_mpa(mu: float, c: Clutch) -> float:
     return mu * c.k_geom_m3 * _MPA_TO_PA
 
 
+def pressure_for_torque(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, torque_nm: float,
+                        P_start: float) -> float:
+    """Pressure [MPa] at which the clutch gives ``torque_nm`` by (5), M = mu(T, slip, P) k_geom P, with mu looked up at
+    that pressure: on the map mu is linear in P between two nodes of its pressure axis, so M is a quadratic there,
+    solved in closed form in the span where M crosses the torque. The search starts in the span of ``P_start`` (the
+    last command) and steps towards the torque, so where M(P) is not monotone (the identified map's wiggles at
+    intermediate pressures) the crossing next to the last command is taken and the command moves continuously.
+    Clamped to the axis: 0 for no torque, the last node for more than it gives."""
+    if torque_nm <= 0.0:
+        return 0.0
+    mu_of, grid = _lookup(m), m.P_grid_mpa
+    target = torque_nm / (c.k_geom_m3 * _MPA_TO_PA)  # mu P [MPa] to reach
+    last = len(grid) - 2
+    k = min(max(bisect_right(grid, P_start) - 1, 0), last)
+    step = 0
+    while True:
+        lo, hi = grid[k], grid[k + 1]
+        mu_lo, mu_hi = mu_of(T_c, slip_rpm, lo), mu_of(T_c, slip_rpm, hi)
+        if target < mu_lo * lo and k > 0 and step <= 0:
+            k, step = k - 1, -1
+        elif target > mu_hi * hi and k < last and step >= 0:
+            k, step = k + 1, 1
+        else:
+            break
+    if target >= mu_hi * hi:
+        return hi if k == last else min(max(target / mu_hi, lo), hi)
+    b = (mu_hi - mu_lo) / (hi - lo)  # mu = a + b P in the span: b P^2 + a P - target = 0
+    a = mu_lo - b * lo
+    disc = a * a + 4.0 * b * target
+    P = 2.0 * target / (a + math.sqrt(disc)) if disc > 0.0 and a + math.sqrt(disc) > 0.0 else target / mu_lo
+    return min(max(P, lo), hi)
+
+
 def heat_w(mu: float, c: Clutch, P_mpa: float, slip_rpm: float) -> float:
     """Friction power into the plates [W] at friction coefficient ``mu``, pressure ``P_mpa`` >= 0 and slip
     ``slip_rpm`` >= 0, equation (4): torque (5) times slip speed, mu k_geom P |slip|. The one formula of the TCU's
@@ -129,11 +162,14 @@ def torque_per_mpa(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa
     return nm_per_mpa(_lookup(m)(T_c, abs(slip_rpm), P_mpa), c)
 
 
-def friction_heat(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float) -> float:
-    """Friction power into the plates [W], equation (4) (:func:`heat_w`) at the map's mu of that state."""
+def friction_heat(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, P_mpa: float,
+                  mu_slip_rpm: float | None = None) -> float:
+    """Friction power into the plates [W], equation (4) (:func:`heat_w`) at the map's mu of that state, mu looked
+    up at ``mu_slip_rpm`` if given: the predictor's slip low-passed as the controller's (a ringing output shaft,
+    sampled every 10 ms, reads slips the friction never sees: it follows the slip with a lag)."""
     P = max(P_mpa, 0.0)
     slip = abs(slip_rpm)
-    return heat_w(_lookup(m)(T_c, slip, P), c, P, slip)
+    return heat_w(_lookup(m)(T_c, slip if mu_slip_rpm is None else abs(mu_slip_rpm), P), c, P, slip)
 
 
 def plate_step(c: Clutch, T_c: float, heat_w: float, T_oil_c: float, dt: float) -> float:

@@ -65,7 +65,7 @@ from dataclasses import dataclass
 from dsg_hil.common.units import CV
 
 from .calibration import TcuCalibration, load_calibration
-from .clutch_model import heat_w, mu_lookup, nm_per_mpa
+from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 
@@ -190,13 +190,14 @@ class CreepController:
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
-        T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm
+        T_pred, heat, cal, clutch_in, mean = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm, self.slip_mean
         mu_of = mu_lookup(cal.friction)
         for c, clutch, out_rpm, P, T_oil in (("CL", cal.CL, inp.cl_out_rpm, inp.P_CL_mpa, inp.T_oil_CL_c),
                                              ("CH", cal.CH, inp.ch_out_rpm, inp.P_CH_mpa, inp.T_oil_CH_c)):
-            # friction_heat and plate_step written out (the same operations): slip as slip_rpm(c)
+            # friction_heat and plate_step written out (the same operations): mu at the low-passed slip, the heat
+            # at the measured one (predicted_heat_w)
             T, P, slip = T_pred[c], max(P, 0.0), abs(clutch_in - out_rpm)
-            Q = heat[c] = heat_w(mu_of(T, slip, P), clutch, P, slip)
+            Q = heat[c] = heat_w(mu_of(T, slip if mean is None else abs(mean[c]), P), clutch, P, slip)
             K = clutch.K_plate_oil_w_k
             T_inf = T_oil + Q / K
             T_pred[c] = T_inf + (T - T_inf) * math.exp(-K * dt / clutch.C_plate_j_k)
@@ -227,20 +228,28 @@ class CreepController:
         mean["CH"] += a * (CH - mean["CH"])
 
     def pressure_for(self, clutch: str, force_n: float, inp: TcuInputs) -> float:
-        """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu k_geom)."""
+        """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu(P) k_geom), mu looked up
+        at the pressure it gives (:func:`~ecu_stub.clutch_model.pressure_for_torque`). Not at the measured pressure:
+        while a clutch ramps out that lags above its command, and where mu rises with pressure (a hot plate under
+        0.5 MPa) it took mu too high and the command too low, by 3-4 %, for the whole crossover (a 0.086-m/s creep of
+        the 5,000-run sample dipped 25 %)."""
         cal = self.cal
         c = cal.clutch(clutch)
         torque = max(force_n, 0.0) * c.speed_ratio_m / cal.vehicle.eta
-        per_mpa = nm_per_mpa(mu_lookup(cal.friction)(self._T_pred[clutch], self.mean_slip_rpm(clutch, inp),
-                                                     max(self.P_cmd[clutch], inp.pressure_mpa(clutch))), c)
-        return min(torque / per_mpa, cal.speed.P_max_mpa)
+        return min(pressure_for_torque(cal.friction, c, self._T_pred[clutch], self.mean_slip_rpm(clutch, inp), torque,
+                                       self.P_cmd[clutch]), cal.speed.P_max_mpa)
+
+    def force_at(self, clutch: str, P_mpa: float, inp: TcuInputs) -> float:
+        """Wheel force [N] the clutch gives at the pressure P [MPa], mu looked up at P (:meth:`pressure_for`
+        inverted)."""
+        cal = self.cal
+        c = cal.clutch(clutch)
+        per_mpa = nm_per_mpa(mu_lookup(cal.friction)(self._T_pred[clutch], self.mean_slip_rpm(clutch, inp), P_mpa), c)
+        return per_mpa * P_mpa * cal.vehicle.eta / c.speed_ratio_m
 
     def force_capacity(self, clutch: str, inp: TcuInputs) -> float:
         """Largest wheel force the clutch gives at the pressure limit [N]."""
-        cal = self.cal
-        c, P_max = cal.clutch(clutch), cal.speed.P_max_mpa
-        per_mpa = nm_per_mpa(mu_lookup(cal.friction)(self._T_pred[clutch], self.mean_slip_rpm(clutch, inp), P_max), c)
-        return per_mpa * P_max * cal.vehicle.eta / c.speed_ratio_m
+        return self.force_at(clutch, self.cal.speed.P_max_mpa, inp)
 
     # ---- the thermal limits ----------------------------------------------------------------------------------
     def worst_heat(self, clutch: str) -> float:
@@ -364,8 +373,8 @@ class CreepController:
                 self.state, self.active, self.brake_request = "FAULT", "NONE", True
                 self._open_both()
             return self._outputs(faults | FAULT_PLANT_MISSING)
-        self._predict(inp, dt, now)
         self._filter_slip(inp, dt)
+        self._predict(inp, dt, now)
         last, self.inp = self.inp, inp
         if self.state == "FAULT":
             self.state = "IDLE"
@@ -456,7 +465,7 @@ class CreepController:
             # force (judged again), not the speed controller's integral (the dip and overshoot it made: a heavy
             # launch's handover on 0.211 rad dipped to 0.193 m/s and overshot to 0.436 m/s against 0.3055)
             P_off = min(self.P_cmd[off], verdict.P_limit_mpa[off])
-            rest = self.F_cmd - P_off * self.force_capacity(off, inp) / self.cal.speed.P_max_mpa
+            rest = self.F_cmd - self.force_at(off, P_off, inp)
             self.P_cmd[off] = P_off
             self.P_cmd[carrying] = max(self.P_cmd[carrying], self.pressure_for(carrying, rest, inp))
             verdict = self.monitor.check(self._T_pred, slips, clutch_in, self.P_cmd, P_meas, carrying, self.dt)

@@ -8,8 +8,8 @@ thermocouples and torque sensor:
 * ``k_geom_m3`` per clutch: torque / (mu P) (median while slipping under pressure);
 * the friction map mu(T, slip, P): regularised least squares over the truth mu samples (trilinear grid, first
   differences penalised so that cells without data take their neighbours' values), each sample at the slip of
-  its own control period; ``--cross-validate`` scores the smoothing by leave-one-run-out on crossover samples,
-  ``--map-error`` a calibration's map against held-out runs;
+  its own control period, a steady one (not a ringing shaft's); ``--cross-validate`` scores the smoothing by
+  leave-one-run-out on crossover samples, ``--map-error`` a calibration's map against held-out runs;
 * ``cooling_w_k`` per clutch, for the start-up observer: K (T - T_oil_out) = cooling (T_oil_out - T_sump) while
   no friction heat flows;
 * ``C_plate_j_k`` and ``K_plate_oil_w_k`` per clutch: C dT/dt = Q - K (T - T_oil_out) fitted by output error to
@@ -49,6 +49,7 @@ from dsg_hil.protocol.logs import decoded_frames
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
 from .clutch_model import friction_heat, mu_lookup, plate_step
+from .controller import SLIP_FILTER_S
 
 __all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "EXIT_STALE", "HEADER", "MuSamples", "P_GRID", "Record", "SLIP_GRID",
            "SMOOTHING", "T_GRID", "USES", "check", "cross_validate", "fit_cooling", "fit_friction_map", "fit_k_geom",
@@ -72,6 +73,7 @@ P_GRID = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.75,
 GRID_STEP = (10.0, 10.0, 0.1)  # reference steps of the smoothing penalty per axis: degC, r/min, MPa
 CROSSOVER_MPA = 0.02  # a sample of one clutch while the other is pressurised above this: a torque handover
 SMOOTHING_CANDIDATES = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+STEADY_SLIP_FRACTION = 0.1  # a map sample's slip within 10 % of the rows before and after it (see mu_samples)
 SMOOTHING = 0.1  # weight of the first-difference penalty per grid node (relative to one sample); see below
 # SMOOTHING: chosen by leave-one-run-out cross-validation over the identification runs, scored on the held-out run's
 # crossover samples (both clutches pressurised: where the map's errors move the vehicle), ``python -m
@@ -186,12 +188,19 @@ class MuSamples:
 def mu_samples(cols: list[dict], runs: list[int] | None = None) -> MuSamples:
     """The friction map's samples of the clutch columns ``cols`` (``runs``: the run index of each, default its
     position). Rows: a fresh truth frame, the clutch slipping (> 5 r/min, at the truth's period as well as at the
-    row's) under a pressure above 0.02 MPa (the handovers pass through low pressures) with torque."""
+    row's) under a pressure above 0.02 MPa (the handovers pass through low pressures) with torque, at a steady
+    slip (within :data:`STEADY_SLIP_FRACTION` of the rows 10 ms before and after). Not where the output shaft rings:
+    sampled every 10 ms it reads slips the friction does not see (it follows the slip through a lag), and those
+    samples (fast.log's CL at 215-245 degC: 200 r/min read, mu 25-39 % above (6) at that slip) made the map spike
+    by 13-24 % at single pressure nodes, where the pressure for a torque then jumped (a handover's speed dipped
+    25 %). The predictor looks mu up at the low-passed slip (:func:`replay`)."""
     runs = list(range(len(cols))) if runs is None else runs
     parts = []
     for d, run in zip(cols, runs):
-        n = np.abs(_truth_slip(d))
-        m = _slipping(d, P_min=0.02) & np.isfinite(n) & (n > 5.0) & np.isfinite(d["T"])
+        n = np.abs(_truth_slip(d))  # (the neighbours: the slips of the periods before and after)
+        before, after = np.concatenate([[np.nan], n[:-1]]), np.concatenate([n[1:], [np.nan]])
+        steady = (np.abs(before - n) <= STEADY_SLIP_FRACTION * n) & (np.abs(after - n) <= STEADY_SLIP_FRACTION * n)
+        m = _slipping(d, P_min=0.02) & np.isfinite(n) & (n > 5.0) & np.isfinite(d["T"]) & steady
         parts.append((d["T"][m], n[m], d["P"][m], d["mu"][m], np.full(int(m.sum()), run),
                       (d["P_other"][m] > CROSSOVER_MPA)))
     return MuSamples(*(np.concatenate([p[i] for p in parts]) for i in range(6)))
@@ -329,13 +338,18 @@ def fit_cooling(cols: list[dict], K: float) -> tuple[float, float] | None:
 
 def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
     """Run the TCU's plate estimate over a log as the controller does: the start-up observer for
-    ``startup_observer_s`` after the first oil temperature, then the predictor. Truth minus estimate per clutch."""
+    ``startup_observer_s`` after the first oil temperature, then the predictor (mu at the slip low-passed over
+    ``SLIP_FILTER_S``, the heat at the measured slip). Truth minus estimate per clutch."""
     out = {}
     window = cal.strategy.startup_observer_s
     for c in ("CL", "CH"):
         d, clutch = _clutch_columns(r, c), cal.clutch(c)
-        t0, T_pred, errs = None, 0.0, []
+        t0, T_pred, errs, mean = None, 0.0, [], math.nan
         for k in range(len(r.t)):
+            slip = d["slip"][k]  # low-passed as the controller does (_filter_slip), before its prediction
+            if math.isfinite(slip):
+                mean = slip if not math.isfinite(mean) else \
+                    mean + (1.0 - math.exp(-(r.t[k] - r.t[k - 1]) / SLIP_FILTER_S)) * (slip - mean)
             if not (np.isfinite(d["T_oil"][k]) and np.isfinite(d["T"][k])):
                 continue
             if t0 is None:
@@ -345,7 +359,7 @@ def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
                     d["T_oil"][k] - d["T_sump"][k], 0.0)
                 continue
             else:
-                Q = friction_heat(cal.friction, clutch, T_pred, d["slip"][k], d["P"][k])
+                Q = friction_heat(cal.friction, clutch, T_pred, slip, d["P"][k], mean)
                 T_pred = plate_step(clutch, T_pred, Q, d["T_oil"][k], r.t[k] - r.t[k - 1])
             errs.append(d["T"][k] - T_pred)
         e = np.array(errs)

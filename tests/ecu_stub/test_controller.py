@@ -10,7 +10,7 @@ import pytest
 
 from ecu_stub.calibration import FrictionMap, load_calibration
 from ecu_stub.clutch_model import friction_coefficient, friction_heat, plate_step
-from ecu_stub.controller import CreepController, TcuInputs
+from ecu_stub.controller import SLIP_FILTER_S, CreepController, TcuInputs
 from ecu_stub.pid import PID
 
 DT = 0.01
@@ -272,6 +272,41 @@ def test_the_pressure_for_a_force_takes_the_slip_low_passed_not_a_ringing_output
     run(ctrl, clock, inp, 1.0)
     run(ctrl, clock, replace(inp, cl_out_rpm=100.0), 0.1)  # the slip steps to 50 r/min
     assert ctrl.mean_slip_rpm("CL", inp) == pytest.approx(100.0 - 50.0 * (1.0 - math.exp(-1.0)), abs=0.1)
+
+
+def test_the_plate_prediction_takes_mu_at_the_low_passed_slip_and_the_power_at_the_measured_one():
+    """By hand on a map whose mu falls with slip: settled at 100 r/min, one cycle whose output shaft reads a slip
+    of 50 r/min (a ringing shaft's sample) heats the plate by mu(T, mean) k P |50 r/min|, the mean low-passed over
+    SLIP_FILTER_S including this cycle's sample: 100 - 50 (1 - e^-0.1) r/min, not mu at 50 r/min."""
+    slope = replace(FLAT, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), (0.0, 1.5),
+                                               (((0.10, 0.10), (0.06, 0.06)),) * 2))  # mu falls with slip
+    ctrl, clock = creeping(slope)
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)  # 150 r/min in, CL out 50: slip 100 r/min
+    run(ctrl, clock, inp, 2.0)
+    T = ctrl.T_pred["CL"]
+    ctrl.update(replace(inp, cl_out_rpm=100.0), clock.tick())
+    mean = 100.0 - 50.0 * (1.0 - math.exp(-DT / SLIP_FILTER_S))
+    assert ctrl.mean_slip_rpm("CL", inp) == pytest.approx(mean, rel=1e-9)
+    mu = friction_coefficient(slope.friction, T, mean, 0.6)
+    assert ctrl.heat["CL"] == pytest.approx(mu * slope.CL.k_geom_m3 * 1e6 * 0.6 * 50.0 * 2 * math.pi / 60, rel=1e-9)
+    assert ctrl.heat["CL"] < 0.99 * friction_heat(slope.friction, slope.CL, T, 50.0, 0.6)  # mu at 50 r/min: more
+
+
+def test_the_force_at_a_pressure_takes_mu_at_that_pressure_and_inverts_the_pressure_for_a_force():
+    """By hand on a map whose mu falls with pressure (0.10 at 0, 0.06 at 1.5 MPa): the wheel force at 0.3 MPa is
+    mu(0.3) k_geom 0.3 eta / r with mu(0.3) = 0.092, not the force at the pressure limit scaled by 0.3 / 1.5 (mu
+    0.06: 35 % short, which gave the on-coming clutch too little of what the monitor took off the off-going one in a
+    handover); and the pressure for that force is 0.3 MPa again."""
+    by_p = replace(FLAT, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), (0.0, 1.5),
+                                              tuple(((0.10, 0.06), (0.10, 0.06)) for _ in range(2))))
+    ctrl, clock = creeping(by_p)
+    inp = replace(CREEP, P_CL_mpa=0.3, v_mps=0.2)
+    run(ctrl, clock, inp, 0.5)
+    c, eta = by_p.CL, by_p.vehicle.eta
+    F = ctrl.force_at("CL", 0.3, inp)
+    assert F == pytest.approx(0.092 * c.k_geom_m3 * 1e6 * 0.3 * eta / c.speed_ratio_m, rel=1e-9)
+    assert F > 1.5 * ctrl.force_capacity("CL", inp) * 0.3 / by_p.speed.P_max_mpa
+    assert ctrl.pressure_for("CL", F, inp) == pytest.approx(0.3, rel=1e-9)
 
 
 def test_the_on_coming_clutch_is_judged_on_its_own_power_once_it_carries():

@@ -109,11 +109,28 @@ def test_a_mu_sample_takes_the_slip_of_the_truths_own_period_and_marks_crossover
     fresh row's truth and pressure are of the previous row's period, and so is its slip."""
     from ecu_stub.identify import mu_samples
 
-    d = _columns(slip=[100.0, 120.0, 140.0, 160.0], P=[0.3] * 4, P_other=[0.0, 0.0, 0.2, 0.0],
-                 mu=[0.05] * 4, fresh=[True, True, True, True])
+    d = _columns(slip=[100.0, 101.0, 102.0, 103.0, 104.0], P=[0.3] * 5, P_other=[0.0, 0.0, 0.2, 0.0, 0.0],
+                 mu=[0.05] * 5, fresh=[True] * 5)
     s = mu_samples([d])
-    assert list(s.n) == [100.0, 120.0, 140.0]  # the first row has no previous period: no sample
-    assert list(s.crossover) == [False, True, False]
+    # the first row has no previous period, the last no next one to judge its slip steady: no samples
+    assert list(s.n) == [101.0, 102.0]
+    assert list(s.crossover) == [True, False]
+
+
+def test_a_mu_sample_is_taken_at_a_steady_slip_only():
+    """A ringing output shaft, sampled every 10 ms, reads a slip the friction (which follows the slip with a lag)
+    does not see: a sample whose slip is more than STEADY_SLIP_FRACTION (10 %) off the period before or after it is
+    left out, and so are its two neighbours; 9 % off is kept."""
+    from ecu_stub.identify import STEADY_SLIP_FRACTION, mu_samples
+
+    assert STEADY_SLIP_FRACTION == 0.1
+    d = _columns(slip=[100.0, 100.0, 100.0, 300.0, 100.0, 100.0, 100.0, 100.0], P=[0.3] * 8, P_other=[0.0] * 8,
+                 mu=[0.05, 0.05, 0.05, 0.05, 0.07, 0.05, 0.05, 0.05], fresh=[True] * 8)
+    s = mu_samples([d])
+    assert list(s.n) == [100.0, 100.0] and 0.07 not in s.mu  # rows 2 and 6: 3-5 are next to the 300 r/min
+    d = _columns(slip=[100.0, 100.0, 109.0, 100.0, 100.0], P=[0.3] * 5, P_other=[0.0] * 5, mu=[0.05] * 5,
+                 fresh=[True] * 5)
+    assert list(mu_samples([d]).n) == [100.0, 109.0]
 
 
 def test_cross_validation_scores_each_smoothing_on_held_out_runs():
