@@ -8,7 +8,8 @@
 #   bench/reidentify.sh --check LOGDIR             record the runs, fit nothing: exit 1 if the shipped
 #                                                  calibration's predictor exceeds its own prediction_error_k
 #
-# PYTHON: the interpreter (default: python). About 2 min on one core (1 min creep runs, 1 min handovers, fit).
+# PYTHON: the interpreter (default: python). About 2.5 min on one core (1 min creep runs, 1.5 min handovers and
+# heavy launches, fit).
 # Re-run after any plant change, then
 # tests/sim/test_closed_loop.py, tests/ecu_stub and tests/paper (docs/safety.md, section 1).
 set -eu
@@ -22,11 +23,17 @@ commit=$(git rev-parse --short=12 HEAD)$(git diff --quiet HEAD -- dsg_hil ecu_st
 cal=$(sha256sum ecu_stub/data/calibration.toml | cut -c1-12)
 for scenario in ecu_stub/data/identification/*.toml; do
     name=$(basename "$scenario" .toml)
-    # the parameters a run sets (its documented command's --set options, e.g. the heaviest vehicle's mass)
-    sets=$(sed -n 's/^#   dsg-hil run .*--scenario [^ ]* \(.*\)--log .*/\1/p' "$scenario")
+    # the parameters a run sets: the --set options of its documented command (one '#   dsg-hil run' line)
+    if [ "$(grep -c '^#   dsg-hil run ' "$scenario")" != 1 ]; then
+        echo "$scenario: not exactly one documented '#   dsg-hil run' line" >&2
+        exit 2
+    fi
+    sets=$(grep '^#   dsg-hil run ' "$scenario" | grep -o -- '--set [^ ]*' | tr '\n' ' ')
     echo "recording $name $sets"
-    # shellcheck disable=SC2086  # the --set options split into words
+    set -f  # the --set options split into words, not globbed
+    # shellcheck disable=SC2086
     "$py" -m dsg_hil run -i virtual -q --scenario "$scenario" $sets --log "$logs/$name.log"
+    set +f
 done
 if [ -n "$check" ]; then
     exec "$py" -m ecu_stub.identify "$logs"/*.log --check

@@ -21,10 +21,12 @@ from dsg_hil.common.units import CV
 
 from .calibration import Clutch, FrictionMap
 
-__all__ = ["friction_coefficient", "friction_heat", "heat_w", "mu_lookup", "nm_per_mpa", "plate_step",
-           "pressure_for_torque", "torque_per_mpa"]
+__all__ = ["SLIP_FILTER_S", "friction_coefficient", "friction_heat", "heat_w", "mu_lookup", "nm_per_mpa",
+           "plate_step", "pressure_for_torque", "torque_per_mpa"]
 
 _MPA_TO_PA, _RPM_TO_RAD_S = CV.MPA_TO_PA, CV.RPM_TO_RAD_S
+SLIP_FILTER_S = 0.1  # the slip behind a torque's pressure and the prediction's mu, low-passed: a 14-Hz ringing (70-ms
+# period, aliased in the 10-ms samples) / 9, a launch's slip late by 0.1 s (about 6 of its 90 r/min)
 
 
 MuLookup = Callable[[float, float, float], float]
@@ -113,15 +115,15 @@ def nm_per_mpa(mu: float, c: Clutch) -> float:
 
 def pressure_for_torque(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, torque_nm: float,
                         P_start: float) -> float:
-    """Pressure [MPa] at which the clutch gives ``torque_nm`` by (5), M = mu(T, slip, P) k_geom P, with mu looked up at
-    that pressure: on the map mu is linear in P between two nodes of its pressure axis, so M is a quadratic there,
+    """Pressure [MPa] at which the clutch gives ``torque_nm`` by (5), M = mu(T, |slip|, P) k_geom P, with mu looked up
+    at that pressure: on the map mu is linear in P between two nodes of its pressure axis, so M is a quadratic there,
     solved in closed form in the span where M crosses the torque. The search starts in the span of ``P_start`` (the
-    last command) and steps towards the torque, so where M(P) is not monotone (the identified map's wiggles at
-    intermediate pressures) the crossing next to the last command is taken and the command moves continuously.
-    Clamped to the axis: 0 for no torque, the last node for more than it gives."""
+    last command) and steps towards the torque to the first span whose ends bracket it: where M is monotone in P (the
+    shipped map, at every node) that is the one crossing; where it is not, a crossing near the last command rather
+    than the smallest. Clamped to the axis: 0 for no torque, the last node for more than it gives."""
     if torque_nm <= 0.0:
         return 0.0
-    mu_of, grid = _lookup(m), m.P_grid_mpa
+    mu_of, grid, slip_rpm = _lookup(m), m.P_grid_mpa, abs(slip_rpm)
     target = torque_nm / (c.k_geom_m3 * _MPA_TO_PA)  # mu P [MPa] to reach
     last = len(grid) - 2
     k = min(max(bisect_right(grid, P_start) - 1, 0), last)

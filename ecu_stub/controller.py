@@ -65,7 +65,7 @@ from dataclasses import dataclass
 from dsg_hil.common.units import CV
 
 from .calibration import TcuCalibration, load_calibration
-from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque
+from .clutch_model import SLIP_FILTER_S, heat_w, mu_lookup, nm_per_mpa, pressure_for_torque
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 
@@ -81,8 +81,6 @@ BRAKE_PRESSED_PCT = 5.0
 CLUTCH_OPEN_MPA = 0.02  # measured piston pressure under which a clutch carries next to nothing (downhill check)
 _RPM_TO_RAD_S = CV.RPM_TO_RAD_S
 SETTLED_FRACTION = 0.05  # a creep within 5 % of its target (reference ramp done) has settled on the road load
-SLIP_FILTER_S = 0.1  # the slip behind a torque's pressure, low-passed: a 14-Hz ringing (70-ms period, aliased in the
-# 10-ms samples) / 9, a launch's slip late by 0.1 s (about 6 of its 90 r/min)
 RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (issue 18: +-20 %), speeding up
 STALL_FRACTION = 0.5  # stalled: under half the target speed with the wheel force at the clutch's capacity ...
 STALL_S = 1.0  # ... for this long (10 time constants of the speed loop, 1/9.7 rad/s: not a transient)
@@ -194,8 +192,8 @@ class CreepController:
         mu_of = mu_lookup(cal.friction)
         for c, clutch, out_rpm, P, T_oil in (("CL", cal.CL, inp.cl_out_rpm, inp.P_CL_mpa, inp.T_oil_CL_c),
                                              ("CH", cal.CH, inp.ch_out_rpm, inp.P_CH_mpa, inp.T_oil_CH_c)):
-            # friction_heat and plate_step written out (the same operations): mu at the low-passed slip, the heat
-            # at the measured one (predicted_heat_w)
+            # friction_heat(..., mu_slip_rpm=) and plate_step written out (the same operations): mu at the
+            # low-passed slip, the heat at the measured one
             T, P, slip = T_pred[c], max(P, 0.0), abs(clutch_in - out_rpm)
             Q = heat[c] = heat_w(mu_of(T, slip if mean is None else abs(mean[c]), P), clutch, P, slip)
             K = clutch.K_plate_oil_w_k
@@ -204,14 +202,14 @@ class CreepController:
 
     def mean_slip_rpm(self, clutch: str, inp: TcuInputs) -> float:
         """|Slip| [r/min] of the clutch low-passed over :data:`SLIP_FILTER_S` (:meth:`_filter_slip`), for the
-        pressure of a torque (:meth:`pressure_for`, :meth:`force_capacity`); the present slip before the first valid
+        pressure of a torque (:meth:`pressure_for`, :meth:`force_at`); the present slip before the first valid
         cycle. Not the slip of the moment: on a hot pack at a fast idle (hot_1200 of bench/tcu_envelope.py) the output
         shafts rang by up to 220 r/min about the vehicle's speed, sampled every 10 ms into a slip jumping between 10
         and 400 r/min; mu looked up there moved the pressure by up to 30 % from one cycle to the next, which drove the
         ringing (a loop through the friction map's slip slope). Not the slip at the vehicle's speed either: a
         ``VehicleSpeed`` stuck at 0 would then set the pressure for the whole input speed as slip until the speed
-        vote replaces it (0.1-0.2 s). The plate prediction keeps the measured slip (:meth:`_predict`): the heat of
-        a ringing clutch is what it is."""
+        vote replaces it (0.1-0.2 s). The plate prediction (:meth:`_predict`) looks mu up at this slip too, the heat
+        at the measured one: the heat of a ringing clutch is what it is, its friction follows the slip with a lag."""
         if self.slip_mean is None:
             return abs(inp.slip_rpm(clutch))
         return abs(self.slip_mean[clutch])
@@ -231,8 +229,8 @@ class CreepController:
         """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu(P) k_geom), mu looked up
         at the pressure it gives (:func:`~ecu_stub.clutch_model.pressure_for_torque`). Not at the measured pressure:
         while a clutch ramps out that lags above its command, and where mu rises with pressure (a hot plate under
-        0.5 MPa) it took mu too high and the command too low, by 3-4 %, for the whole crossover (a 0.086-m/s creep of
-        the 5,000-run sample dipped 25 %)."""
+        0.5 MPa) it took mu too high and the command too low, by 3-4 %, for the whole crossover (with the map's spike
+        at 0.3 MPa, the 25-% dip of the 5,000-run sample's r00479)."""
         cal = self.cal
         c = cal.clutch(clutch)
         torque = max(force_n, 0.0) * c.speed_ratio_m / cal.vehicle.eta

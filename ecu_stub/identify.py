@@ -48,13 +48,12 @@ from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.logs import decoded_frames
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
-from .clutch_model import friction_heat, mu_lookup, plate_step
-from .controller import SLIP_FILTER_S
+from .clutch_model import SLIP_FILTER_S, friction_heat, mu_lookup, plate_step
 
 __all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "EXIT_STALE", "HEADER", "MuSamples", "P_GRID", "Record", "SLIP_GRID",
-           "SMOOTHING", "T_GRID", "USES", "check", "cross_validate", "fit_cooling", "fit_friction_map", "fit_k_geom",
-           "fit_speed_ratio", "fit_thermal", "identify", "main", "map_error", "mu_samples", "read_log", "replay",
-           "write_calibration"]
+           "SMOOTHING", "STEADY_SLIP_FRACTION", "T_GRID", "USES", "check", "cross_validate", "fit_cooling",
+           "fit_friction_map", "fit_k_geom", "fit_speed_ratio", "fit_thermal", "identify", "main", "map_error",
+           "mu_samples", "read_log", "replay", "write_calibration"]
 
 USES = {
     "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),

@@ -71,7 +71,8 @@ hazard); hotter is on the safe side.
   the oil's lag behind a plate heating at 5 K/s (0.18 s), 0.5 K of PLANT_OIL_TEMP's 100-ms cycle at that rate, 1 K
   the losses of pump, valve and pack to the environment (the feed is not quite the sump), 0.1 K the DBC steps:
   7.1 K, rounded up to 10 K for conditions beyond the identification runs. (The calibration's prediction error is
-  2.5 K since its re-identification of 2026-12-03: 6.1 K; the tolerance is kept, the later catch of the two.)
+  2 K since its re-identification of 2026-12-03 (ddbc62e): 5.6 K; the tolerance is kept, the later catch of the
+  two.)
 * Bound on the integral of the excess, ``OIL_KS`` = 2 K s (a deficit 10 K beyond the tolerance for 0.2 s). Its
   cost: until it is passed the prediction cools towards the wrong value, (K / C) x the integral of the oil's error:
   a T_OilCL stuck at 40 degC under a 228-degC plate passes it in 2 cycles (deficit 178 K beyond the tolerance), in

@@ -4,6 +4,7 @@ pressure, and the friction heat with mu at the predictor's low-passed slip."""
 from __future__ import annotations
 
 import math
+import random
 
 import pytest
 
@@ -58,8 +59,6 @@ def test_where_the_torque_is_not_monotone_in_pressure_the_crossing_next_to_the_l
 def test_the_shipped_map_inverts_exactly():
     """On the identified map, anywhere in its range and from any last command: the torque at the pressure found is
     the torque asked for."""
-    import random
-
     rng = random.Random(7)
     m, mu_of = CAL.friction, mu_lookup(CAL.friction)
     for _ in range(2000):

@@ -3,6 +3,7 @@ estimate replayed within a kelvin of the truth, a calibration written that loads
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -62,9 +63,21 @@ def test_a_file_that_is_no_log_is_one_clear_error(tmp_path, capsys):
 # ---- the shipped calibration on the current plant ---------------------------------------------------------------
 IDENTIFICATION = Path(__file__).resolve().parents[2] / "ecu_stub" / "data" / "identification"
 # the identification runs, and how much of each, where the calibration identified before issue 16's plant was
-# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all forty in full:
+# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all 61 in full:
 # bench/reidentify.sh --check LOGDIR
 FRESH_SUBSET = {"heavy_fast": 30.0, "paper": 10.0}
+
+
+def test_each_identification_run_documents_one_command_and_the_heavy_ones_set_the_heaviest_vehicle():
+    """bench/reidentify.sh records each run with the --set options of its one documented '#   dsg-hil run' line: the
+    heavy runs (handover_heavy*, map_ch_heavy*) the calibration's m_max, the others none (the shipped vehicle)."""
+    m_max = load_calibration().vehicle.m_max_kg
+    for path in sorted(IDENTIFICATION.glob("*.toml")):
+        lines = [line for line in path.read_text().splitlines() if line.startswith("#   dsg-hil run ")]
+        assert len(lines) == 1, path.name
+        sets = re.findall(r"--set (\S+)", lines[0])
+        heavy = path.stem.startswith(("handover_heavy", "map_ch_heavy"))
+        assert sets == ([f"vehicle.m={m_max:g}"] if heavy else []), path.name
 
 
 def test_the_shipped_predictor_stays_within_its_own_error_bound_on_the_current_plant(tmp_path, capsys):

@@ -9,6 +9,7 @@ from dataclasses import replace
 
 import pytest
 
+from ecu_stub.calibration import FrictionMap
 from ecu_stub.controller import CreepController
 from ecu_stub.monitor import ThermalMonitor, release_time_s, worst_heat_w, worst_slip_rpm
 
@@ -92,6 +93,30 @@ def test_controller_releases_the_off_going_clutch_faster_when_its_bound_would_pa
     assert out.state == "HANDOVER" and not out.brake_request
     assert 0.0 <= out.P_CL_cmd_mpa < ctrl.pressure_for("CL", 0.9 * ctrl.F_cmd, inp)
     assert ctrl.bound["CL"] <= S.T_safe_c + 1e-6
+
+
+def test_the_on_coming_clutch_takes_the_force_the_monitor_takes_off_the_off_going_one():
+    """As above, on a map whose mu falls with pressure (0.10 at 0, 0.06 at 1.5 MPa): the on-coming CH is commanded
+    the pressure for the wheel force less what CL gives at its limited pressure, mu looked up there
+    (:meth:`force_at`), not CL's capacity scaled by P / P_max (mu at 1.5 MPa: CL's force too low, CH's too high)."""
+    by_p = replace(FLAT, friction=FrictionMap((20.0, 320.0), (0.0, 400.0), (0.0, 1.5),
+                                              tuple(((0.10, 0.06), (0.10, 0.06)) for _ in range(2))))
+    ctrl, clock = creeping(by_p)
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
+    run(ctrl, clock, inp, 0.5)
+    still = replace(inp, clutch_in_rpm=0.0, cl_out_rpm=0.0, ch_out_rpm=0.0)
+    ctrl.T_pred = {"CL": ctrl.limit("CL", 0.0) + 0.05, "CH": 150.0}
+    out = ctrl.update(replace(still, T_oil_CL_c=ctrl.T_pred["CL"], T_oil_CH_c=150.0), clock.tick())
+    assert out.state == "HANDOVER"
+    T = S.T_safe_c - S.prediction_error_k - 0.3
+    ctrl.T_pred["CL"] = T
+    hot = replace(inp, v_mps=0.05, P_CL_mpa=0.0, T_oil_CL_c=T)
+    out = ctrl.update(hot, clock.tick())
+    assert out.state == "HANDOVER" and 0.0 < out.P_CL_cmd_mpa < 0.6  # limited, not released
+    rest = ctrl.F_cmd - ctrl.force_at("CL", out.P_CL_cmd_mpa, hot)
+    assert out.P_CH_cmd_mpa == pytest.approx(ctrl.pressure_for("CH", rest, hot), rel=1e-6)
+    old = ctrl.F_cmd - out.P_CL_cmd_mpa * ctrl.force_capacity("CL", hot) / by_p.speed.P_max_mpa
+    assert out.P_CH_cmd_mpa < 0.97 * ctrl.pressure_for("CH", old, hot)
 
 
 @pytest.mark.parametrize("seed", range(3))
