@@ -1,6 +1,6 @@
 #!/bin/sh
 # Re-identify the TCU calibration on the current plant (issue 18): record the identification runs (eleven of creep,
-# 44 short torque handovers, 6 heavy launches on a cool CH: ecu_stub/data/identification) in
+# 44 short torque handovers, 12 launches on a cool CH, heavy or cold: ecu_stub/data/identification) in
 # lock-step with the bundled ecu-stub and its current calibration, then fit and write the calibration, with the
 # commit and calibration the logs were recorded with in its header (identify --provenance).
 #
@@ -38,7 +38,7 @@ done
 if [ -n "$check" ]; then
     exec "$py" -m ecu_stub.identify "$logs"/*.log --check
 fi
-# the short torque-handover runs (handover_*) and heavy launches on a cool CH (map_*): for the friction map, not the
+# the short torque-handover runs (handover_*) and launches on a cool CH (map_*): for the friction map, not the
 # thermal fits (identify --map-only)
 "$py" -m ecu_stub.identify $(ls "$logs"/*.log | grep -v -e /handover_ -e /map_) \
     --map-only "$logs"/handover_*.log "$logs"/map_*.log --write "$out" \

@@ -63,7 +63,7 @@ def test_a_file_that_is_no_log_is_one_clear_error(tmp_path, capsys):
 # ---- the shipped calibration on the current plant ---------------------------------------------------------------
 IDENTIFICATION = Path(__file__).resolve().parents[2] / "ecu_stub" / "data" / "identification"
 # the identification runs, and how much of each, where the calibration identified before issue 16's plant was
-# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all 61 in full:
+# furthest beyond its e (2.86 K at 7.8 s of heavy_fast, 1.77 K at 6.7 s of paper); all 67 in full:
 # bench/reidentify.sh --check LOGDIR
 FRESH_SUBSET = {"heavy_fast": 30.0, "paper": 10.0}
 
