@@ -22,7 +22,7 @@ from dsg_hil.common.units import CV
 from .calibration import Clutch, FrictionMap
 
 __all__ = ["SLIP_FILTER_S", "friction_coefficient", "friction_heat", "heat_w", "mu_lookup", "nm_per_mpa",
-           "plate_step", "pressure_for_torque", "torque_per_mpa"]
+           "plate_step", "pressure_for_torque", "slip_filter_weight", "torque_per_mpa"]
 
 _MPA_TO_PA, _RPM_TO_RAD_S = CV.MPA_TO_PA, CV.RPM_TO_RAD_S
 SLIP_FILTER_S = 0.1  # the slip behind a torque's pressure and the prediction's mu, low-passed: a 14-Hz ringing (70-ms
@@ -111,6 +111,12 @@ def _spans(grid: tuple[float, ...]) -> tuple[float, ...]:
 def nm_per_mpa(mu: float, c: Clutch) -> float:
     """Clutch torque per MPa of piston pressure [N m/MPa] at friction coefficient ``mu``, equation (5): mu k_geom."""
     return mu * c.k_geom_m3 * _MPA_TO_PA
+
+
+def slip_filter_weight(dt: float) -> float:
+    """Weight of a new slip sample after ``dt`` [s] in the first-order low-pass of :data:`SLIP_FILTER_S` (the
+    controller's slip for the pressure and the prediction's mu, and its replay in ``identify``)."""
+    return 1.0 - math.exp(-dt / SLIP_FILTER_S)
 
 
 def pressure_for_torque(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, torque_nm: float,

@@ -65,7 +65,7 @@ from dataclasses import dataclass
 from dsg_hil.common.units import CV
 
 from .calibration import TcuCalibration, load_calibration
-from .clutch_model import SLIP_FILTER_S, heat_w, mu_lookup, nm_per_mpa, pressure_for_torque
+from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque, slip_filter_weight
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 
@@ -181,27 +181,28 @@ class CreepController:
         """True while the plate estimates still come from the start-up observer."""
         return self.first_seen is None or now - self.first_seen < self.cal.strategy.startup_observer_s
 
-    def _predict(self, inp: TcuInputs, dt: float, now: float) -> None:
-        """Advance both plate estimates; at start-up, take them from the observer."""
+    def _predict(self, inp: TcuInputs, dt: float, now: float, mean: dict[str, float]) -> None:
+        """Advance both plate estimates, mu at the low-passed slips ``mean`` (:meth:`_filter_slip`, this cycle's
+        included); at start-up, take them from the observer."""
         if self.first_seen is None:
             self.first_seen = now
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
-        T_pred, heat, cal, clutch_in, mean = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm, self.slip_mean
+        T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm
         mu_of = mu_lookup(cal.friction)
         for c, clutch, out_rpm, P, T_oil in (("CL", cal.CL, inp.cl_out_rpm, inp.P_CL_mpa, inp.T_oil_CL_c),
                                              ("CH", cal.CH, inp.ch_out_rpm, inp.P_CH_mpa, inp.T_oil_CH_c)):
             # friction_heat(..., mu_slip_rpm=) and plate_step written out (the same operations): mu at the
             # low-passed slip, the heat at the measured one
             T, P, slip = T_pred[c], max(P, 0.0), abs(clutch_in - out_rpm)
-            Q = heat[c] = heat_w(mu_of(T, slip if mean is None else abs(mean[c]), P), clutch, P, slip)
+            Q = heat[c] = heat_w(mu_of(T, abs(mean[c]), P), clutch, P, slip)
             K = clutch.K_plate_oil_w_k
             T_inf = T_oil + Q / K
             T_pred[c] = T_inf + (T - T_inf) * math.exp(-K * dt / clutch.C_plate_j_k)
 
     def mean_slip_rpm(self, clutch: str, inp: TcuInputs) -> float:
-        """|Slip| [r/min] of the clutch low-passed over :data:`SLIP_FILTER_S` (:meth:`_filter_slip`), for the
+        """|Slip| [r/min] of the clutch low-passed over ``SLIP_FILTER_S`` (:meth:`_filter_slip`), for the
         pressure of a torque (:meth:`pressure_for`, :meth:`force_at`); the present slip before the first valid
         cycle. Not the slip of the moment: on a hot pack at a fast idle (hot_1200 of bench/tcu_envelope.py) the output
         shafts rang by up to 220 r/min about the vehicle's speed, sampled every 10 ms into a slip jumping between 10
@@ -214,16 +215,19 @@ class CreepController:
             return abs(inp.slip_rpm(clutch))
         return abs(self.slip_mean[clutch])
 
-    def _filter_slip(self, inp: TcuInputs, dt: float) -> None:
-        """Both clutches' slips [r/min] through a first-order low-pass of time constant :data:`SLIP_FILTER_S`."""
+    def _filter_slip(self, inp: TcuInputs, dt: float) -> dict[str, float]:
+        """Both clutches' slips [r/min] through a first-order low-pass of time constant ``SLIP_FILTER_S``
+        (:func:`~ecu_stub.clutch_model.slip_filter_weight`; :attr:`slip_mean`, returned): the present slips on the
+        first valid cycle."""
         CL, CH = inp.clutch_in_rpm - inp.cl_out_rpm, inp.clutch_in_rpm - inp.ch_out_rpm
         mean = self.slip_mean
         if mean is None:
-            self.slip_mean = {"CL": CL, "CH": CH}
-            return
-        a = 1.0 - math.exp(-dt / SLIP_FILTER_S)
+            mean = self.slip_mean = {"CL": CL, "CH": CH}
+            return mean
+        a = slip_filter_weight(dt)
         mean["CL"] += a * (CL - mean["CL"])
         mean["CH"] += a * (CH - mean["CH"])
+        return mean
 
     def pressure_for(self, clutch: str, force_n: float, inp: TcuInputs) -> float:
         """Piston pressure [MPa] for a wheel force: M = F * speed_ratio / eta, P = M / (mu(P) k_geom), mu looked up
@@ -371,8 +375,7 @@ class CreepController:
                 self.state, self.active, self.brake_request = "FAULT", "NONE", True
                 self._open_both()
             return self._outputs(faults | FAULT_PLANT_MISSING)
-        self._filter_slip(inp, dt)
-        self._predict(inp, dt, now)
+        self._predict(inp, dt, now, self._filter_slip(inp, dt))
         last, self.inp = self.inp, inp
         if self.state == "FAULT":
             self.state = "IDLE"

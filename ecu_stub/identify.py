@@ -48,7 +48,7 @@ from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.logs import decoded_frames
 
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
-from .clutch_model import SLIP_FILTER_S, friction_heat, mu_lookup, plate_step
+from .clutch_model import friction_heat, mu_lookup, plate_step, slip_filter_weight
 
 __all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "EXIT_STALE", "HEADER", "MuSamples", "P_GRID", "Record", "SLIP_GRID",
            "SMOOTHING", "STEADY_SLIP_FRACTION", "T_GRID", "USES", "check", "cross_validate", "fit_cooling",
@@ -338,7 +338,7 @@ def fit_cooling(cols: list[dict], K: float) -> tuple[float, float] | None:
 def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
     """Run the TCU's plate estimate over a log as the controller does: the start-up observer for
     ``startup_observer_s`` after the first oil temperature, then the predictor (mu at the slip low-passed over
-    ``SLIP_FILTER_S``, the heat at the measured slip). Truth minus estimate per clutch."""
+    ``clutch_model.SLIP_FILTER_S``, the heat at the measured slip). Truth minus estimate per clutch."""
     out = {}
     window = cal.strategy.startup_observer_s
     for c in ("CL", "CH"):
@@ -348,7 +348,7 @@ def replay(r: Record, cal: TcuCalibration) -> dict[str, dict[str, float]]:
             slip = d["slip"][k]  # low-passed as the controller does (_filter_slip), before its prediction
             if math.isfinite(slip):
                 mean = slip if not math.isfinite(mean) else \
-                    mean + (1.0 - math.exp(-(r.t[k] - r.t[k - 1]) / SLIP_FILTER_S)) * (slip - mean)
+                    mean + slip_filter_weight(r.t[k] - r.t[k - 1]) * (slip - mean)
             if not (np.isfinite(d["T_oil"][k]) and np.isfinite(d["T"][k])):
                 continue
             if t0 is None:

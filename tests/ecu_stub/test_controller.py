@@ -9,8 +9,8 @@ from dataclasses import replace
 import pytest
 
 from ecu_stub.calibration import FrictionMap, load_calibration
-from ecu_stub.clutch_model import friction_coefficient, friction_heat, plate_step
-from ecu_stub.controller import SLIP_FILTER_S, CreepController, TcuInputs
+from ecu_stub.clutch_model import SLIP_FILTER_S, friction_coefficient, friction_heat, plate_step
+from ecu_stub.controller import CreepController, TcuInputs
 from ecu_stub.pid import PID
 
 DT = 0.01
