@@ -477,7 +477,9 @@ def write_calibration(path: str, cal: TcuCalibration, base: str | None, logs: li
                f"start-up observer on ({rep['worst_under_prediction_k']:.2f} K), times {ERROR_FACTOR:g} for conditions "
                f"between and beyond these runs (chosen), rounded up to {ERROR_ROUND_K} K"}
     header = HEADER + f"\nIdentified by: {cmd}" + (f"\nLogs: {provenance}" if provenance else "")
-    Path(path).write_text(dump_calibration(raw, header), encoding="utf-8")
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)  # as check_output_path promised the --write option
+    out.write_text(dump_calibration(raw, header), encoding="utf-8")
 
 
 HEADER = """ecu-stub calibration: what the TCU is flashed with (its own numbers, not the plant's).

@@ -35,7 +35,7 @@ def recorded(tmp_path_factory):
 
 
 def test_identifies_the_clutch_constants_and_writes_a_calibration(recorded, tmp_path, capsys):
-    out = tmp_path / "cal.toml"
+    out = tmp_path / "new" / "cal.toml"  # a missing directory is made, as check_output_path promises
     assert main([str(recorded), "--write", str(out), "--provenance", "recorded at commit abc1234"]) == 0
     printed = capsys.readouterr().out
     assert "worst under-prediction" in printed
