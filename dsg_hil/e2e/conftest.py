@@ -195,6 +195,16 @@ def by_id(frames):
     return groups
 
 
+def frames_over_cycle(times: list[float], cycle: float) -> float:
+    """How many frames ``times`` [s] hold beyond one per ``cycle`` [s] (and the one that opens the count), counted
+    from the frame of the first half that was sent least late. A sender on an absolute-deadline grid never sends
+    early, but a frame can leave late (the first one off the grid by design, any one after a stall between its
+    computing and its sending); counted from a late frame the span is short by that lateness, so the count starts
+    where the excess is smallest. A sender that sends too often shows an excess that grows with the run."""
+    n, end = len(times), times[-1]
+    return min((n - i) - ((end - times[i]) / cycle + 1.0) for i in range(max(1, n // 2)))
+
+
 def assert_counters_increment(db, frames):
     for ident, items in by_id(frames).items():
         m = db.get_message_by_frame_id(ident)
