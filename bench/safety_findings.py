@@ -1,8 +1,9 @@
 """Issue 18's evidence from a sweep's table (``dsg-hil sweep dsg_hil/data/sweeps/safety.toml``, finished or
 interrupted): the verdict's counts and violations, the hottest true plate and the smallest margins, the overheat
 stops' hotter plate (used to >= 235 degC before giving up?), roll-back (distance, and speed against the 10-mm/s
-drivability target, split by whether a frame fault was injected), the top speed over the desired one, and FAULT
-outside the injected faults' windows.
+drivability target, split by whether a frame fault was injected), the speed through handovers against +-20 % (all,
+and without the driver's pedal in the handover's window, those without a frame fault listed), the top speed over
+the desired one, and FAULT outside the injected faults' windows.
 
     python bench/safety_findings.py OUT [--json]
 
@@ -63,6 +64,11 @@ def findings(out: Path) -> dict:
         "handover_judged_runs": len(through),
         f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_runs": sum(d > HANDOVER_DRIVABLE_PCT for d, _ in through),
         "handover_deviation_max": max(through) if through else None,
+        f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_unbraked_runs": sum(
+            (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT for r in judged),
+        f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_unbraked_no_fault": sorted(
+            (r["handover_deviation_unbraked_pct"], r["run_id"]) for r in judged
+            if (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT and not r["in.fault"]),
         "fault_unexplained_max_s": max(r["fault_unexplained_s"] or 0.0 for r in judged),
     }
 

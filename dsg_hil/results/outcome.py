@@ -82,4 +82,5 @@ _METRIC_KEYS = frozenset((
     "speed_error_rms_mps", "stop_reason", "stop_time_s", "tcu_stop_time_s", "T_CL_at_stop_c",
     "T_CL_at_first_CH_limit_c", "mu_CH_first_slip", "P_CH_first_slip_mpa", "max_predicted_temp_c",
     "worst_prediction_error_c", "handovers", "max_speed_creep_mps", "overspeed_mps", "rollback_guarded_m",
-    "fault_time_s", "min_margin_c", "status_unconfirmed", "handover_deviation_pct"))
+    "fault_time_s", "min_margin_c", "status_unconfirmed", "handover_deviation_pct",
+    "handover_deviation_unbraked_pct"))

@@ -280,10 +280,13 @@ class CreepMetrics:
     fault_time: float = 0.0  # time TCU_STATUS reported FAULT
     status_unconfirmed: int = 0  # TCU_STATUS frames whose stop or active clutch the next one did not confirm
     handover_deviation: float | None = None  # worst |v - desired| / desired through handovers begun in the band
+    handover_deviation_unbraked: float | None = None  # ... through those in whose window the driver's pedal stayed 0
+    driver_braking: bool = False  # the driver's pedal above 0 now (RunSummary.on_driver_brake)
     _handover_until: float = -math.inf  # the handover window's end (inf: HANDOVER reported now)
     _handover_judged: bool | None = None  # this window: None not yet decided, False begun outside the band
     _handover_pending: float | None = None  # this window's worst so far: taken when it ends in CREEP
     _handover_desired: float = math.nan  # the desired speed the window began with
+    _handover_braked: bool = False  # the driver's pedal was above 0 in this window, while it was judged
     _status_t: float | None = None  # time of the last TCU_STATUS
     _clutch: str | None = None  # the active clutch as the record took it (confirmed)
     _held: _Status | None = None  # the latest TCU_STATUS: its stop and clutch confirmed or not by the next one
@@ -469,24 +472,33 @@ class CreepMetrics:
         within HANDOVER_BAND of the desired speed, the worst deviation from it; counted when the window ends in
         CREEP (:meth:`_take_handover`). Not judged: a handover begun during a launch's ramp, or one whose window a
         stop, a fault, the driver's brake, the creep withdrawn or a new desired speed interrupts (the speed then is
-        not the handover's)."""
+        not the handover's). A window in which the driver's pedal is above 0 (a light drag, under the TCU's "pressed"
+        threshold, leaves it in CREEP) counts in the handover deviation, not in its unbraked part."""
         if self._status_t is None or self._status_t > self._handover_until or not desired_speed > 0.0:
             return
         if self._handover_judged is None:
             self._handover_judged = abs(v_first - desired_speed) <= HANDOVER_BAND * desired_speed
             self._handover_desired = desired_speed
         elif desired_speed != self._handover_desired:  # a new desired speed: the speed follows its ramp, not judged
-            self._handover_judged, self._handover_pending = False, None
+            self._handover_judged, self._handover_pending, self._handover_braked = False, None, False
         if self._handover_judged:
+            if self.driver_braking:
+                self._handover_braked = True
             worst = max(v_max - desired_speed, desired_speed - v_min) / desired_speed
             if worst == worst and (self._handover_pending is None or worst > self._handover_pending):
                 self._handover_pending = worst
 
     def _take_handover(self) -> None:
-        """The window's worst deviation counts: it ended in CREEP (or the record ended)."""
-        worst, self._handover_pending = self._handover_pending, None
-        if worst is not None and (self.handover_deviation is None or worst > self.handover_deviation):
+        """The window's worst deviation counts: it ended in CREEP (or the record ended); in the unbraked deviation
+        too if the driver's pedal stayed at 0 through it."""
+        worst, braked, self._handover_pending, self._handover_braked = self._handover_pending, self._handover_braked, \
+            None, False
+        if worst is None:
+            return
+        if self.handover_deviation is None or worst > self.handover_deviation:
             self.handover_deviation = worst
+        if not braked and (self.handover_deviation_unbraked is None or worst > self.handover_deviation_unbraked):
+            self.handover_deviation_unbraked = worst
 
     def _creep_speed(self, v_first: float, v_min: float, v_max: float, desired_speed: float) -> None:
         """Creep requested at speeds from ``v_min`` to ``v_max`` [m/s] (the first ``v_first``): the highest speed and
@@ -552,7 +564,7 @@ class CreepMetrics:
                 self._take_handover()
                 self._handover_until, self._handover_judged = math.inf, None
         elif frame.state != "CREEP":  # a stop, a fault, the driver's brake or the creep withdrawn: not judged
-            self._handover_until, self._handover_pending = -math.inf, None
+            self._handover_until, self._handover_pending, self._handover_braked = -math.inf, None, False
         elif self._handover_until == math.inf:
             self._handover_until = t + HANDOVER_AFTER_S
         elif t > self._handover_until:
@@ -641,6 +653,8 @@ class CreepMetrics:
             "status_unconfirmed": self.status_unconfirmed,
             "handover_deviation_pct": _r(None if self.handover_deviation is None else 100.0 * self.handover_deviation,
                                          1),
+            "handover_deviation_unbraked_pct": _r(None if self.handover_deviation_unbraked is None
+                                                  else 100.0 * self.handover_deviation_unbraked, 1),
         }
 
 
@@ -703,6 +717,12 @@ class RunSummary:
             fields, sample, creeping, desired_speed, period = self._batch_args
             self._batched = 0
             self.creep.add_rows(self._batch[:k], fields, sample, self.dt, creeping, desired_speed, period)
+
+    def on_driver_brake(self, braking: bool) -> None:
+        """The driver's pedal went above 0 (``braking``) or back to 0, from the next plant step on (the steps before,
+        still held, are taken first): for the handover deviation's unbraked part."""
+        self.flush()
+        self.creep.driver_braking = braking
 
     def on_status(self, t: float, values: dict[str, float], truth: Sample) -> None:
         self.flush()

@@ -72,6 +72,7 @@ class PlantRunner:
         self._cmd_on_bus: float | None = None
         self._held: PlantInputs | None = None  # the last inputs (_inputs)
         self._traces: dict[int, np.ndarray] = {}  # by number of steps: the plant's trace of a period (_advance)
+        self._driver_braking = False  # the driver's pedal above 0 in the last period (_advance; the summary's)
         self._running = False  # set once the run proper starts (after the lock-step handshake)
         self._wall0 = time.monotonic()  # when it did (wall clock: the progress line's pace and ETA)
         self.injectors: dict[str, FaultInjector | None] = {}  # by side, see ``inject``
@@ -297,6 +298,9 @@ class PlantRunner:
             driver = self.scenario.driver_at(self.plant.state.t)
         inputs = self._inputs(driver, now)
         creeping, fallback, desired = driver.creep_request, not self.command_valid, driver.desired_speed_mps
+        if (driver.brake > 0.0) != self._driver_braking:
+            self._driver_braking = not self._driver_braking
+            self.summary.on_driver_brake(self._driver_braking)
         if steps == 1:
             self.out = self.plant.step(inputs)
             self.summary.on_step(self.out, creeping, fallback, desired)

@@ -121,12 +121,16 @@ def drivability_lines(rows: Sequence[Mapping[str, Any]], inputs: list[str]) -> l
     """The page's drivability section: reported, not judged (the verdict's roll-back limit is a distance). The runs
     whose fastest backward speed (``rollback_mps``, at any time of the run: brake releases, fault reactions)
     exceeds :data:`ROLLBACK_DRIVABLE_MPS`, and those whose speed left :data:`HANDOVER_DRIVABLE_PCT` of the desired
-    through a handover (``handover_deviation_pct``), the worst first."""
+    through a handover (``handover_deviation_pct``), the worst first, with how many of them left it through a
+    handover without the driver's pedal in its window (``handover_deviation_unbraked_pct``: a light drag, under the
+    TCU's "pressed" threshold, slows the vehicle whatever the handover does)."""
     rolled = sorted((r for r in rows if r.get("rollback_mps") is not None
                      and -float(r["rollback_mps"]) > ROLLBACK_DRIVABLE_MPS), key=lambda r: float(r["rollback_mps"]))
     judged = [r for r in rows if r.get("handover_deviation_pct") is not None]
     off = sorted((r for r in judged if float(r["handover_deviation_pct"]) > HANDOVER_DRIVABLE_PCT),
                  key=lambda r: -float(r["handover_deviation_pct"]))
+    unbraked = [r for r in off if r.get("handover_deviation_unbraked_pct") is not None
+                and float(r["handover_deviation_unbraked_pct"]) > HANDOVER_DRIVABLE_PCT]
     lines = ["## Drivability (reported, not judged)", "",
              f"Runs rolling backwards faster than {ROLLBACK_DRIVABLE_MPS * 1000:g} mm/s at some time (the drivability "
              f"target at a brake release; here at any time, fault reactions included): **{len(rolled)} of "
@@ -135,9 +139,10 @@ def drivability_lines(rows: Sequence[Mapping[str, Any]], inputs: list[str]) -> l
         lines += _table(["run_id", "rollback_mps", "rollback_m", *inputs], rolled[:WORST])
     lines += [f"Runs whose speed left ±{HANDOVER_DRIVABLE_PCT:g} % of the desired speed through a handover (one "
               f"begun within the band; to 1 s after it): **{len(off)} of the {len(judged)} with such a "
-              f"handover**.", ""]
+              f"handover**; through a handover without the driver's pedal in its window: **{len(unbraked)}**.", ""]
     if off:
-        lines += _table(["run_id", "handover_deviation_pct", "max_speed_creep_mps", *inputs], off[:WORST])
+        lines += _table(["run_id", "handover_deviation_pct", "handover_deviation_unbraked_pct",
+                         "max_speed_creep_mps", *inputs], off[:WORST])
     return lines
 
 

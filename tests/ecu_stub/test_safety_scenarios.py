@@ -11,6 +11,7 @@ import pytest
 from dsg_hil.physics.params import load_params, with_overrides
 from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.sim.scenario import parse_scenario
+from dsg_hil.sweep.page import HANDOVER_DRIVABLE_PCT
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space
 from dsg_hil.sweep.verdict import LIMITS
 from dsg_hil.testing import run_plant
@@ -50,6 +51,14 @@ def test_light_brake_drag_across_a_handover_decision_keeps_the_true_plate_under_
     # the monitor released CL faster than its share: CH takes the rest, so the vehicle, braked by the drag, is not
     # driven to an overshoot by a wound-up integral (before: 0.302 m/s, +46 %; now 0.231 m/s)
     assert dragged["max_speed_creep_mps"] <= 1.2 * V_CREEP
+    # the speed through the handover: the plain run's, with no pedal in its window, counts in the unbraked part too;
+    # a 2 % drag from 0.2 s after the decision slows the vehicle by a fifth (not judged with the drag above, begun
+    # before the handover: the speed then is out of the band) and counts only in the whole (the runner tells the
+    # summary the driver's pedal)
+    assert plain["handover_deviation_unbraked_pct"] == plain["handover_deviation_pct"] is not None
+    late = creep(t_decision + 3.0, [(1.0, True, 0.0, V_CREEP), (round(t_decision + 0.2, 2), True, 0.02, V_CREEP)],
+                 **hot)
+    assert late["handover_deviation_pct"] > HANDOVER_DRIVABLE_PCT and late["handover_deviation_unbraked_pct"] is None
 
 
 def test_downhill_creep_does_not_run_away():

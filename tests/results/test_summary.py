@@ -210,6 +210,47 @@ def test_the_speed_through_a_handover_begun_in_the_band_is_judged_until_1_s_afte
     assert changed.as_json()["handover_deviation_pct"] is None
 
 
+def periods(s: RunSummary, seconds: float, t0: float, v: float, desired: float = 0.2) -> float:
+    """``seconds`` of identical 10-step periods through RunSummary.on_period (creep requested); the time after."""
+    sample = lambda r: PlantOutputs(*r.tolist())  # noqa: E731
+    n = round(seconds / DT / 10)
+    for k in range(n):
+        rows = np.array([[float(x) for x in out(round(t0 + (10 * k + j) * DT, 9), v=v)] for j in range(10)])
+        s.on_period(rows, PlantOutputs._fields, sample, True, False, desired)
+    return t0 + n * 10 * DT
+
+
+def handover_with_a_dip(s: RunSummary, brake_at: float | None) -> dict:
+    """A handover begun on the desired 0.2 m/s, a dip to 0.15 m/s (-25 %) from 0.5 s into it, back on 0.2 m/s; the
+    driver's pedal goes above 0 at ``brake_at`` [s] (None: never) and stays."""
+    status = {"State": 2.0, "ActiveClutch": 1.0, "T_CL_Pred": 100.0, "T_CH_Pred": 100.0}  # CREEP on CL
+    t = 0.0
+    for t_end, v, state in ((0.5, 0.2, None), (1.0, 0.2, 3.0), (1.5, 0.15, 2.0), (2.6, 0.2, 2.0), (3.0, 0.2, 2.0)):
+        if brake_at is not None and t <= brake_at < t_end:
+            t = periods(s, brake_at - t, t, v)
+            s.on_driver_brake(True)
+        t = periods(s, t_end - t, t, v)
+        if state is None:
+            s.on_status(t, status, out(t))
+            status |= {"State": 3.0, "ActiveClutch": 2.0}
+            s.on_status(t, status, out(t))  # HANDOVER to CH at 0.5 s
+        else:  # (0.1-s frames, only those that matter: CREEP from 1.5 s, the window to 2.5 s; closed at 2.6 s)
+            s.on_status(t, status | {"State": state}, out(t))
+    return s.creep.as_json()
+
+
+@pytest.mark.parametrize("brake_at, unbraked", [(None, 25.0), (0.8, None), (2.0, None), (2.8, 25.0),
+                                                (0.2, None)])
+def test_a_handover_with_the_drivers_pedal_in_its_window_is_not_in_the_unbraked_deviation(brake_at, unbraked):
+    """The handover deviation counts every judged window; its unbraked part only those in which the driver's pedal
+    (RunSummary.on_driver_brake) stayed at 0: a pedal from inside the window (0.8 s, 2.0 s) or from before it (0.2 s,
+    still on) takes the window out, one after the window's end (2.8 s) does not; the periods held before the pedal
+    count as they came (the flush)."""
+    j = handover_with_a_dip(RunSummary(DT), brake_at)
+    assert j["handover_deviation_pct"] == pytest.approx(25.0)
+    assert j["handover_deviation_unbraked_pct"] == (None if unbraked is None else pytest.approx(unbraked))
+
+
 def test_fault_time_runs_from_each_fault_frame_to_the_next():
     m = CreepMetrics()
     for t, state in ((0.1, 2), (0.2, 5), (0.3, 2), (0.4, 5), (0.5, 5), (0.6, 2)):

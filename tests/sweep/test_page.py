@@ -25,11 +25,20 @@ def test_drivability_without_a_fast_roll_back_has_no_table():
 
 
 def test_drivability_lists_the_runs_whose_speed_left_the_band_through_a_handover_worst_first():
-    rows = [row("a", -0.001) | {"handover_deviation_pct": 42.7, "max_speed_creep_mps": 0.436},
-            row("b", -0.001) | {"handover_deviation_pct": 20.0, "max_speed_creep_mps": 0.24},
-            row("c", -0.001) | {"handover_deviation_pct": 25.1, "max_speed_creep_mps": 0.25},
-            row("d", -0.001) | {"handover_deviation_pct": None, "max_speed_creep_mps": 0.5}]
+    """Worst first, with the deviation through the handovers without the driver's pedal in their window: a's 42.7 %
+    came with a light drag (its unbraked handovers 12 %), c's without one."""
+    rows = [row("a", -0.001) | {"handover_deviation_pct": 42.7, "handover_deviation_unbraked_pct": 12.0,
+                                "max_speed_creep_mps": 0.436},
+            row("b", -0.001) | {"handover_deviation_pct": 20.0, "handover_deviation_unbraked_pct": 20.0,
+                                "max_speed_creep_mps": 0.24},
+            row("c", -0.001) | {"handover_deviation_pct": 25.1, "handover_deviation_unbraked_pct": 25.1,
+                                "max_speed_creep_mps": 0.25},
+            row("d", -0.001) | {"handover_deviation_pct": None, "handover_deviation_unbraked_pct": None,
+                                "max_speed_creep_mps": 0.5},
+            row("e", -0.001) | {"handover_deviation_pct": 30.0, "handover_deviation_unbraked_pct": None,
+                                "max_speed_creep_mps": 0.3}]  # its only handover braked
     text = "\n".join(drivability_lines(rows, ["in.grade_rad"]))
-    assert "**2 of the 3 with such a handover**" in text
-    assert "| a | 42.7 | 0.436 | 0.2 |" in text and "| c | 25.1 | 0.25 | 0.2 |" in text
-    assert text.index("| a |") < text.index("| c |") and "| b |" not in text
+    assert "**3 of the 4 with such a handover**; through a handover without the driver's pedal in its window: **1**" \
+        in text
+    assert "| a | 42.7 | 12 | 0.436 | 0.2 |" in text and "| c | 25.1 | 25.1 | 0.25 | 0.2 |" in text
+    assert text.index("| a |") < text.index("| e |") < text.index("| c |") and "| b |" not in text
