@@ -68,7 +68,7 @@ def findings(out: Path) -> dict:
             (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT for r in judged),
         f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_unbraked_no_fault": sorted(
             (r["handover_deviation_unbraked_pct"], r["run_id"]) for r in judged
-            if (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT and not r["in.fault"]),
+            if (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT and not r.get("in.fault")),
         "fault_unexplained_max_s": max(r["fault_unexplained_s"] or 0.0 for r in judged),
     }
 

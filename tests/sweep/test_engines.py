@@ -5,6 +5,7 @@ one of the workers is killed midway (its runs retried, not lost)."""
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import signal
 import socket
@@ -55,6 +56,33 @@ def test_a_dozen_runs_on_the_embedded_local_cluster(embedded):
         assert (out / "violations" / row["run_id"] / "scenario.toml").exists()
         assert f"dsg-hil run --scenario violations/{row['run_id']}/scenario.toml" in page
     assert len(list((out / "runs").glob("*.json"))) == 12
+
+
+def bench(script: str, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, str(REPO / "bench" / script), *args], capture_output=True, text=True,
+                          timeout=600, env=sweep_env(), cwd=REPO)
+
+
+def test_the_benches_over_a_sweep_read_it_and_repeat_its_runs(embedded):
+    """bench/safety_findings.py counts the table; bench/rerun_sweep_runs.py runs two of its runs again on this tree
+    (the sweep's own worker) and gets their rows again, key for key; a run that is not there is exit 2, one line."""
+    out, _ = embedded
+    rows = {r["run_id"]: r for r in read_table(out).to_pylist()}
+    found = bench("safety_findings.py", str(out), "--json")
+    assert found.returncode == 0, found.stderr
+    facts = json.loads(found.stdout)
+    hottest = max(r["max_plate_temp_c"] for r in rows.values())
+    assert facts["runs"] == 12 and facts["hottest_plate_c"] == round(hottest, 2)
+    ids = sorted(rows)[:2]
+    keys = "verdict,max_plate_temp_c,handover_deviation_pct,handover_deviation_unbraked_pct,rollback_m,v_max_mps"
+    again = bench("rerun_sweep_runs.py", str(out), ids[0], ids[1].split("-")[0], "--keys", keys, "--json")
+    assert again.returncode == 0, again.stderr
+    pairs = [json.loads(line) for line in again.stdout.splitlines()]
+    assert [p["run_id"] for p in pairs] == ids
+    for pair in pairs:
+        assert pair["now"] == pair["then"] == {k: rows[pair["run_id"]][k] for k in keys.split(",")}
+    missing = bench("rerun_sweep_runs.py", str(out), "r99999")
+    assert missing.returncode == 2 and missing.stderr.strip() == f"rerun_sweep_runs: {out}/runs: no run r99999"
 
 
 def _free_port() -> int:
