@@ -26,7 +26,7 @@ from dsg_hil.common.quantities import finite, quantity
 
 __all__ = ["CalibrationError", "Clutch", "DEFAULT_CALIBRATION", "FrictionMap", "Launch", "SECTIONS", "SOURCES",
            "SpeedControl", "Strategy", "TcuCalibration", "Vehicle", "c", "dump_calibration", "load_calibration",
-           "parse_calibration", "raw_sections"]
+           "parse_calibration", "raw_sections", "torque_falls"]
 
 DEFAULT_CALIBRATION = Path(__file__).resolve().parent / "data" / "calibration.toml"
 SOURCES = ("identified", "derived", "chosen")
@@ -165,6 +165,22 @@ def _section(data: dict, name: str, cls: type) -> Any:
     return cls(**values)
 
 
+def torque_falls(m: FrictionMap) -> tuple[float, float, float, float] | None:
+    """The first node (T [degC], slip [r/min]) and pressure span (P_lo, P_hi [MPa]) where the map's torque (5),
+    M = mu(P) k_geom P, falls as the pressure rises, or None: where M rises with P the pressure for a torque is one
+    (``clutch_model.pressure_for_torque``). In a span mu = a + b P is linear, so dM/dP = a + 2 b P is too: checked
+    at both ends."""
+    P = m.P_grid_mpa
+    spans = [(P[k], P[k + 1], P[k + 1] - P[k]) for k in range(len(P) - 1)]
+    for T, row in zip(m.T_grid_c, m.mu):
+        for slip, cell in zip(m.slip_grid_rpm, row):
+            for k, (lo, hi, width) in enumerate(spans):
+                b = (cell[k + 1] - cell[k]) / width
+                if cell[k] + b * lo < 0.0 or cell[k + 1] + b * hi < 0.0:
+                    return T, slip, lo, hi
+    return None
+
+
 def _check_map(m: FrictionMap) -> None:
     grids = (("T_grid_c", m.T_grid_c), ("slip_grid_rpm", m.slip_grid_rpm), ("P_grid_mpa", m.P_grid_mpa))
     for key, grid in grids:
@@ -178,6 +194,10 @@ def _check_map(m: FrictionMap) -> None:
     if not ok:
         raise CalibrationError(f"friction.mu: must be {shape[0]} x {shape[1]} x {shape[2]} values "
                                f"(T_grid_c x slip_grid_rpm x P_grid_mpa)")
+    if (falls := torque_falls(m)) is not None:
+        T, slip, lo, hi = falls
+        raise CalibrationError(f"friction.mu: the torque mu P falls as the pressure rises at {T:g} degC, {slip:g} "
+                               f"r/min, {lo:g}-{hi:g} MPa (the pressure for a torque needs it rising)")
 
 
 def parse_calibration(text: str, origin: str = "<string>") -> TcuCalibration:

@@ -124,9 +124,10 @@ def pressure_for_torque(m: FrictionMap, c: Clutch, T_c: float, slip_rpm: float, 
     """Pressure [MPa] at which the clutch gives ``torque_nm`` by (5), M = mu(T, |slip|, P) k_geom P, with mu looked up
     at that pressure: on the map mu is linear in P between two nodes of its pressure axis, so M is a quadratic there,
     solved in closed form in the span where M crosses the torque. The search starts in the span of ``P_start`` (the
-    last command) and steps towards the torque to the first span whose ends bracket it: where M is monotone in P (the
-    shipped map, at every node) that is the one crossing; where it is not, a crossing near the last command rather
-    than the smallest. Clamped to the axis: 0 for no torque, the last node for more than it gives."""
+    last command) and steps towards the torque to the first span whose ends bracket it: where M rises with P (any
+    loaded calibration's map: one whose M falls anywhere is refused, ``calibration.torque_falls``) that is the one
+    crossing; on a map built otherwise, a crossing near the last command rather than the smallest. Clamped to the
+    axis: 0 for no torque, the last node for more than it gives."""
     if torque_nm <= 0.0:
         return 0.0
     mu_of, grid, slip_rpm = _lookup(m), m.P_grid_mpa, abs(slip_rpm)

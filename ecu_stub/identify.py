@@ -47,7 +47,7 @@ from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.logs import decoded_frames
 
-from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections
+from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections, torque_falls
 from .clutch_model import friction_heat, mu_lookup, plate_step, slip_filter_weight
 
 __all__ = ["ERROR_FACTOR", "ERROR_ROUND_K", "EXIT_STALE", "HEADER", "MuSamples", "P_GRID", "Record", "SLIP_GRID",
@@ -283,6 +283,11 @@ def fit_friction_map(cols: list[dict], smoothing: float = SMOOTHING,
     values = np.round(x.reshape(tuple(len(g) for g in grid)), 5)
     mu = tuple(tuple(tuple(float(v) for v in cell) for cell in row) for row in values)
     fm = FrictionMap(grid[0], grid[1], grid[2], mu)
+    if (falls := torque_falls(fm)) is not None:
+        T, slip, lo, hi = falls
+        raise LogError(f"friction map: these runs give a torque mu P falling as the pressure rises at {T:g} degC, "
+                       f"{slip:g} r/min, {lo:g}-{hi:g} MPa (the TCU's pressure for a torque needs it rising): "
+                       f"record runs through those pressures, or fit with more SMOOTHING")
     return fm, rms
 
 

@@ -7,8 +7,8 @@ import tomllib
 
 import pytest
 
-from ecu_stub.calibration import DEFAULT_CALIBRATION, CalibrationError, dump_calibration, load_calibration, \
-    parse_calibration, raw_sections
+from ecu_stub.calibration import DEFAULT_CALIBRATION, CalibrationError, FrictionMap, dump_calibration, \
+    load_calibration, parse_calibration, raw_sections, torque_falls
 from ecu_stub.cli import main
 
 TEXT = DEFAULT_CALIBRATION.read_text(encoding="utf-8")
@@ -50,6 +50,34 @@ def test_missing_key_and_bad_map_shape():
     raw["friction"]["mu"] = {**raw["friction"]["mu"], "value": [[[0.07, 0.07]]]}
     with pytest.raises(CalibrationError, match=r"friction\.mu: must be"):
         parse_calibration(dump_calibration(raw))
+
+
+def test_torque_falls_by_hand():
+    """M = mu P on one node, pressures 1 and 2 MPa: mu 0.2 -> 0.15 gives M 0.2 -> 0.3, rising (dM/dP = a + 2 b P,
+    a = 0.25, b = -0.05: 0.15 and 0.05); mu 0.2 -> 0.05 gives 0.2 -> 0.1 (dM/dP 0.05 at 1 MPa, -0.25 at 2 MPa);
+    mu 0.2 -> 0.1 gives 0.2 -> 0.2, flat at 2 MPa (dM/dP 0.1 and -0.1: falling inside the span, M 0.225 at
+    1.5 MPa)."""
+    def node(mu_hi: float) -> FrictionMap:
+        return FrictionMap((20.0, 300.0), (0.0, 100.0), (1.0, 2.0), (((0.2, mu_hi),) * 2,) * 2)
+
+    assert torque_falls(node(0.15)) is None
+    assert torque_falls(node(0.05)) == (20.0, 0.0, 1.0, 2.0)
+    assert torque_falls(node(0.1)) == (20.0, 0.0, 1.0, 2.0)
+    assert torque_falls(load_calibration().friction) is None  # the shipped map: one pressure for each torque
+
+
+def test_a_map_whose_torque_falls_with_pressure_is_refused():
+    raw = raw_sections()
+    mu = [[list(cell) for cell in row] for row in raw["friction"]["mu"]["value"]]
+    T, slip, P = raw["friction"]["T_grid_c"]["value"], raw["friction"]["slip_grid_rpm"]["value"], \
+        raw["friction"]["P_grid_mpa"]["value"]
+    k = P.index(1.0)
+    mu[3][5][k + 1] = 0.5 * mu[3][5][k] * P[k] / P[k + 1]  # M at the next node half of M at 1 MPa
+    raw["friction"]["mu"] = {**raw["friction"]["mu"], "value": mu}
+    with pytest.raises(CalibrationError) as exc:
+        parse_calibration(dump_calibration(raw))
+    assert str(exc.value) == (f"friction.mu: the torque mu P falls as the pressure rises at {T[3]:g} degC, "
+                              f"{slip[5]:g} r/min, 1-{P[k + 1]:g} MPa (the pressure for a torque needs it rising)")
 
 
 def test_cli_reports_a_bad_calibration_file(tmp_path, capsys):

@@ -13,7 +13,8 @@ import pytest
 from dsg_hil.physics.friction import mean_friction_radius
 from dsg_hil.physics.params import load_params
 from dsg_hil.testing import run_plant
-from ecu_stub.calibration import DEFAULT_CALIBRATION, load_calibration
+from dsg_hil.common.errors import LogError
+from ecu_stub.calibration import DEFAULT_CALIBRATION, load_calibration, torque_falls
 from ecu_stub.identify import EXIT_STALE, check, main
 from tests.sim.test_closed_loop import closed_loop, creep_scenario
 
@@ -159,6 +160,25 @@ def test_cross_validation_scores_each_smoothing_on_held_out_runs():
     cv = cross_validate(s, (0.01, 1.0, 1000.0))
     assert set(cv) == {0.01, 1.0, 1000.0} and all(np.isfinite(list(cv.values())))
     assert cv[1000.0] > cv[1.0]  # a flat map misses the pressure dependence on the held-out runs
+
+
+def test_a_fit_whose_torque_falls_with_pressure_is_refused():
+    """Samples whose mu falls faster than 1/P (mu P from 0.15 at 0.5 MPa to 0.03 at 1.5 MPa): the fitted map would
+    give two pressures for one torque, so the fit is refused naming where (a LogError: exit 2, nothing written)."""
+    import numpy as np
+
+    from ecu_stub.identify import MuSamples, fit_friction_map
+
+    rng = np.random.default_rng(2)
+    k = 2000
+    T, n, P = rng.uniform(20, 300, k), rng.uniform(0, 400, k), rng.uniform(0.5, 1.5, k)
+    mu = 0.3 - 0.28 * (P - 0.5)
+    with pytest.raises(LogError, match=r"friction map: these runs give a torque mu P falling as the pressure rises "
+                                       r"at .* degC, .* r/min, .*-.* MPa"):
+        fit_friction_map([], samples=MuSamples(T, n, P, mu, np.arange(k) % 4, np.zeros(k, bool)))
+    rising = MuSamples(T, n, P, 0.1 + 0.0 * P, np.arange(k) % 4, np.zeros(k, bool))
+    fm, _ = fit_friction_map([], samples=rising)
+    assert torque_falls(fm) is None
 
 
 def test_map_only_logs_enter_the_map_and_the_command(recorded, tmp_path, capsys):
