@@ -31,10 +31,10 @@ def records(out: Path, ids: list[str], beyond: tuple[str, float] | None) -> list
             raise ValueError(f"{out}/runs: no run {ident}")
         chosen.update(found)
     if beyond is not None:
-        import pyarrow.dataset as ds  # noqa: PLC0415 - the sweep extra
+        from dsg_hil.sweep.results import read_table  # noqa: PLC0415 - pyarrow: the sweep extra
 
         key, limit = beyond
-        rows = ds.dataset(out / "table").to_table().to_pylist()
+        rows = read_table(out).to_pylist()
         if rows and key not in rows[0]:
             raise ValueError(f"{out}/table: no column {key}")
         chosen.update(r["run_id"] for r in rows if r.get(key) is not None and float(r[key]) > limit)

@@ -24,10 +24,10 @@ USED_C = 235.0  # the hotter clutch used to at least this before an overheat sto
 
 
 def findings(out: Path) -> dict:
-    import pyarrow.dataset as ds  # noqa: PLC0415 - the sweep extra
+    from dsg_hil.sweep.results import read_table  # noqa: PLC0415 - pyarrow: the sweep extra
 
     try:
-        rows = ds.dataset(out / "table").to_table().to_pylist()
+        rows = read_table(out).to_pylist()
     except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError: a file that is not Parquet
         raise ValueError(f"{out}/table: not a sweep's table ({str(exc).splitlines()[0]})") from exc
     if not rows:
@@ -42,6 +42,7 @@ def findings(out: Path) -> dict:
     predicted = [r["min_margin_c.predicted"] for r in judged if r.get("min_margin_c.predicted") is not None]
     through = [(r["handover_deviation_pct"], r["run_id"]) for r in judged
                if r.get("handover_deviation_pct") is not None]  # (a table of a sweep before the key: none)
+    unbraked = [r for r in judged if (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT]
     return {
         "runs": len(rows), "judged": len(judged), "codes": sorted({r.get("code") for r in rows} - {None}),
         "violating": [(r["run_id"], r["violations"]) for r in rows if r["verdict"] == "violation"],
@@ -64,11 +65,9 @@ def findings(out: Path) -> dict:
         "handover_judged_runs": len(through),
         f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_runs": sum(d > HANDOVER_DRIVABLE_PCT for d, _ in through),
         "handover_deviation_max": max(through) if through else None,
-        f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_unbraked_runs": sum(
-            (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT for r in judged),
+        f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_unbraked_runs": len(unbraked),
         f"handover_beyond_{HANDOVER_DRIVABLE_PCT:g}_pct_unbraked_no_fault": sorted(
-            (r["handover_deviation_unbraked_pct"], r["run_id"]) for r in judged
-            if (r.get("handover_deviation_unbraked_pct") or 0.0) > HANDOVER_DRIVABLE_PCT and not r.get("in.fault")),
+            (r["handover_deviation_unbraked_pct"], r["run_id"]) for r in unbraked if not r.get("in.fault")),
         "fault_unexplained_max_s": max(r["fault_unexplained_s"] or 0.0 for r in judged),
     }
 
