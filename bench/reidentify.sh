@@ -1,14 +1,15 @@
 #!/bin/sh
 # Re-identify the TCU calibration on the current plant (issue 18): record the identification runs (eleven of creep,
-# 44 short torque handovers, 12 launches on a cool CH, heavy or cold: ecu_stub/data/identification) in
-# lock-step with the bundled ecu-stub and its current calibration, then fit and write the calibration, with the
-# commit and calibration the logs were recorded with in its header (identify --provenance).
+# 44 short torque handovers, 28 launches handed over to a cool CH: heavy, cold, at low slip or at high pressure;
+# ecu_stub/data/identification) in lock-step with the bundled ecu-stub and its current calibration, then fit and
+# write the calibration, with the commit and calibration the logs were recorded with in its header
+# (identify --provenance).
 #
 #   bench/reidentify.sh LOGDIR [CALIBRATION_OUT]   (from the repository root; default out: the shipped file)
 #   bench/reidentify.sh --check LOGDIR             record the runs, fit nothing: exit 1 if the shipped
 #                                                  calibration's predictor exceeds its own prediction_error_k
 #
-# PYTHON: the interpreter (default: python). About 2.5 min on one core (1 min creep runs, 1.5 min handovers and
+# PYTHON: the interpreter (default: python). About 3.5 min on one core (1 min creep runs, 2.5 min handovers and
 # heavy launches, fit).
 # Re-run after any plant change, then
 # tests/sim/test_closed_loop.py, tests/ecu_stub and tests/paper (docs/safety.md, section 1).

@@ -23,7 +23,7 @@ LAG = 0.05  # strategy.hydraulic_lag_s [s]
 Q_P = 0.0001  # half a DBC step of P_CL plus of P_CL_Cmd [MPa]
 I_A = 5.3585  # Table I's i_a
 Q_N = 0.05 + 0.125 / I_A  # half a DBC step of ClutchInputSpeed plus of EngineSpeed / i_a [r/min]
-SHARE = {"CL": 3.42 / (918.8 + 3.42), "CH": 74.75 / (911.86 + 74.75)}  # cooling / (K + cooling), calibration
+SHARE = {"CL": 3.42 / (918.48 + 3.42), "CH": 74.75 / (911.84 + 74.75)}  # cooling / (K + cooling), calibration
 
 
 def first_failing(results) -> int | None:
