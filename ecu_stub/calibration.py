@@ -64,7 +64,8 @@ class SpeedControl:
     ki_n_per_m: float = c("N/m", 0.0, 1e8)
     force_rate_n_per_s: float = c("N/s", 1.0, 1e8)
     P_max_mpa: float = c("MPa", 0.1, 1.5)
-    overspeed_fraction: float = c("1", 0.0, 1.0)  # over target by this (clutch force zero): the brake is requested
+    overspeed_fraction: float = c("1", 0.0, 1.0)  # over target by this, the brakes at their limit: the full brake
+    decel_max_mps2: float = c("m/s^2", 0.0, 12.0)  # the most deceleration the speed control asks of the brakes
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,13 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
 * HANDOVER: a torque handover as in a DCT shift: over ``handover_time_s`` the on-coming clutch takes a growing
   share x of the wheel force and the off-going the rest (1 - x), each converted to pressure by its own model,
   while the speed controller keeps running; if the thermal monitor releases the off-going clutch faster than its
-  share, the on-coming one takes the force it no longer gives. Downhill (no clutch can brake at creep speed) the
-  brake is requested once the vehicle is ``speed.overspeed_fraction`` over its target and still speeding up, until
-  it stands.
+  share, the on-coming one takes the force it no longer gives.
+* Downhill (no clutch can brake at creep speed: both slip forwards) the speed controller's wheel force goes negative
+  and its negative part is asked of the brakes as a deceleration (TCU_CMD.DecelRequest: the force over the nominal
+  mass ``vehicle.m_kg``, up to ``speed.decel_max_mps2``; :meth:`decel_request`), as a DCT asks the ESC: the vehicle
+  holds its target speed. Only if it is still ``speed.overspeed_fraction`` over its target and speeding up with
+  that request at its limit and both clutches open (brakes that do not follow it) is the full brake requested
+  (TCU_STATUS.BrakeRequest), until it stands.
 * The handover starts when the active clutch's *predicted* plate temperature reaches its limit
   ``T_safe - prediction_error_k - dT_crossover`` (``dT_crossover``: the heat still coming into the off-going plate
   while its share ramps out and its pressure lags, at the friction power it would have through the crossover
@@ -129,13 +133,16 @@ class TcuOutputs:
     T_CL_pred_c: float
     T_CH_pred_c: float
     fault_bits: int
+    decel_request_mps2: float = 0.0  # asked of the brakes (TCU_CMD.DecelRequest; CreepController.decel_request)
 
 
 class CreepController:
     def __init__(self, cal: TcuCalibration | None = None) -> None:
         self.cal = cal or load_calibration()
         s = self.cal.speed
-        self.pid = PID(s.kp_n_per_mps, s.ki_n_per_m, 0.0, 0.0, 1e9, s.force_rate_n_per_s)
+        # the wheel force's negative part goes to the brakes as a deceleration of the nominal mass (decel_request)
+        self.pid = PID(s.kp_n_per_mps, s.ki_n_per_m, 0.0, -self.cal.vehicle.m_kg * s.decel_max_mps2, 1e9,
+                       s.force_rate_n_per_s)
         self.state = "IDLE"
         self.active = "NONE"
         self.T_pred: dict[str, float] | None = None
@@ -415,7 +422,7 @@ class CreepController:
             P = self.P_cmd[self.active] = self.pressure_for(self.active, self.F_cmd, inp)
             if inp.pressure_trusted and inp.pressure_mpa(self.active) >= self.cal.launch.prefill_ready_fraction * P:
                 self.state, self.brake_request = "CREEP", False
-                self.pid.reset(self.F_cmd)
+                self.pid.reset(self._creep_start_force())
                 self.v_ref = max(inp.v_mps, 0.0)
         elif self.state == "CREEP":
             self.F_cmd = self._speed_control(v_err, dt, self.active, inp)
@@ -490,10 +497,12 @@ class CreepController:
         return self._outputs(faults)
 
     def _hold_speed(self, inp: TcuInputs, last: TcuInputs) -> None:
-        """Downhill: at creep speeds both clutches slip forwards and cannot brake, so once the vehicle is more than
-        ``speed.overspeed_fraction`` over its target and still speeding up with both clutches open, the TCU
-        requests the brake (speed controller held at zero force) until the vehicle stands: long enough for the
-        request to reach the brakes (TCU_STATUS), which stop it at once (one bit: the full service brake).
+        """Downhill: at creep speeds both clutches slip forwards and cannot brake; the speed controller asks the
+        brakes for a deceleration (:meth:`decel_request`). Should the vehicle still be more than
+        ``speed.overspeed_fraction`` over its target and speeding up with that request at its limit and both
+        clutches open (brakes that do not follow the request), the TCU requests the full brake (speed controller
+        held at zero force) until the vehicle stands: long enough for the request to reach the brakes (TCU_STATUS),
+        which stop it at once (one bit: the full service brake).
 
         The clutches not following their commands (a measured pressure implausible against the command,
         ``inp.pressure_trusted`` False: a valve that builds no pressure, or the TCU's commands lost on the bus, after
@@ -507,7 +516,9 @@ class CreepController:
         launch's overshoot (+7 % on Table I's grade) is not a runaway. A sensor reading wrong on a clutch that
         works moves the vehicle as commanded: no brake against the clutch."""
         # speeding up with both clutches open (commanded and measured): the slope pushes, not a lagging piston
-        pushed = inp.v_mps > last.v_mps and self.F_cmd <= 0.0 and max(inp.P_CL_mpa, inp.P_CH_mpa) < CLUTCH_OPEN_MPA
+        # (and the brakes' deceleration at its limit: they do not hold it)
+        pushed = (inp.v_mps > last.v_mps and self.F_cmd <= self.pid.out_min
+                  and max(inp.P_CL_mpa, inp.P_CH_mpa) < CLUTCH_OPEN_MPA)
         braking = self.brake_request
         over = inp.v_mps > inp.desired_speed_mps * (1.0 + self.cal.speed.overspeed_fraction)
         standstill = self.cal.launch.standstill_mps
@@ -586,6 +597,19 @@ class CreepController:
                         launch.push_fraction * self.cal.vehicle.m_min_kg * G_MPS2 * (s + f * c))
         return max(launch.F_prefill_n, force)
 
+    def _creep_start_force(self) -> float:
+        """Wheel force [N] the speed controller starts a creep from once the pre-fill carries: the pre-fill's, but
+        downhill, where the grade read at the standstill pushes the vehicle harder than it rolls
+        (sin a + f cos a < 0), the nominal vehicle's road load ``vehicle.m_kg`` g (sin a + f cos a), a braking force
+        (:meth:`decel_request`): started from the pre-fill, the integral took over a second to unwind and the launch
+        overshot (-0.15 rad, 0.206 m/s asked: 0.251 m/s, +22 %)."""
+        if self.sin_grade is not None:
+            s = self.sin_grade
+            load = s + self.cal.vehicle.f_roll * math.sqrt(1.0 - s * s)
+            if load < 0.0:
+                return self.cal.vehicle.m_kg * G_MPS2 * load
+        return self.F_cmd
+
     def _idle(self, inp: TcuInputs, pedal: bool, now: float) -> None:
         """No creep wanted (or not yet allowed): clutches open (ramping out over ``stop_release_s`` if
         :attr:`releasing`), and the vehicle held by the brake request unless the driver brakes a moving vehicle
@@ -616,7 +640,15 @@ class CreepController:
         self.F_cmd = 0.0
         return self._outputs(faults)
 
+    def decel_request(self) -> float:
+        """Deceleration [m/s^2] asked of the brakes (TCU_CMD.DecelRequest): in CREEP and HANDOVER, the negative part
+        of the speed controller's wheel force over the nominal mass ``vehicle.m_kg`` (its integral makes up for
+        another mass), at most ``speed.decel_max_mps2``; none while the full brake is requested."""
+        if self.F_cmd >= 0.0 or self.brake_request or self.state not in ("CREEP", "HANDOVER"):
+            return 0.0
+        return min(-self.F_cmd / self.cal.vehicle.m_kg, self.cal.speed.decel_max_mps2)
+
     def _outputs(self, faults: int) -> TcuOutputs:
         T = self.T_pred or {"CL": 0.0, "CH": 0.0}
         return TcuOutputs(self.P_cmd["CL"], self.P_cmd["CH"], self.state, self.active, self.brake_request,
-                          T["CL"], T["CH"], faults)
+                          T["CL"], T["CH"], faults, self.decel_request())

@@ -62,7 +62,7 @@ TCU_RX = {
     "SIM_SYNC": ("Tick",),
 }
 TCU_TX = {
-    "TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"),
+    "TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho", "DecelRequest"),
     "TCU_STATUS": ("State", "ActiveClutch", "BrakeRequest", "T_CL_Pred", "T_CH_Pred", "FaultBits"),
 }
 TCU_USES = {**TCU_RX, **TCU_TX}
@@ -71,7 +71,8 @@ TX_VALUES = {  # by message sent, in the order of an answer (TCU_CMD last), each
     "TCU_STATUS": {"State": "states[out.state]", "ActiveClutch": "clutches[out.active_clutch]",
                    "BrakeRequest": "float(out.brake_request)", "T_CL_Pred": "out.T_CL_pred_c",
                    "T_CH_Pred": "out.T_CH_pred_c", "FaultBits": "out.fault_bits"},
-    "TCU_CMD": {"P_CL_Cmd": "out.P_CL_cmd_mpa", "P_CH_Cmd": "out.P_CH_cmd_mpa", "SyncEcho": "echo"},
+    "TCU_CMD": {"P_CL_Cmd": "out.P_CL_cmd_mpa", "P_CH_Cmd": "out.P_CH_cmd_mpa", "SyncEcho": "echo",
+                "DecelRequest": "out.decel_request_mps2"},
 }
 REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
@@ -233,7 +234,7 @@ class TcuRunner:
         self.now = tick_ms / CV.S_TO_MS if lockstep else now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
-        if out.brake_request:
+        if out.brake_request or out.decel_request_mps2 > 0.0:  # (the speed vote's step check: any deceleration)
             self._braked_at = now
         if self.sensor_checks is not None:
             self.sensor_checks.commanded(out.P_CL_cmd_mpa, out.P_CH_cmd_mpa)

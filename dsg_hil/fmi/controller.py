@@ -9,7 +9,8 @@ lock-step answers are ecu-stub's, :class:`ecu_stub.runner.TcuRunner`)::
 The FMU's variables are matched to the DBC's by name (:data:`~dsg_hil.fmi.signals.TCU_INPUTS`, ``TCU_OUTPUTS``,
 plus ``PlantValid`` and ``RxFaultBits`` from the receive checks), or through a mapping ``{FMU variable: DBC
 signal}`` (a TOML file of ``"FMU name" = "DBC signal"`` lines). Every FMU input must be one of those, every TCU
-output (TCU_CMD's pressures, TCU_STATUS's signals) an FMU output; all are Reals in the DBC's units. Each control
+output (TCU_CMD's pressures, TCU_STATUS's signals) an FMU output but ``DecelRequest`` (optional: 0, no deceleration
+asked, without one); all are Reals in the DBC's units. Each control
 cycle at ``now`` sets the inputs and calls ``doStep(now, cycle)`` (``cycle``: the DBC's TCU_CMD cycle time); the
 outputs are the cycle's commands (:mod:`dsg_hil.fmi.tcu`).
 
@@ -36,7 +37,7 @@ from ..common.errors import InputError, RunError
 from ..common.files import read_input_file
 from ..protocol import Codec
 from .signals import BUS_INPUTS, TCU_INPUTS, TCU_OUTPUTS
-from .tcu import ValueTables, input_values, tcu_outputs
+from .tcu import OPTIONAL_OUTPUTS, ValueTables, input_values, tcu_outputs
 
 __all__ = ["ControllerFmu", "FmuController", "FmuError", "load_mapping", "open_controller"]
 
@@ -109,7 +110,7 @@ class ControllerFmu:
                              and v.causality == variable.causality)
                 raise FmuError(f"{self.path}: {other!r} and {variable.name!r} both map to the DBC signal {signal!r}")
             side[signal] = variable.valueReference
-        missing = [name for name in sorted(writable) if name not in outputs]
+        missing = [name for name in sorted(writable) if name not in outputs and name not in OPTIONAL_OUTPUTS]
         if missing:
             raise FmuError(f"{self.path}: no output variable for the DBC signal {missing[0]!r} (the TCU sends "
                            f"{', '.join(sorted(writable))}; or map one in a mapping file)")

@@ -1,8 +1,9 @@
 """The plant as an FMI 2.0 co-simulation slave (PythonFMU): :class:`PlantSlave` wraps
 :class:`dsg_hil.physics.plant.Plant`.
 
-* Inputs (DBC names and units, :data:`~dsg_hil.fmi.signals.PLANT_INPUTS`): the TCU's pressure commands and brake
-  request, the driver's creep request, brake pedal and desired speed (a host scripts the scenario with them).
+* Inputs (DBC names and units, :data:`~dsg_hil.fmi.signals.PLANT_INPUTS`): the TCU's pressure commands, brake
+  request and deceleration request, the driver's creep request, brake pedal and desired speed (a host scripts the
+  scenario with them).
 * Outputs (:data:`~dsg_hil.fmi.signals.PLANT_OUTPUTS`): every signal the plant sends on CAN but the driver's,
   the simulation-only truth (SIM_*) included, in the DBC's units, computed by the plant's own encoder table
   (:func:`dsg_hil.sim.plant_io.plant_signals`) but not quantised to the DBC's resolution.
@@ -10,9 +11,9 @@
   state (``init.*``, default: the shipped creep scenario) and the fixed internal step ``dt``.
 
 A communication step must be a whole number of internal steps (else the step fails with fmi2Error); over it the
-inputs are held, as in :meth:`Plant.advance`: brake = max(BrakePedal, BrakeRequest), grade and engine speed those
-of the parameters (``vehicle.beta``, idle). The FMU state (get/set/serialise) is the plant's whole state array,
-its last outputs, the inputs and the parameters, so a host can roll back to the bit.
+inputs are held, as in :meth:`Plant.advance`: brake = max(BrakePedal, BrakeRequest, the brake for DecelRequest),
+grade and engine speed those of the parameters (``vehicle.beta``, idle). The FMU state (get/set/serialise) is the
+plant's whole state array, its last outputs, the inputs and the parameters, so a host can roll back to the bit.
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from pythonfmu import DefaultExperiment, Fmi2Causality
 
 from ..physics.params import Params, load_params, with_overrides
 from ..physics.plant import Plant, PlantInputs, PlantOutputs
-from ..sim.plant_io import SIGNALS, commanded_pressures, plant_signals
+from ..physics.powertrain import brake_for_decel
+from ..sim.plant_io import SIGNALS, commanded_decel, commanded_pressures, plant_signals
 from ..sim.run import plant_for
 from ..sim.scenario import DriverInput, Scenario, load_scenario
 from .export import PARAMS_RESOURCE
@@ -109,9 +111,13 @@ class PlantSlave(SignalSlave):
 
     def inputs(self) -> PlantInputs:
         """The plant's inputs from the input variables, converted to SI as the plant's CAN edge converts them."""
-        v = self.values
+        v, plant = self.values, self.plant
+        if plant is None:
+            raise RuntimeError("inputs before the FMU's initialization")
         P_CL, P_CH = commanded_pressures(v)
         brake = max(v["BrakePedal"] * _PERCENT, v["BrakeRequest"])
+        if (decel := commanded_decel(v)) > 0.0:  # the brakes as a brake controller takes a deceleration
+            brake = max(brake, brake_for_decel(decel, plant.params.vehicle))
         return PlantInputs(P_CL_cmd=P_CL, P_CH_cmd=P_CH, brake=brake)
 
     def _publish(self, out: PlantOutputs) -> None:

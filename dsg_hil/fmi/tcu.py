@@ -20,7 +20,7 @@ from ..protocol import Codec, load_dbc
 from ..protocol.lockstep import choices
 from .signals import BUS_INPUTS
 
-__all__ = ["INPUT_FIELDS", "OUTPUT_FIELDS", "ValueTables", "input_values", "output_values",
+__all__ = ["INPUT_FIELDS", "OPTIONAL_OUTPUTS", "OUTPUT_FIELDS", "ValueTables", "input_values", "output_values",
            "tcu_inputs", "tcu_outputs"]
 
 # DBC signal (FMU variable) -> the field of ecu-stub's TcuInputs / TcuOutputs (as ecu_stub.runner fills them)
@@ -30,9 +30,10 @@ INPUT_FIELDS = {"EngineSpeed": "engine_speed_rpm", "ClutchInputSpeed": "clutch_i
                 "T_OilCL": "T_oil_CL_c", "T_OilCH": "T_oil_CH_c", "T_Sump": "T_sump_c",
                 "CreepRequest": "creep_request", "BrakePedal": "brake_pct", "DesiredCreepSpeed": "desired_speed_mps",
                 **BUS_INPUTS}
-OUTPUT_FIELDS = {"P_CL_Cmd": "P_CL_cmd_mpa", "P_CH_Cmd": "P_CH_cmd_mpa", "State": "state",
-                 "ActiveClutch": "active_clutch", "BrakeRequest": "brake_request", "T_CL_Pred": "T_CL_pred_c",
-                 "T_CH_Pred": "T_CH_pred_c", "FaultBits": "fault_bits"}
+OUTPUT_FIELDS = {"P_CL_Cmd": "P_CL_cmd_mpa", "P_CH_Cmd": "P_CH_cmd_mpa", "DecelRequest": "decel_request_mps2",
+                 "State": "state", "ActiveClutch": "active_clutch", "BrakeRequest": "brake_request",
+                 "T_CL_Pred": "T_CL_pred_c", "T_CH_Pred": "T_CH_pred_c", "FaultBits": "fault_bits"}
+OPTIONAL_OUTPUTS = {"DecelRequest": 0.0}  # a controller FMU may leave these out: this value then (no deceleration)
 _FLAGS = {"plant_valid", "creep_request", "brake_request"}  # 0.0 / 1.0 on the FMU side
 _WHOLE = {"fault_bits"}
 
@@ -57,7 +58,7 @@ def _fields(values: Mapping[str, float], table: Mapping[str, str]) -> dict[str, 
     """The dataclass fields of FMU values by ``table`` (flags: >= 0.5, as the TCU reads a 1-bit signal)."""
     fields: dict[str, Any] = {}
     for name, field in table.items():
-        value = values[name]
+        value = values[name] if name in values or name not in OPTIONAL_OUTPUTS else OPTIONAL_OUTPUTS[name]
         fields[field] = value >= 0.5 if field in _FLAGS else int(value) if field in _WHOLE else value
     return fields
 

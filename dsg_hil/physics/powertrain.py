@@ -41,9 +41,8 @@ from .params import Powertrain, Vehicle
 from .thermal import zoh
 
 __all__ = ["CONTACTS", "CONTACT_INPUTS", "DOFS", "Discrete", "IDX", "INPUTS", "Model", "N_DOF", "N_SPRING", "N_STATE",
-           "SPRINGS", "build_model", "contact_velocities", "discretize", "holding_torque", "law_rows", "road_load",
-           "solve_contacts",
-           "solve_contacts_into", "vehicle_speed"]
+           "SPRINGS", "brake_for_decel", "build_model", "contact_velocities", "discretize", "holding_torque",
+           "law_rows", "road_load", "solve_contacts", "solve_contacts_into", "vehicle_speed"]
 
 DOFS = ("e", "in", "1", "2", "3", "4", "5")
 SPRINGS = ("in", "a1", "a2L", "a2H", "a3")
@@ -236,6 +235,16 @@ def solve_contacts_into(v_free: np.ndarray, W: np.ndarray, cap: np.ndarray, limi
 def vehicle_speed(omega_5: float, i_b: float, r_w: float) -> float:
     """Vehicle speed [m/s] from shaft III speed omega_5 [rad/s] (12): final drive ratio i_b, wheel radius r_w."""
     return omega_5 / i_b * r_w
+
+
+def brake_for_decel(decel: float, vehicle: Vehicle) -> float:
+    """Brake request (0..1 of ``M_brake_max``) for a deceleration ``decel`` [m/s^2] asked of the service brakes, as a
+    brake controller (ESC) takes a deceleration request: the wheel torque m decel r_w that decelerates this vehicle by
+    that much on its own, clamped to the brake's range (0 for none or less). The ESC knows the vehicle's mass (its
+    own estimate, here the truth) and closes no loop of its own: the requester's speed control does."""
+    if not decel > 0.0 or vehicle.M_brake_max <= 0.0:
+        return 0.0
+    return min(vehicle.m * decel * vehicle.r_w / vehicle.M_brake_max, 1.0)
 
 
 @compiled

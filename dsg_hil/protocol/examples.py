@@ -18,7 +18,7 @@ EXAMPLE_VALUES: dict[str, dict[str, float]] = {
     "PLANT_PRESSURE": {"P_CL": 0.5012, "P_CH": 0.0},
     "PLANT_OIL_TEMP": {"T_OilCL": 104.2, "T_OilCH": 96.5, "T_Sump": 92.0, "T_RadiatorOut": 88.4},
     "DRIVER": {"CreepRequest": 1, "BrakePedal": 0.0, "DesiredCreepSpeed": 0.22},
-    "TCU_CMD": {"P_CL_Cmd": 0.5, "P_CH_Cmd": 0.0, "SyncEcho": 0x2A},
+    "TCU_CMD": {"P_CL_Cmd": 0.5, "P_CH_Cmd": 0.0, "SyncEcho": 0x2A, "DecelRequest": 0.0},
     "TCU_STATUS": {"State": 2, "ActiveClutch": 1, "BrakeRequest": 0, "T_CL_Pred": 187.4, "T_CH_Pred": 101.2,
                    "FaultBits": 0},
     "SIM_TRUTH_CL": {"T_Plate": 188.1, "Mu": 0.0655, "Torque": 842.5, "HeatFlux": 7820.0},

@@ -14,7 +14,7 @@ from ..physics.plant import PlantOutputs
 from ..protocol.codec import Codec
 from .scenario import DriverInput
 
-__all__ = ["LOCKSTEP", "PLANT_RX", "PLANT_TX", "PLANT_USES", "SIGNALS", "SYNC",
+__all__ = ["LOCKSTEP", "PLANT_RX", "PLANT_TX", "PLANT_USES", "SIGNALS", "SYNC", "commanded_decel",
            "commanded_pressures", "encoder_source", "frame_encoder", "plant_signals", "value_sources"]
 
 PLANT_TX = {
@@ -30,7 +30,7 @@ PLANT_TX = {
 }
 SYNC = "SIM_SYNC"
 PLANT_RX = {
-    "TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"),
+    "TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho", "DecelRequest"),
     "TCU_STATUS": ("State", "ActiveClutch", "BrakeRequest", "T_CL_Pred", "T_CH_Pred", "FaultBits"),
 }
 PLANT_USES = {**PLANT_TX, SYNC: ("Tick",), **PLANT_RX}
@@ -70,6 +70,7 @@ SIGNALS: dict[tuple[str, str], tuple[str, float]] = {
     ("SIM_HEAT", "HeatDissCH"): ("Q_diss_CH", 1.0),
     ("TCU_CMD", "P_CL_Cmd"): ("P_CL_cmd", _MPA),
     ("TCU_CMD", "P_CH_Cmd"): ("P_CH_cmd", _MPA),
+    ("TCU_CMD", "DecelRequest"): ("decel_request", 1.0),
     ("TCU_STATUS", "State"): ("tcu_state", 1.0),
     ("TCU_STATUS", "ActiveClutch"): ("active_clutch", 1.0),
     ("TCU_STATUS", "BrakeRequest"): ("brake_request", 1.0),
@@ -134,8 +135,15 @@ def frame_encoder(codec: Codec, message: str) -> Callable[[PlantOutputs, DriverI
 (_CL, _CL_TO_PA), (_CH, _CH_TO_PA) = (
     next((signal, factor) for (message, signal), (name, factor) in SIGNALS.items() if (message, name) == key)
     for key in (("TCU_CMD", "P_CL_cmd"), ("TCU_CMD", "P_CH_cmd")))
+_DECEL, _DECEL_FACTOR = next((signal, factor) for (message, signal), (name, factor) in SIGNALS.items()
+                             if (message, name) == ("TCU_CMD", "decel_request"))
 
 
 def commanded_pressures(values: Mapping[str, float]) -> tuple[float, float]:
     """(P_CL_cmd, P_CH_cmd) [Pa] of a decoded TCU_CMD's values (:data:`SIGNALS`)."""
     return values[_CL] * _CL_TO_PA, values[_CH] * _CH_TO_PA
+
+
+def commanded_decel(values: Mapping[str, float]) -> float:
+    """The deceleration [m/s^2] a decoded TCU_CMD asks of the brakes (:data:`SIGNALS`; 0 from a TCU_CMD without it)."""
+    return values.get(_DECEL, 0.0) * _DECEL_FACTOR

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..common.units import CV
 from ..physics.plant import N_OUT, Plant, PlantInputs, PlantOutputs
-from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, commanded_pressures, frame_encoder
+from ..physics.powertrain import brake_for_decel
+from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, commanded_decel, commanded_pressures, frame_encoder
 from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import data_frame
@@ -62,6 +63,7 @@ class PlantRunner:
         self.out: PlantOutputs = plant.outputs()
         self.command_valid = False
         self.P_cmd = (0.0, 0.0)
+        self.decel_cmd = 0.0  # TCU_CMD.DecelRequest [m/s^2]: the brakes' deceleration, while the command is valid
         self.sent = 0
         self._names = {codec.frame_id(name): name for name in PLANT_USES}
         self._sent_by_id = dict.fromkeys(self._names, 0)  # frames sent (first transmissions, the ones logged)
@@ -245,7 +247,7 @@ class PlantRunner:
         """:meth:`_use` of a new frame of a lock-step answer (from the master), logged with ``stamp``."""
         if not self.listeners:  # _use, written out: every period
             if frame.name == "TCU_CMD":
-                self.P_cmd = commanded_pressures(frame.values)
+                self.P_cmd, self.decel_cmd = commanded_pressures(frame.values), commanded_decel(frame.values)
             elif frame.name == "TCU_STATUS":
                 self.summary.on_status(self.plant.state.t, frame.values, self.out)
         elif isinstance(item, tuple):
@@ -259,7 +261,7 @@ class PlantRunner:
         if msg is not None and self.listeners:
             self._log(msg)
         if frame.name == "TCU_CMD":
-            self.P_cmd = commanded_pressures(frame.values)
+            self.P_cmd, self.decel_cmd = commanded_pressures(frame.values), commanded_decel(frame.values)
         elif frame.name == "TCU_STATUS":
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
 
@@ -281,6 +283,8 @@ class PlantRunner:
         brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
         brake = max(driver.brake, brake_request)
+        if self.decel_cmd > 0.0 and self.command_valid:  # the brakes as a brake controller takes a deceleration
+            brake = max(brake, brake_for_decel(self.decel_cmd, self.plant.params.vehicle))
         held = self._held
         if held is not None and P_CL == held.P_CL_cmd and P_CH == held.P_CH_cmd and brake == held.brake:
             return held  # (grade and engine speed are the scenario's)

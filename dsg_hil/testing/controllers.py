@@ -34,7 +34,8 @@ class Controller(Protocol):
     of each plant message a TCU reads (``PLANT_ENGINE``, ``PLANT_SPEEDS``, ``PLANT_VEHICLE``, ``PLANT_PRESSURE``,
     ``PLANT_OIL_TEMP``, ``DRIVER``), ``{message: {signal: value}}`` in DBC units (r/min, m/s, MPa, degC, %); a
     message missing for 3 of its cycle times, or failing its counter or CRC check, is left out (as a real TCU's
-    timeout would). It returns the ``TCU_CMD`` signals ``P_CL_Cmd`` and ``P_CH_Cmd`` [MPa]; a missing one is 0.
+    timeout would). It returns the ``TCU_CMD`` signals ``P_CL_Cmd`` and ``P_CH_Cmd`` [MPa] and optionally
+    ``DecelRequest`` [m/s^2, asked of the brakes]; a missing one is 0.
     ``SyncEcho``, ``Counter`` and ``CRC`` are filled in for it, and a repeated tick is answered without a new step.
 
     Optional: ``status(t)`` returning ``TCU_STATUS`` signals (``State``, ``ActiveClutch``, ``BrakeRequest``,

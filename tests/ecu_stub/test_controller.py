@@ -420,3 +420,36 @@ def test_pid_anti_windup_rate_limit_and_bad_dt():
     assert pid.update(-0.5, 0.1) < 1.0  # comes off the limit at once when the error turns
     with pytest.raises(ValueError):
         pid.update(1.0, 0.0)
+
+
+def test_over_its_target_the_speed_control_asks_the_brakes_to_decelerate_and_the_full_brake_is_a_backstop():
+    """Downhill (0.3 m/s against 0.2, both clutches open and slipping forwards): the PI's wheel force goes negative
+    and its negative part is a deceleration of the nominal mass asked of the brakes. By hand: e = -0.1 m/s,
+    kp e = -8,000 N at once, the integral -16,000 N/s more, so within 1 s it reaches the limit
+    -m_kg decel_max = -7,840 x 2 = -15,680 N: 2.0 m/s^2 asked, the clutches at zero, no full brake while the
+    vehicle does not speed up. Speeding up at that limit (brakes that do not follow it), the full brake."""
+    ctrl, clock = creeping()
+    s = FLAT.speed
+    over = replace(CREEP, v_mps=0.3, P_CL_mpa=0.0, P_CH_mpa=0.0)
+    out = ctrl.update(over, clock.tick())
+    assert out.decel_request_mps2 == 0.0 or out.P_CL_cmd_mpa == 0.0  # never the clutch and the brakes at once
+    out = run(ctrl, clock, over, 1.0)
+    limit, step = -FLAT.vehicle.m_kg * s.decel_max_mps2, s.ki_n_per_m * 0.1 * DT  # (integrated to within a step)
+    assert limit <= ctrl.F_cmd <= limit + step
+    assert out.decel_request_mps2 == pytest.approx(-ctrl.F_cmd / FLAT.vehicle.m_kg, rel=1e-12)
+    assert out.decel_request_mps2 >= s.decel_max_mps2 - step / FLAT.vehicle.m_kg
+    assert out.P_CL_cmd_mpa == out.P_CH_cmd_mpa == 0.0
+    assert out.state == "CREEP" and not out.brake_request
+    v = 0.3
+    for _ in range(3):  # still speeding up with the brakes' deceleration at its limit: they do not hold it
+        v += 0.001
+        out = ctrl.update(replace(over, v_mps=v), clock.tick())
+    assert out.brake_request and out.decel_request_mps2 == 0.0
+    # back at its target with the brakes: the request eases (the integral unwinds), never below zero
+    ctrl, clock = creeping()
+    run(ctrl, clock, over, 1.0)
+    out = run(ctrl, clock, replace(over, v_mps=0.2), 0.2)
+    assert 0.0 < out.decel_request_mps2 < s.decel_max_mps2
+    # IDLE asks nothing of the brakes' deceleration (a standing vehicle is held by BrakeRequest)
+    out = run(ctrl, clock, BRAKED, 0.1)
+    assert out.state == "IDLE" and out.decel_request_mps2 == 0.0

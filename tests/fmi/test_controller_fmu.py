@@ -48,8 +48,8 @@ def test_a_mapping_renames_and_is_checked(fmus, tmp_path):
     with pytest.raises(FmuError, match="'EngineSpeed' and 'VehicleSpeed' both map to the DBC signal 'VehicleSpeed'"):
         open_controller(fmus["tcu"], mapping)
     with open_controller(fmus["tcu"], {"State": "State"}) as fmu:  # opened, not instantiated: no instance here
-        assert set(fmu.outputs) == {"P_CL_Cmd", "P_CH_Cmd", "State", "ActiveClutch", "BrakeRequest", "T_CL_Pred",
-                                    "T_CH_Pred", "FaultBits"}
+        assert set(fmu.outputs) == {"P_CL_Cmd", "P_CH_Cmd", "DecelRequest", "State", "ActiveClutch", "BrakeRequest",
+                                    "T_CL_Pred", "T_CH_Pred", "FaultBits"}
         assert "PlantValid" in fmu.inputs and "EngineSpeed" in fmu.inputs
 
 

@@ -35,8 +35,8 @@ def test_the_plant_fmu_has_the_dbc_s_signals_and_every_parameter(fmus):
     md = read_model_description(str(fmus["plant"]))
     by = {c: [v for v in md.modelVariables if v.causality == c] for c in ("input", "output", "parameter")}
     db = load_dbc()
-    assert [v.name for v in by["input"]] == ["P_CL_Cmd", "P_CH_Cmd", "BrakeRequest", "CreepRequest", "BrakePedal",
-                                             "DesiredCreepSpeed"]
+    assert [v.name for v in by["input"]] == ["P_CL_Cmd", "P_CH_Cmd", "DecelRequest", "BrakeRequest", "CreepRequest",
+                                             "BrakePedal", "DesiredCreepSpeed"]
     sent = [(m, s) for m, names in PLANT_TX.items() if m != "DRIVER" for s in names]
     assert len(by["output"]) == len(sent) == 24
     for variable, (message, signal) in zip(by["output"], sent):

@@ -10,6 +10,7 @@ import pytest
 from dsg_hil.physics.powertrain import (
     IDX,
     N_DOF,
+    brake_for_decel,
     build_model,
     discretize,
     holding_torque,
@@ -97,6 +98,17 @@ def test_holding_torque_is_the_breakaway_resistance_plus_the_brake(params):
     assert holding_torque(0.0, 0.5, veh) == pytest.approx(7840 * 9.81 * veh.f_breakaway * 0.1935
                                                           + 0.5 * veh.M_brake_max)
     assert holding_torque(0.08, 0.0, veh) < road_load(0.0, 0.08, 0.0, veh)[1]
+
+
+def test_a_deceleration_request_brakes_this_vehicle_by_that_much(params):
+    """By hand (Table I: 7840 kg, r_w 0.1935 m, M_brake_max 40 kN m): 0.5 m/s^2 is 7840 x 0.5 x 0.1935 = 758.5 N m
+    at the wheels, 0.01896 of the brake; none or less brakes nothing; beyond the brake's torque, all of it."""
+    veh = params.vehicle
+    assert brake_for_decel(0.5, veh) == pytest.approx(7840 * 0.5 * 0.1935 / 40000.0, rel=1e-12)
+    assert brake_for_decel(0.5, veh) * veh.M_brake_max / veh.r_w / veh.m == pytest.approx(0.5)  # F = m a
+    assert brake_for_decel(0.0, veh) == brake_for_decel(-1.0, veh) == 0.0
+    assert brake_for_decel(40000.0 / (7840 * 0.1935), veh) == pytest.approx(1.0)
+    assert brake_for_decel(100.0, veh) == 1.0
 
 
 def test_exact_step_matches_fine_rk4(params):
