@@ -572,8 +572,11 @@ class CreepController:
         this grade (the force as the TCU's clutch model has it, so the pre-fill it gives is what this vehicle needs
         through the same model). Learned only on a grade read at a standstill."""
         if self.sin_grade is not None:
-            s = self.sin_grade
-            self.F_creep, self.creep_load = self.F_cmd, s + self.cal.vehicle.f_roll * math.sqrt(1.0 - s * s)
+            self.F_creep, self.creep_load = self.F_cmd, self._load_per_weight(self.sin_grade)
+
+    def _load_per_weight(self, s: float) -> float:
+        """Road load per unit weight on a grade of sine ``s``, sin a + f cos a (f: ``vehicle.f_roll``)."""
+        return s + self.cal.vehicle.f_roll * math.sqrt(1.0 - s * s)
 
     def prefill_force(self) -> float:
         """Wheel force [N] of a launch's pre-fill, for the grade a read at the last standstill (:meth:`_read_grade`).
@@ -603,11 +606,8 @@ class CreepController:
         (sin a + f cos a < 0), the nominal vehicle's road load ``vehicle.m_kg`` g (sin a + f cos a), a braking force
         (:meth:`decel_request`): started from the pre-fill, the integral took over a second to unwind and the launch
         overshot (-0.15 rad, 0.206 m/s asked: 0.251 m/s, +22 %)."""
-        if self.sin_grade is not None:
-            s = self.sin_grade
-            load = s + self.cal.vehicle.f_roll * math.sqrt(1.0 - s * s)
-            if load < 0.0:
-                return self.cal.vehicle.m_kg * G_MPS2 * load
+        if self.sin_grade is not None and (load := self._load_per_weight(self.sin_grade)) < 0.0:
+            return self.cal.vehicle.m_kg * G_MPS2 * load
         return self.F_cmd
 
     def _idle(self, inp: TcuInputs, pedal: bool, now: float) -> None:

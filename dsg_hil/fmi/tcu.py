@@ -58,7 +58,7 @@ def _fields(values: Mapping[str, float], table: Mapping[str, str]) -> dict[str, 
     """The dataclass fields of FMU values by ``table`` (flags: >= 0.5, as the TCU reads a 1-bit signal)."""
     fields: dict[str, Any] = {}
     for name, field in table.items():
-        value = values[name] if name in values or name not in OPTIONAL_OUTPUTS else OPTIONAL_OUTPUTS[name]
+        value = values.get(name, OPTIONAL_OUTPUTS[name]) if name in OPTIONAL_OUTPUTS else values[name]
         fields[field] = value >= 0.5 if field in _FLAGS else int(value) if field in _WHOLE else value
     return fields
 

@@ -23,17 +23,22 @@ ROLLBACK_MAX_MPS = 0.01  # drivability: at most 10 mm/s backwards at a brake rel
 GRADE = 0.174  # Table I
 
 
-def creep(duration, events, grade=GRADE, idle=800.0, T_CL=100.0, T_CH=100.0, T_oil=100.0, faults="", mass=1.0):
-    """Summary of a closed-loop run: held on the brake for 1 s, then ``events`` (t, creep, brake 0..1, speed)."""
+def worst_case(duration, events, grade=GRADE, idle=800.0, T_CL=100.0, T_CH=100.0, T_oil=100.0, faults=""):
+    """A scenario held on the brake for 1 s, then ``events`` (t, creep, brake 0..1, speed)."""
     text = (f'name = "worst case"\nduration_s = {duration}\ngrade_rad = {grade}\nengine_speed_rpm = {idle}\n'
             f"[initial]\nT_CL_c = {T_CL}\nT_CH_c = {T_CH}\nT_clutch_c = {T_CL}\nT_oil_c = {T_oil}\nv_mps = 0.0\n")
     for t, request, brake, speed in [(0.0, False, 1.0, 0.0), *events]:
         text += (f"[[driver]]\nt_s = {t}\ncreep_request = {str(request).lower()}\nbrake = {brake}\n"
                  f"desired_speed_mps = {speed}\n")
+    return parse_scenario(text + faults, "worst case")
+
+
+def creep(duration, events, grade=GRADE, idle=800.0, T_CL=100.0, T_CH=100.0, T_oil=100.0, faults="", mass=1.0):
+    """Summary of a closed-loop run of :func:`worst_case` (``mass``: a factor on the vehicle's)."""
     params = load_params()
     if mass != 1.0:
         params = with_overrides(params, {"vehicle.m": params.vehicle.m * mass})
-    return run_closed_loop(parse_scenario(text + faults, "worst case"), params).summary
+    return run_closed_loop(worst_case(duration, events, grade, idle, T_CL, T_CH, T_oil, faults), params).summary
 
 
 def test_light_brake_drag_across_a_handover_decision_keeps_the_true_plate_under_t_safe():
@@ -388,11 +393,8 @@ def test_downhill_creep_holds_its_target_speed_with_the_brakes_deceleration():
     """-0.15 rad, 0.206 m/s requested: the speed control asks the brakes for the deceleration the slope needs
     (TCU_CMD.DecelRequest) and the vehicle holds its target. Before (the full brake, one bit, on at 5 % over and
     off at a standstill): a saw-tooth between 0 and 0.242 m/s, 63 brake requests in 50 s."""
-    text = (f'name = "downhill"\nduration_s = 30\ngrade_rad = -0.15\nengine_speed_rpm = 800\n'
-            "[initial]\nT_clutch_c = 100\nT_oil_c = 100\nv_mps = 0.0\n"
-            "[[driver]]\nt_s = 0.0\ncreep_request = false\nbrake = 1.0\ndesired_speed_mps = 0.0\n"
-            f"[[driver]]\nt_s = 1.0\ncreep_request = true\nbrake = 0.0\ndesired_speed_mps = {V_CREEP}\n")
-    with open_run(RunConfig(scenario=parse_scenario(text, "downhill"), truth=True)) as run:
+    scenario = worst_case(30.0, [(1.0, True, 0.0, V_CREEP)], grade=-0.15)
+    with open_run(RunConfig(scenario=scenario, truth=True)) as run:
         summary = run.run().as_json()
     truth = run.truth()
     settled = truth["v"][truth["t"] >= 10.0]
