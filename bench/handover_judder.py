@@ -1,0 +1,136 @@
+"""The slowest, heaviest handovers of issue 18's safety sample: is their speed dip the TCU's, or the plant's?
+
+The 5,000-run sample on the TCU of 7ecfd2f left three runs without a frame fault or the driver's pedal beyond
++-20 % of the desired speed through a handover (r00652 25.6 %, r00857 23.8 %, r01753 20.8 %): 6.2-8.3 t on 0.145-0.227
+rad at 0.053-0.086 m/s, each handed over from a hot CL to a cool CH (73-108 degC). This re-runs them (their inputs
+from the shipped space, as ``dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n 5000`` made them) with the shipped
+calibration and with the speed controller's gains scaled (``--gain`` factors; the calibration rewritten to a
+temporary file), and reports for each run
+
+* the summary's ``handover_deviation_unbraked_pct`` (the drivability check, +-20 %);
+* over the first steady stretch of creep on CH after its first handover (``--window`` seconds from 1 s after the
+  crossover, while nothing else changes): the vehicle's speed range about its target [%], the commanded CH
+  pressure's range [%] and CH's true slip range [r/min].
+
+A speed range that stays as wide with the pressure held within a few per cent, and with the gains halved, is the
+plant's own oscillation (the lining's friction falling with slip: formula (6) at a cool plate), not the loop's.
+
+    python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--json] [RUN ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from dsg_hil.sim.run import RunConfig, open_run
+from dsg_hil.sim.scenario import parse_scenario
+from dsg_hil.sweep.space import SAFETY_SPACE, load_space
+from ecu_stub.calibration import dump_calibration, raw_sections
+
+# the sample's runs (inputs as the sweep's table holds them; the generators' other settings do not act)
+RUNS: dict[str, dict[str, Any]] = {
+    "r00652": {"grade_rad": 0.184370789598004, "engine_speed_rpm": 948.2784860158861,
+               "initial.T_clutch_c": 69.80807028178678, "initial.T_oil_c": 86.61325087837126,
+               "params.vehicle.m": 8298.792725087817, "driver.behaviour": "overheat_restart",
+               "driver.desired_speed_mps": 0.08579475690638856, "driver.creep_s": 58.37174993638431,
+               "driver.stop_s": 8.340529146911479, "driver.drag_level": 0.09983494458933198,
+               "driver.drag_onset_s": 66.16528601033124, "driver.drag_duration_s": 233.73787929912368},
+    "r00857": {"grade_rad": 0.14476453132093034, "engine_speed_rpm": 831.1312202491097,
+               "initial.T_clutch_c": 95.54113910389941, "initial.T_oil_c": 56.21144806759565,
+               "params.vehicle.m": 8341.197503748841, "driver.behaviour": "overheat_restart",
+               "driver.desired_speed_mps": 0.05339452584310453, "driver.creep_s": 35.17404027248082,
+               "driver.stop_s": 11.97928176521196, "driver.drag_level": 0.03878309450312592,
+               "driver.drag_onset_s": 36.47450371762947, "driver.drag_duration_s": 178.33588605025523},
+    "r01753": {"grade_rad": 0.22713559771481176, "engine_speed_rpm": 825.8118937532072,
+               "initial.T_clutch_c": 121.31496154742162, "initial.T_oil_c": 54.439970156702046,
+               "params.vehicle.m": 6182.865214748008, "driver.behaviour": "brake_drag",
+               "driver.desired_speed_mps": 0.053145153336646905, "driver.creep_s": 40.65932131583172,
+               "driver.stop_s": 17.654316736945255, "driver.drag_level": 0.08338826203244894,
+               "driver.drag_onset_s": 228.12203979546445, "driver.drag_duration_s": 126.19142269806377},
+}
+_RPM = 30.0 / 3.141592653589793
+
+
+def calibration_with_gain(factor: float, directory: Path) -> str | None:
+    """A copy of the shipped calibration with the speed controller's kp and ki times ``factor`` (None for 1)."""
+    if factor == 1.0:
+        return None
+    raw = raw_sections()
+    for key in ("kp_n_per_mps", "ki_n_per_m"):
+        entry = dict(raw["speed"][key])
+        entry["value"] = entry["value"] * factor
+        raw["speed"][key] = entry
+    path = directory / f"gain_{factor:g}.toml"
+    path.write_text(dump_calibration(raw, f"bench/handover_judder.py: speed gains x {factor:g}"), encoding="utf-8")
+    return str(path)
+
+
+def measure(name: str, calibration: str | None, window_s: float) -> dict[str, Any]:
+    """One run: its handover deviation, and its first steady creep on CH after a handover (ranges)."""
+    task = load_space(SAFETY_SPACE).task(0, RUNS[name])
+    rows: list[tuple[float, str, str, float, float, float]] = []
+    holder: dict[str, Any] = {}
+
+    def track(runner: Any) -> None:
+        c = holder["run"].tcu.controller
+        o = runner.out
+        rows.append((runner.plant.state.t, c.state, c.active, o.v, c.P_cmd["CH"], (o.omega_in - o.omega_CH) * _RPM))
+
+    config = RunConfig(scenario=parse_scenario(task["scenario"], name), params=task["params"] or None,
+                       faults=task["faults"], calibration=calibration, on_period=track)
+    with open_run(config) as run:
+        holder["run"] = run
+        summary = run.run().as_json()
+    v_target = RUNS[name]["driver.desired_speed_mps"]
+    start = next((t for (t, state, active, *_), (_, before, *__) in zip(rows[1:], rows)
+                  if state == "CREEP" and active == "CH" and before == "HANDOVER"), None)
+    out: dict[str, Any] = {"run": name, "handover_deviation_unbraked_pct": summary["handover_deviation_unbraked_pct"]}
+    if start is None:
+        return out
+    steady = []
+    for t, state, active, v, P, slip in rows:
+        if t < start + 1.0:
+            continue
+        if t > start + 1.0 + window_s or state != "CREEP" or active != "CH":
+            break
+        steady.append((v, P, slip))
+    if steady:
+        speeds, pressures, slips = [s[0] for s in steady], [s[1] for s in steady], [s[2] for s in steady]
+        P_mean = sum(pressures) / len(pressures)
+        out.update({"window_s": [round(start + 1.0, 2), round(start + 1.0 + len(steady) * 0.01, 2)],
+                    "speed_pct": [round(100 * (min(speeds) / v_target - 1), 1),
+                                  round(100 * (max(speeds) / v_target - 1), 1)],
+                    "P_CH_cmd_pct": [round(100 * (min(pressures) / P_mean - 1), 1),
+                                     round(100 * (max(pressures) / P_mean - 1), 1)],
+                    "slip_CH_rpm": [round(min(slips)), round(max(slips))]})
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="*", default=list(RUNS), help=f"sample runs (default: {' '.join(RUNS)})")
+    ap.add_argument("--gain", type=float, nargs="+", default=[1.0, 0.5], help="speed-controller gain factors")
+    ap.add_argument("--window", type=float, default=4.0, help="seconds of steady creep on CH measured")
+    ap.add_argument("--json", action="store_true", help="one JSON object per run and gain")
+    args = ap.parse_args(argv)
+    unknown = [r for r in args.runs if r not in RUNS]
+    if unknown:
+        print(f"handover_judder: unknown run {unknown[0]} (known: {' '.join(RUNS)})", file=sys.stderr)
+        return 2
+    with tempfile.TemporaryDirectory() as tmp:
+        for factor in args.gain:
+            calibration = calibration_with_gain(factor, Path(tmp))
+            for name in args.runs:
+                result = {"gain": factor, **measure(name, calibration, args.window)}
+                print(json.dumps(result) if args.json else
+                      "  ".join(f"{k} {v}" for k, v in result.items()), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
