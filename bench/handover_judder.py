@@ -1,19 +1,20 @@
 """The slowest, heaviest handovers of issue 18's safety sample: is their speed dip the TCU's, or the plant's?
 
-The 5,000-run sample on the TCU of 7ecfd2f left three runs without a frame fault or the driver's pedal beyond
-+-20 % of the desired speed through a handover (r00652 25.6 %, r00857 23.8 %, r01753 20.8 %): 6.2-8.3 t on 0.145-0.227
-rad at 0.053-0.086 m/s, each handed over from a hot CL to a cool CH (73-108 degC). This re-runs them (their inputs
-from the shipped space, as ``dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n 5000`` made them) with the shipped
-calibration and with the speed controller's gains scaled (``--gain`` factors; the calibration rewritten to a
-temporary file), and reports for each run
+The 5,000-run sample on the TCU of 7ecfd2f left five runs without a frame fault or the driver's pedal beyond
++-20 % of the desired speed through a handover (r00652 25.6 %, r00857 23.8 %, r01753 20.8 %, r03843 36.4 %, r04681
+39.8 %): 6.2-9.7 t on 0.145-0.227 rad at 0.051-0.086 m/s, each handed over from a hot CL to a cool CH (69-108
+degC). This re-runs them (their inputs from the shipped space, as ``dsg-hil sweep dsg_hil/data/sweeps/safety.toml
+--n 5000`` made them) with the shipped calibration and with the speed controller's gains scaled (``--gain``
+factors; the calibration rewritten to a temporary file), and reports for each run
 
 * the summary's ``handover_deviation_unbraked_pct`` (the drivability check, +-20 %);
 * over the first steady stretch of creep on CH after its first handover (``--window`` seconds from 1 s after the
   crossover, while nothing else changes): the vehicle's speed range about its target [%], the commanded CH
   pressure's range [%] and CH's true slip range [r/min].
 
-A speed range that stays as wide with the pressure held within a few per cent, and with the gains halved, is the
-plant's own oscillation (the lining's friction falling with slip: formula (6) at a cool plate), not the loop's.
+A speed range as wide with the gains halved, and CH's slip touching 0 (stick-slip), is the plant's own oscillation
+(the lining's friction falling with slip: formula (6) at a cool plate), not the loop's; a steady slip with a narrow
+range in creep but a deep dip through the crossover points at the TCU's friction map instead (r03843).
 
     python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--json] [RUN ...]
 """
@@ -52,6 +53,18 @@ RUNS: dict[str, dict[str, Any]] = {
                "driver.desired_speed_mps": 0.053145153336646905, "driver.creep_s": 40.65932131583172,
                "driver.stop_s": 17.654316736945255, "driver.drag_level": 0.08338826203244894,
                "driver.drag_onset_s": 228.12203979546445, "driver.drag_duration_s": 126.19142269806377},
+    "r03843": {"grade_rad": 0.19718890915232415, "engine_speed_rpm": 1045.365768019011,
+               "initial.T_clutch_c": 63.089843292809086, "initial.T_oil_c": 94.77018155627229,
+               "params.vehicle.m": 7952.77219125052, "driver.behaviour": "brake_drag",
+               "driver.desired_speed_mps": 0.06143896692737886, "driver.creep_s": 10.970762834732344,
+               "driver.stop_s": 10.57015483815429, "driver.drag_level": 0.013560103985758597,
+               "driver.drag_onset_s": 183.0583866295659, "driver.drag_duration_s": 142.5542950921455},
+    "r04681": {"grade_rad": 0.19103900803285326, "engine_speed_rpm": 988.0833050213257,
+               "initial.T_clutch_c": 78.6484617160881, "initial.T_oil_c": 91.41456730677356,
+               "params.vehicle.m": 9714.861878936683, "driver.behaviour": "brake_drag",
+               "driver.desired_speed_mps": 0.050838824794822705, "driver.creep_s": 16.742545998589982,
+               "driver.stop_s": 12.880153124038511, "driver.drag_level": 0.01192565338293773,
+               "driver.drag_onset_s": 141.65365863972733, "driver.drag_duration_s": 129.77246878922898},
 }
 _RPM = 30.0 / 3.141592653589793
 
