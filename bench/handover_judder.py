@@ -33,39 +33,27 @@ from dsg_hil.sim.scenario import parse_scenario
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space
 from ecu_stub.calibration import dump_calibration, raw_sections
 
-# the sample's runs (inputs as the sweep's table holds them; the generators' other settings do not act)
-RUNS: dict[str, dict[str, Any]] = {
-    "r00652": {"grade_rad": 0.184370789598004, "engine_speed_rpm": 948.2784860158861,
-               "initial.T_clutch_c": 69.80807028178678, "initial.T_oil_c": 86.61325087837126,
-               "params.vehicle.m": 8298.792725087817, "driver.behaviour": "overheat_restart",
-               "driver.desired_speed_mps": 0.08579475690638856, "driver.creep_s": 58.37174993638431,
-               "driver.stop_s": 8.340529146911479, "driver.drag_level": 0.09983494458933198,
-               "driver.drag_onset_s": 66.16528601033124, "driver.drag_duration_s": 233.73787929912368},
-    "r00857": {"grade_rad": 0.14476453132093034, "engine_speed_rpm": 831.1312202491097,
-               "initial.T_clutch_c": 95.54113910389941, "initial.T_oil_c": 56.21144806759565,
-               "params.vehicle.m": 8341.197503748841, "driver.behaviour": "overheat_restart",
-               "driver.desired_speed_mps": 0.05339452584310453, "driver.creep_s": 35.17404027248082,
-               "driver.stop_s": 11.97928176521196, "driver.drag_level": 0.03878309450312592,
-               "driver.drag_onset_s": 36.47450371762947, "driver.drag_duration_s": 178.33588605025523},
-    "r01753": {"grade_rad": 0.22713559771481176, "engine_speed_rpm": 825.8118937532072,
-               "initial.T_clutch_c": 121.31496154742162, "initial.T_oil_c": 54.439970156702046,
-               "params.vehicle.m": 6182.865214748008, "driver.behaviour": "brake_drag",
-               "driver.desired_speed_mps": 0.053145153336646905, "driver.creep_s": 40.65932131583172,
-               "driver.stop_s": 17.654316736945255, "driver.drag_level": 0.08338826203244894,
-               "driver.drag_onset_s": 228.12203979546445, "driver.drag_duration_s": 126.19142269806377},
-    "r03843": {"grade_rad": 0.19718890915232415, "engine_speed_rpm": 1045.365768019011,
-               "initial.T_clutch_c": 63.089843292809086, "initial.T_oil_c": 94.77018155627229,
-               "params.vehicle.m": 7952.77219125052, "driver.behaviour": "brake_drag",
-               "driver.desired_speed_mps": 0.06143896692737886, "driver.creep_s": 10.970762834732344,
-               "driver.stop_s": 10.57015483815429, "driver.drag_level": 0.013560103985758597,
-               "driver.drag_onset_s": 183.0583866295659, "driver.drag_duration_s": 142.5542950921455},
-    "r04681": {"grade_rad": 0.19103900803285326, "engine_speed_rpm": 988.0833050213257,
-               "initial.T_clutch_c": 78.6484617160881, "initial.T_oil_c": 91.41456730677356,
-               "params.vehicle.m": 9714.861878936683, "driver.behaviour": "brake_drag",
-               "driver.desired_speed_mps": 0.050838824794822705, "driver.creep_s": 16.742545998589982,
-               "driver.stop_s": 12.880153124038511, "driver.drag_level": 0.01192565338293773,
-               "driver.drag_onset_s": 141.65365863972733, "driver.drag_duration_s": 129.77246878922898},
-}
+# the sample's runs: their inputs as the sweep's table holds them (the generators' other settings do not act)
+KEYS = ("grade_rad", "engine_speed_rpm", "initial.T_clutch_c", "initial.T_oil_c", "params.vehicle.m",
+        "driver.behaviour", "driver.desired_speed_mps", "driver.creep_s", "driver.stop_s", "driver.drag_level",
+        "driver.drag_onset_s", "driver.drag_duration_s")
+RUNS: dict[str, dict[str, Any]] = {name: dict(zip(KEYS, values)) for name, values in {
+    "r00652": (0.184370789598004, 948.2784860158861, 69.80807028178678, 86.61325087837126, 8298.792725087817,
+               "overheat_restart", 0.08579475690638856, 58.37174993638431, 8.340529146911479, 0.09983494458933198,
+               66.16528601033124, 233.73787929912368),
+    "r00857": (0.14476453132093034, 831.1312202491097, 95.54113910389941, 56.21144806759565, 8341.197503748841,
+               "overheat_restart", 0.05339452584310453, 35.17404027248082, 11.97928176521196, 0.03878309450312592,
+               36.47450371762947, 178.33588605025523),
+    "r01753": (0.22713559771481176, 825.8118937532072, 121.31496154742162, 54.439970156702046, 6182.865214748008,
+               "brake_drag", 0.053145153336646905, 40.65932131583172, 17.654316736945255, 0.08338826203244894,
+               228.12203979546445, 126.19142269806377),
+    "r03843": (0.19718890915232415, 1045.365768019011, 63.089843292809086, 94.77018155627229, 7952.77219125052,
+               "brake_drag", 0.06143896692737886, 10.970762834732344, 10.57015483815429, 0.013560103985758597,
+               183.0583866295659, 142.5542950921455),
+    "r04681": (0.19103900803285326, 988.0833050213257, 78.6484617160881, 91.41456730677356, 9714.861878936683,
+               "brake_drag", 0.050838824794822705, 16.742545998589982, 12.880153124038511, 0.01192565338293773,
+               141.65365863972733, 129.77246878922898),
+}.items()}
 _RPM = 30.0 / 3.141592653589793
 
 
