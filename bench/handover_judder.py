@@ -28,6 +28,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from dsg_hil.common.units import CV
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import parse_scenario
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space
@@ -54,7 +55,6 @@ RUNS: dict[str, dict[str, Any]] = {name: dict(zip(KEYS, values)) for name, value
                "brake_drag", 0.050838824794822705, 16.742545998589982, 12.880153124038511, 0.01192565338293773,
                141.65365863972733, 129.77246878922898),
 }.items()}
-_RPM = 30.0 / 3.141592653589793
 
 
 def calibration_with_gain(factor: float, directory: Path) -> str | None:
@@ -80,7 +80,8 @@ def measure(name: str, calibration: str | None, window_s: float) -> dict[str, An
     def track(runner: Any) -> None:
         c = holder["run"].tcu.controller
         o = runner.out
-        rows.append((runner.plant.state.t, c.state, c.active, o.v, c.P_cmd["CH"], (o.omega_in - o.omega_CH) * _RPM))
+        slip = (o.omega_in - o.omega_CH) * CV.RAD_S_TO_RPM
+        rows.append((runner.plant.state.t, c.state, c.active, o.v, c.P_cmd["CH"], slip))
 
     config = RunConfig(scenario=parse_scenario(task["scenario"], name), params=task["params"] or None,
                        faults=task["faults"], calibration=calibration, on_period=track)
@@ -93,23 +94,26 @@ def measure(name: str, calibration: str | None, window_s: float) -> dict[str, An
     out: dict[str, Any] = {"run": name, "handover_deviation_unbraked_pct": summary["handover_deviation_unbraked_pct"]}
     if start is None:
         return out
+    t0 = start + 1.0
     steady = []
     for t, state, active, v, P, slip in rows:
-        if t < start + 1.0:
+        if t < t0:
             continue
-        if t > start + 1.0 + window_s or state != "CREEP" or active != "CH":
+        if t > t0 + window_s or state != "CREEP" or active != "CH":
             break
         steady.append((v, P, slip))
     if steady:
-        speeds, pressures, slips = [s[0] for s in steady], [s[1] for s in steady], [s[2] for s in steady]
-        P_mean = sum(pressures) / len(pressures)
-        out.update({"window_s": [round(start + 1.0, 2), round(start + 1.0 + len(steady) * 0.01, 2)],
-                    "speed_pct": [round(100 * (min(speeds) / v_target - 1), 1),
-                                  round(100 * (max(speeds) / v_target - 1), 1)],
-                    "P_CH_cmd_pct": [round(100 * (min(pressures) / P_mean - 1), 1),
-                                     round(100 * (max(pressures) / P_mean - 1), 1)],
+        speeds, pressures, slips = zip(*steady)
+        out.update({"window_s": [round(t0, 2), round(t0 + len(steady) * 0.01, 2)],
+                    "speed_pct": _range_pct(speeds, v_target),
+                    "P_CH_cmd_pct": _range_pct(pressures, sum(pressures) / len(pressures)),
                     "slip_CH_rpm": [round(min(slips)), round(max(slips))]})
     return out
+
+
+def _range_pct(values: tuple[float, ...], reference: float) -> list[float]:
+    """The least and greatest of ``values`` relative to ``reference`` [%], to 0.1."""
+    return [round(100 * (min(values) / reference - 1), 1), round(100 * (max(values) / reference - 1), 1)]
 
 
 def main(argv: list[str] | None = None) -> int:
