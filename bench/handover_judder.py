@@ -12,11 +12,21 @@ factors; the calibration rewritten to a temporary file), and reports for each ru
   crossover, while nothing else changes): the vehicle's speed range about its target [%], the commanded CH
   pressure's range [%] and CH's true slip range [r/min].
 
-A speed range as wide with the gains halved, and CH's slip touching 0 (stick-slip), is the plant's own oscillation
-(the lining's friction falling with slip: formula (6) at a cool plate), not the loop's; a steady slip with a narrow
-range in creep but a deep dip through the crossover points at the TCU's friction map instead (r03843).
+* in the same window, from the plant's every 1-ms step (the drivability check's own samples), the speed split at
+  ``SPLIT_HZ``: the slow part's range about the target [%] and the fast part's peak to peak [% of the target], with
+  the frequency of the fast part's largest spectral peak [Hz] (the 10-ms control period sees it only as an alias);
 
-    python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--json] [RUN ...]
+and, with ``--lowpass TAU`` (s), the same with CH's command passed through a first-order low-pass of that time
+constant through the window (the TCU as shipped otherwise): the command then carries almost nothing at the fast
+part's frequency.
+
+A speed range as wide with the gains halved, and CH's slip touching 0 (stick-slip), is the plant's own oscillation
+(the lining's friction falling with slip: formula (6) at a cool plate), not the loop's; a fast part as large with
+the command low-passed is not driven by the command at all, and one above 50 Hz is beyond any 10-ms controller. A
+steady slip with a narrow range in creep but a deep dip through the crossover points at the TCU's friction map
+instead (r03843).
+
+    python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--lowpass TAU] [--json] [RUN ...]
 """
 
 from __future__ import annotations
@@ -25,10 +35,14 @@ import argparse
 import json
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dsg_hil.common.units import CV
+from dsg_hil.physics.plant import PlantOutputs
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import parse_scenario
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space
@@ -71,17 +85,29 @@ def calibration_with_gain(factor: float, directory: Path) -> str | None:
     return str(path)
 
 
-def measure(name: str, calibration: str | None, window_s: float) -> dict[str, Any]:
-    """One run: its handover deviation, and its first steady creep on CH after a handover (ranges)."""
+SPLIT_HZ = 30.0  # the speed's slow part (the loop's, below) and fast part (above): the ~85-Hz stick-slip apart
+
+
+def measure(name: str, calibration: str | None, window_s: float, lowpass_s: float | None = None) -> dict[str, Any]:
+    """One run: its handover deviation, and its first steady creep on CH after a handover (ranges, ripple); with
+    ``lowpass_s``, CH's command low-passed through that window (:func:`_low_pass_ch`)."""
     task = load_space(SAFETY_SPACE).task(0, RUNS[name])
     rows: list[tuple[float, str, str, float, float, float]] = []
+    fine: list[tuple[float, float]] = []  # (t, v) of every plant step
     holder: dict[str, Any] = {}
 
     def track(runner: Any) -> None:
+        if not fine:
+            _record_steps(runner.plant, fine)
         c = holder["run"].tcu.controller
         o = runner.out
         slip = (o.omega_in - o.omega_CH) * CV.RAD_S_TO_RPM
-        rows.append((runner.plant.state.t, c.state, c.active, o.v, c.P_cmd["CH"], slip))
+        t = runner.plant.state.t
+        rows.append((t, c.state, c.active, o.v, c.P_cmd["CH"], slip))
+        if lowpass_s is not None and "from" not in holder and len(rows) > 1 and c.state == "CREEP" \
+                and c.active == "CH" and rows[-2][1] == "HANDOVER":
+            holder["from"], holder["until"] = t + 1.0, t + 1.0 + window_s
+            _low_pass_ch(c, holder, lowpass_s)
 
     config = RunConfig(scenario=parse_scenario(task["scenario"], name), params=task["params"] or None,
                        faults=task["faults"], calibration=calibration, on_period=track)
@@ -107,13 +133,55 @@ def measure(name: str, calibration: str | None, window_s: float) -> dict[str, An
         out.update({"window_s": [round(t0, 2), round(t0 + len(steady) * 0.01, 2)],
                     "speed_pct": _range_pct(speeds, v_target),
                     "P_CH_cmd_pct": _range_pct(pressures, sum(pressures) / len(pressures)),
-                    "slip_CH_rpm": [round(min(slips)), round(max(slips))]})
+                    "slip_CH_rpm": [round(min(slips)), round(max(slips))],
+                    **_split([v for t, v in fine if t0 - 0.01 < t <= t0 + len(steady) * 0.01], v_target)})
     return out
+
+
+def _record_steps(plant: Any, fine: list[tuple[float, float]]) -> None:
+    """Append (t, v) of every step ``plant`` takes from now on to ``fine`` (its ``advance`` wrapped)."""
+    advance, cols = plant.advance, [PlantOutputs._fields.index("t"), PlantOutputs._fields.index("v")]
+
+    def recorded(inputs: Any, n_steps: int, trace: Any = None) -> Any:
+        out = advance(inputs, n_steps, trace)
+        fine.extend([(out.t, out.v)] if trace is None else map(tuple, trace[:, cols].tolist()))
+        return out
+
+    plant.advance = recorded
+
+
+def _low_pass_ch(controller: Any, holder: dict[str, Any], tau_s: float) -> None:
+    """From ``holder["from"]`` to ``holder["until"]``, CH's command of ``controller`` through a first-order
+    low-pass of ``tau_s`` (stepped per 10-ms cycle; CL's command 0): the controller as shipped computes, its output
+    is filtered (after the window, as shipped again)."""
+    update, state = controller.update, {"P": None}
+
+    def filtered(inputs: Any, now: float) -> Any:
+        out = update(inputs, now)
+        if not holder["from"] - 1e-9 <= now <= holder["until"]:
+            return out
+        P = state["P"]
+        state["P"] = P = out.P_CH_cmd_mpa if P is None else P + 0.01 / tau_s * (out.P_CH_cmd_mpa - P)
+        return replace(out, P_CH_cmd_mpa=P, P_CL_cmd_mpa=0.0)
+
+    controller.update = filtered
+
+
+def _split(speeds: list[float], v_target: float) -> dict[str, Any]:
+    """The 1-ms ``speeds`` split at :data:`SPLIT_HZ`: the slow part's range about ``v_target`` [%], the fast part's
+    peak to peak [% of ``v_target``] and the frequency of its largest spectral peak [Hz]."""
+    v = np.asarray(speeds)
+    spectrum, f = np.fft.rfft(v - v.mean()), np.fft.rfftfreq(len(v), 0.001)
+    slow = np.fft.irfft(np.where(f < SPLIT_HZ, spectrum, 0.0), len(v)) + v.mean()
+    fast = v - slow
+    peak = f[f >= SPLIT_HZ][np.abs(spectrum[f >= SPLIT_HZ]).argmax()]
+    return {"speed_1ms_pct": _range_pct(tuple(v), v_target), "slow_pct": _range_pct(tuple(slow), v_target),
+            "fast_pp_pct": round(100 * float(fast.max() - fast.min()) / v_target, 1), "fast_hz": round(float(peak))}
 
 
 def _range_pct(values: tuple[float, ...], reference: float) -> list[float]:
     """The least and greatest of ``values`` relative to ``reference`` [%], to 0.1."""
-    return [round(100 * (min(values) / reference - 1), 1), round(100 * (max(values) / reference - 1), 1)]
+    return [round(100 * (float(min(values)) / reference - 1), 1), round(100 * (float(max(values)) / reference - 1), 1)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -121,19 +189,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("runs", nargs="*", default=list(RUNS), help=f"sample runs (default: {' '.join(RUNS)})")
     ap.add_argument("--gain", type=float, nargs="+", default=[1.0, 0.5], help="speed-controller gain factors")
     ap.add_argument("--window", type=float, default=4.0, help="seconds of steady creep on CH measured")
+    ap.add_argument("--lowpass", type=float, metavar="TAU",
+                    help="also measure each run with CH's command low-passed (time constant TAU s) in the window")
     ap.add_argument("--json", action="store_true", help="one JSON object per run and gain")
     args = ap.parse_args(argv)
     unknown = [r for r in args.runs if r not in RUNS]
     if unknown:
         print(f"handover_judder: unknown run {unknown[0]} (known: {' '.join(RUNS)})", file=sys.stderr)
         return 2
+    if args.lowpass is not None and not args.lowpass > 0.0:
+        print(f"handover_judder: --lowpass {args.lowpass}: a time constant > 0 s", file=sys.stderr)
+        return 2
     with tempfile.TemporaryDirectory() as tmp:
         for factor in args.gain:
             calibration = calibration_with_gain(factor, Path(tmp))
             for name in args.runs:
-                result = {"gain": factor, **measure(name, calibration, args.window)}
-                print(json.dumps(result) if args.json else
-                      "  ".join(f"{k} {v}" for k, v in result.items()), flush=True)
+                for lowpass in (None, args.lowpass) if args.lowpass is not None else (None,):
+                    result = {"gain": factor, "lowpass_s": lowpass,
+                              **measure(name, calibration, args.window, lowpass)}
+                    print(json.dumps(result) if args.json else
+                          "  ".join(f"{k} {v}" for k, v in result.items()), flush=True)
     return 0
 
 
