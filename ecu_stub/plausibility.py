@@ -73,19 +73,24 @@ brake, VehicleSpeed changes by at most 11 mm/s per cycle against 41 mm/s allowed
 the same frames as before. A brake adds deceleration: the driver's pedal p (its largest over the last
 :data:`BRAKE_SETTLE_S`) up to p times the calibration's ``vehicle.brake_decel_mps2`` (the service brakes' full torque
 over the wheel radius and the lightest vehicle: 52.7 m/s^2; the plant's brake is a torque up to
-``vehicle.M_brake_max`` that grip does not limit), so a 1 % drag allows 4.5 m/s^2; the TCU's own brake request
-(within :data:`BRAKE_SETTLE_S`) allows any, and only the vote judges.
+``vehicle.M_brake_max`` that grip does not limit), so a 1 % drag allows 4.5 m/s^2; the TCU's own deceleration
+request (TCU_CMD.DecelRequest, its largest over the last :data:`BRAKE_SETTLE_S`, + half its DBC step) allows that
+much: the plant's brakes decelerate the vehicle by at most what is asked (the wheel torque m a r_w, less through the
+rotating inertias); its full-brake request (TCU_STATUS.BrakeRequest, within :data:`BRAKE_SETTLE_S`) allows any, and
+only the vote judges. Each largest over the last :data:`BRAKE_SETTLE_S` is every cycle's value of that window's
+(:class:`PeakHold`), not only its last peak's.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from enum import Enum
 
 __all__ = ["A_COAST_MPS2", "A_GRIP_MPS2", "BRAKE_SETTLE_S", "DISTANCE_M", "HEAL_S", "MAX_DT_S", "REL_TOL", "SKEW_M",
-           "TWIST_M", "PairCheck", "SpeedVoter", "Sustained", "Verdict", "plausible_step", "shaft_speed_mps",
-           "tolerance_mps"]
+           "TWIST_M", "PairCheck", "PeakHold", "SpeedVoter", "Sustained", "Verdict", "plausible_step",
+           "shaft_speed_mps", "tolerance_mps"]
 
 TWIST_M = 0.030  # largest change of the driveline's twist, as distance at the wheel [m] (module docstring)
 SKEW_M = 0.010  # real time: PLANT_SPEEDS and PLANT_VEHICLE up to one 10-ms cycle apart, 1 m/s of speed change [m]
@@ -118,6 +123,33 @@ def tolerance_mps(a: float, b: float, q_a: float, q_b: float) -> float:
     """Largest steady difference [m/s] of two measures ``a``, ``b`` of the vehicle speed without a sensor fault:
     half-step resolutions ``q_a`` + ``q_b`` and :data:`REL_TOL` of the larger speed (module docstring)."""
     return q_a + q_b + REL_TOL * max(abs(a), abs(b))
+
+
+@dataclass(slots=True)
+class PeakHold:
+    """The largest value added over the last ``window_s`` [s] (a brake acts that long after its request or pedal
+    ends), 0 if none: the window's values, each with its time, as a decreasing queue (a value hides the older ones it
+    is not smaller than), so that a peak that ages out leaves the largest of the values after it."""
+
+    window_s: float
+    _seen: deque[tuple[float, float]] = field(default_factory=deque)
+
+    def add(self, now: float, value: float) -> None:
+        """``value`` at ``now`` [s] (times not decreasing)."""
+        seen = self._seen
+        while seen and seen[-1][1] <= value:
+            seen.pop()
+        seen.append((now, value))
+
+    def peak(self, now: float) -> float:
+        """The largest value added from ``now - window_s`` on (0 if none)."""
+        seen = self._seen
+        while seen and now - seen[0][0] > self.window_s + _EPS_S:
+            seen.popleft()
+        return seen[0][1] if seen else 0.0
+
+    def clear(self) -> None:
+        self._seen.clear()
 
 
 def plausible_step(dv_mps: float, span_s: float, q_mps: float, brake_mps2: float = 0.0) -> bool:

@@ -45,7 +45,7 @@ from dsg_hil.protocol.validity import RxState, all_valid
 
 from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
-from .plausibility import BRAKE_SETTLE_S, SpeedVoter, Verdict
+from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, SensorChecks
 
 __all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
@@ -119,16 +119,19 @@ class TcuRunner:
         # whose VehicleSpeed the vote replaced ("VehicleSpeed") or whose speeds it found all implausible ("speeds")
         self.speed_vote: SpeedVoter | None = None
         self.sensor_checks: SensorChecks | None = None
-        # the speed vote's step check: the last cycle whose outputs requested the brake; the driver's largest pedal
-        # [%] over the last BRAKE_SETTLE_S and when it was last pressed; a full pedal's deceleration [m/s^2]
-        self._braked_at = self._pedal_at = -math.inf
-        self._pedal_pct, self._brake_full_mps2 = 0.0, math.inf
+        # the speed vote's step check: the last cycle whose outputs requested the full brake; the driver's pedal [%]
+        # and the deceleration the outputs requested [m/s^2] over the last BRAKE_SETTLE_S; a full pedal's
+        # deceleration and half the DBC step of DecelRequest [m/s^2]
+        self._braked_at = -math.inf
+        self._pedal_pct, self._decel_mps2 = PeakHold(BRAKE_SETTLE_S), PeakHold(BRAKE_SETTLE_S)
+        self._brake_full_mps2, self._decel_q_mps2 = math.inf, 0.0
         cal = getattr(self.controller, "cal", None)
         if isinstance(cal, TcuCalibration):
             def scale(message: str, signal: str) -> float:
                 return float(codec.message(message).get_signal_by_name(signal).scale)
 
             self._brake_full_mps2 = cal.vehicle.brake_decel_mps2
+            self._decel_q_mps2 = 0.5 * scale("TCU_CMD", "DecelRequest")
             self.speed_vote = SpeedVoter(cal.CL.speed_ratio_m, cal.CH.speed_ratio_m,
                                          scale("PLANT_VEHICLE", "VehicleSpeed"),
                                          max(scale("PLANT_SPEEDS", "CLOutputSpeed"),
@@ -211,14 +214,17 @@ class TcuRunner:
                          v["LongAccel"])
 
     def _brake_mps2(self, pedal_pct: float, now: float) -> float:
-        """The most deceleration a brake may add now [m/s^2] (the speed vote's step check): any while the TCU's own
-        request may act (:data:`BRAKE_SETTLE_S` after it), else the driver's pedal times the calibration's full-pedal
-        deceleration, a pedal's peak held for :data:`BRAKE_SETTLE_S`."""
+        """The most deceleration a brake may add now [m/s^2] (the speed vote's step check,
+        :mod:`ecu_stub.plausibility`): any while the TCU's full-brake request may act (:data:`BRAKE_SETTLE_S` after
+        it), else the larger of the driver's pedal times the calibration's full-pedal deceleration and the
+        deceleration the TCU requested (+ half its DBC step), each the largest over the last
+        :data:`BRAKE_SETTLE_S`."""
+        self._pedal_pct.add(now, pedal_pct)
         if now - self._braked_at <= BRAKE_SETTLE_S:
             return math.inf
-        if pedal_pct >= self._pedal_pct or now - self._pedal_at > BRAKE_SETTLE_S:  # a new peak, or the last expired
-            self._pedal_pct, self._pedal_at = pedal_pct, now
-        return self._pedal_pct / 100.0 * self._brake_full_mps2
+        pedal = self._pedal_pct.peak(now) / 100.0 * self._brake_full_mps2
+        decel = self._decel_mps2.peak(now)
+        return max(pedal, decel + self._decel_q_mps2) if decel > 0.0 else pedal
 
     def control(self, now: float, echo: int = 0) -> Frames:
         """One controller cycle at ``now``, its frames sent (see :meth:`_step`); returns them, as (ID, data)."""
@@ -234,8 +240,9 @@ class TcuRunner:
         self.now = tick_ms / CV.S_TO_MS if lockstep else now
         out = self.controller.update(self.inputs(now), now)
         self.last = out
-        if out.brake_request or out.decel_request_mps2 > 0.0:  # (the speed vote's step check: any deceleration)
+        if out.brake_request:  # (the speed vote's step check: any deceleration, _brake_mps2)
             self._braked_at = now
+        self._decel_mps2.add(now, out.decel_request_mps2)
         if self.sensor_checks is not None:
             self.sensor_checks.commanded(out.P_CL_cmd_mpa, out.P_CH_cmd_mpa)
         tx, frames = link.tx, []
@@ -253,8 +260,9 @@ class TcuRunner:
         self.controller = type(self.controller)(self.controller.cal)
         if self.speed_vote is not None:
             self.speed_vote.reset()
-        self._braked_at = self._pedal_at = -math.inf
-        self._pedal_pct = 0.0
+        self._braked_at = -math.inf
+        self._pedal_pct.clear()
+        self._decel_mps2.clear()
         if self.sensor_checks is not None:
             self.sensor_checks.reset()
         self.now = now

@@ -17,12 +17,14 @@ from ecu_stub.plausibility import (
     DISTANCE_M,
     HEAL_S,
     TWIST_M,
+    PeakHold,
     SpeedVoter,
     Verdict,
     plausible_step,
     shaft_speed_mps,
     tolerance_mps,
 )
+from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
 from ecu_stub.runner import FAULT_IMPLAUSIBLE, TCU_USES, TcuRunner
 
 R_CL, R_CH = 0.034443, 0.059517  # the shipped calibration's speed ratios [m/s per rad/s]
@@ -116,6 +118,21 @@ def test_the_step_bounds_by_hand():
     assert plausible_step(-0.12, 3 * DT, q)  # three frames: three times the change
     # a 1 % pedal may add 1 % of the calibration's full-pedal deceleration (52.7 m/s^2): -46.3 mm/s
     assert plausible_step(-0.0462, DT, q, 0.527) and not plausible_step(-0.0464, DT, q, 0.527)
+
+
+def test_a_peak_hold_keeps_the_largest_of_its_window_and_what_follows_a_peak():
+    """0.2-s window: 2.0 at 0, 1.5 at 0.1, 0 from 0.2: the largest is 2.0 until 0.2, then 1.5 (the value after the
+    peak, still acting) until 0.3, then 0; a larger value hides the smaller ones before it at once."""
+    hold = PeakHold(0.2)
+    assert hold.peak(0.0) == 0.0
+    for t, value in ((0.0, 2.0), (0.1, 1.5), (0.2, 0.0), (0.25, 0.0)):
+        hold.add(t, value)
+    assert hold.peak(0.2) == 2.0 and hold.peak(0.21) == 1.5 and hold.peak(0.3) == 1.5 and hold.peak(0.31) == 0.0
+    hold.add(0.32, 0.5)
+    hold.add(0.33, 1.0)
+    assert hold.peak(0.33) == 1.0 and hold.peak(0.53) == 1.0 and hold.peak(0.54) == 0.0
+    hold.clear()
+    assert hold.peak(0.54) == 0.0
 
 
 def test_vehicle_speed_stuck_at_zero_while_creeping_unbraked_is_replaced_at_the_step():
@@ -304,6 +321,49 @@ def test_runner_allows_for_the_drivers_brake_in_the_step(bus, pedal, at_once):
     else:
         assert got[0].v_mps == 0.0 and got[0].fault_bits == 0
         assert got[-1].v_mps == pytest.approx(v, abs=0.001) and got[-1].fault_bits == FAULT_IMPLAUSIBLE
+
+
+class _Braking(CreepController):
+    """Asks the brakes for a fixed deceleration (DecelRequest) or the full brake (BrakeRequest) every cycle; keeps
+    the inputs it is given."""
+
+    def __init__(self, decel_mps2: float, full: bool) -> None:
+        super().__init__()
+        self.decel_mps2, self.full, self.seen = decel_mps2, full, []
+
+    def update(self, inputs: TcuInputs, now: float) -> TcuOutputs:
+        self.seen.append(inputs)
+        return TcuOutputs(0.0, 0.0, "CREEP", "CL", self.full, 60.0, 60.0, 0, self.decel_mps2)
+
+
+@pytest.mark.parametrize("decel, full, v_after, at_once", [(0.0, False, 0.15, True), (1.0, False, 0.15, False),
+                                                          (1.0, False, 0.0, True), (0.0, True, 0.0, False)])
+def test_runner_allows_for_its_own_deceleration_request_in_the_step(bus, decel, full, v_after, at_once):
+    """The TCU's own requests: a deceleration asked (DecelRequest) lets the brakes add that much and half its
+    0.05 m/s^2 step. 0.2 -> 0.15 m/s in one frame (-50 mm/s) is beyond an unbraked vehicle's -41 mm/s (caught at
+    once), within -(4 + 1.025) x 0.01 - 0.001 = -51.25 mm/s with 1 m/s^2 asked (left to the vote); 0.2 -> 0 is
+    caught with 1 m/s^2 asked too; the full brake asked (BrakeRequest) allows any."""
+    v = 0.2
+    slipping = {"ClutchInputSpeed": 149.3, "CLOutputSpeed": round(rpm(v, R_CL), 1), "CHOutputSpeed":
+                round(rpm(v, R_CH), 1)}
+    controller = _Braking(decel, full)
+    tcu, plant = tcu_with(slipping, {"VehicleSpeed": v}, 0.0, TcuRunner(Codec(load_dbc(), TCU_USES), bus,
+                                                                         controller),
+                          TxScheduler(Codec(load_dbc(), PLANT_USES), ["PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE",
+                                                                      "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"]))
+    for k in range(1, 10):
+        tcu.control((k - 1) * DT)
+        tcu_with(slipping, {"VehicleSpeed": v}, k * DT, tcu, plant)
+    for k in range(10, 40):
+        tcu.control((k - 1) * DT)
+        tcu_with(slipping, {"VehicleSpeed": v_after}, k * DT, tcu, plant)
+    tcu.control(39 * DT)
+    got = controller.seen[10:]
+    assert all(inp.v_mps == v for inp in controller.seen[1:10])
+    if at_once:
+        assert all(inp.v_mps == pytest.approx(v, abs=0.001) and inp.fault_bits == FAULT_IMPLAUSIBLE for inp in got)
+    else:
+        assert got[0].v_mps == v_after and got[0].fault_bits == 0
 
 
 def test_runner_goes_to_fault_when_no_speed_can_be_trusted(bus):
