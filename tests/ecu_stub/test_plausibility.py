@@ -329,7 +329,8 @@ class _Braking(CreepController):
 
     def __init__(self, decel_mps2: float, full: bool) -> None:
         super().__init__()
-        self.decel_mps2, self.full, self.seen = decel_mps2, full, []
+        self.decel_mps2, self.full = decel_mps2, full
+        self.seen: list[TcuInputs] = []
 
     def update(self, inputs: TcuInputs, now: float) -> TcuOutputs:
         self.seen.append(inputs)
