@@ -5,8 +5,9 @@ row then and now side by side for the keys asked. For a summary metric added aft
 
     python bench/rerun_sweep_runs.py OUT [ID ...] [--beyond KEY=LIMIT] [--keys K,K,...] [--json]
 
-IDs: run IDs or their ``rNNNNN`` prefix; ``--beyond KEY=LIMIT``: also every run whose row then had ``KEY`` above
-``LIMIT`` (e.g. ``handover_deviation_pct=20``). Reads ``OUT/runs`` and ``OUT/table``; writes nothing.
+IDs: run IDs or their ``rNNNNN`` prefix (``sNNNNN``: a search's trials); ``--beyond KEY=LIMIT``: also every run
+whose row then had ``KEY`` above ``LIMIT`` (e.g. ``handover_deviation_pct=20``). Reads ``OUT/runs`` and
+``OUT/table``; writes nothing.
 """
 
 from __future__ import annotations
@@ -21,9 +22,9 @@ DEFAULT_KEYS = "verdict,max_plate_temp_c,handover_deviation_pct,handover_deviati
 
 
 def records(out: Path, ids: list[str], beyond: tuple[str, float] | None) -> list[dict[str, Any]]:
-    """The run records of ``ids`` (whole IDs or ``rNNNNN`` prefixes) and of the runs beyond ``beyond``, in run
-    order; a ValueError naming what is not there."""
-    files = {p.stem: p for p in (out / "runs").glob("r*.json")}
+    """The run records of ``ids`` (whole IDs or ``rNNNNN`` / ``sNNNNN`` prefixes) and of the runs beyond ``beyond``,
+    in run order; a ValueError naming what is not there."""
+    files = {p.stem: p for p in (out / "runs").glob("[rs][0-9]*.json")}
     chosen: set[str] = set()
     for ident in ids:
         found = [stem for stem in files if stem == ident or stem.split("-")[0] == ident]
@@ -47,7 +48,7 @@ def records(out: Path, ids: list[str], beyond: tuple[str, float] | None) -> list
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out", type=Path, help="the sweep's --out directory")
-    ap.add_argument("ids", nargs="*", help="run IDs (or their rNNNNN prefix)")
+    ap.add_argument("ids", nargs="*", help="run IDs (or their rNNNNN / sNNNNN prefix)")
     ap.add_argument("--beyond", metavar="KEY=LIMIT", help="also the runs whose row had KEY above LIMIT")
     ap.add_argument("--keys", default=DEFAULT_KEYS, help=f"row keys to show, then and now (default {DEFAULT_KEYS})")
     ap.add_argument("--json", action="store_true", help="one JSON object per run instead of lines")
