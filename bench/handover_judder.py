@@ -19,6 +19,8 @@ factors; the calibration rewritten to a temporary file), and reports for each ru
 and, with ``--lowpass TAU`` (s), the same with CH's command passed through a first-order low-pass of that time
 constant through the window (the TCU as shipped otherwise): the command then carries almost nothing at the fast
 part's frequency.
+``--plot DIR`` draws each run's window (gains as shipped) to ``DIR/RUN_judder.png``: the speed at every step, the
+10-ms samples the TCU sees, the slow part and the +-20 % band, and CH's true slip under it.
 
 A speed range as wide with the gains halved, and CH's slip touching 0 (stick-slip), is the plant's own oscillation
 (the lining's friction falling with slip: formula (6) at a cool plate), not the loop's; a fast part as large with
@@ -26,7 +28,7 @@ the command low-passed is not driven by the command at all, and one above 50 Hz 
 steady slip with a narrow range in creep but a deep dip through the crossover points at the TCU's friction map
 instead (r03843).
 
-    python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--lowpass TAU] [--json] [RUN ...]
+    python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--lowpass TAU] [--plot DIR] [--json] [RUN ...]
 """
 
 from __future__ import annotations
@@ -88,12 +90,14 @@ def calibration_with_gain(factor: float, directory: Path) -> str | None:
 SPLIT_HZ = 30.0  # the speed's slow part (the loop's, below) and fast part (above): the ~85-Hz stick-slip apart
 
 
-def measure(name: str, calibration: str | None, window_s: float, lowpass_s: float | None = None) -> dict[str, Any]:
+def measure(name: str, calibration: str | None, window_s: float, lowpass_s: float | None = None,
+            plot: Path | None = None) -> dict[str, Any]:
     """One run: its handover deviation, and its first steady creep on CH after a handover (ranges, ripple); with
-    ``lowpass_s``, CH's command low-passed through that window (:func:`_low_pass_ch`)."""
+    ``lowpass_s``, CH's command low-passed through that window (:func:`_low_pass_ch`); with ``plot``, the window's
+    first 0.3 s drawn there (:func:`_plot`)."""
     task = load_space(SAFETY_SPACE).task(0, RUNS[name])
     rows: list[tuple[float, str, str, float, float, float]] = []
-    fine: list[tuple[float, float]] = []  # (t, v) of every plant step
+    fine: list[tuple[float, float, float]] = []  # (t, v, CH's slip [r/min]) of every plant step
     holder: dict[str, Any] = {}
 
     def track(runner: Any) -> None:
@@ -130,24 +134,60 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
         steady.append((v, P, slip))
     if steady:
         speeds, pressures, slips = zip(*steady)
-        out.update({"window_s": [round(t0, 2), round(t0 + len(steady) * 0.01, 2)],
+        t1 = t0 + len(steady) * 0.01
+        window = [row for row in fine if t0 - 0.01 < row[0] <= t1]
+        out.update({"window_s": [round(t0, 2), round(t1, 2)],
                     "speed_pct": _range_pct(speeds, v_target),
                     "P_CH_cmd_pct": _range_pct(pressures, sum(pressures) / len(pressures)),
                     "slip_CH_rpm": [round(min(slips)), round(max(slips))],
-                    **_split([v for t, v in fine if t0 - 0.01 < t <= t0 + len(steady) * 0.01], v_target)})
+                    **_split([v for _, v, _ in window], v_target)})
+        if plot is not None:
+            _plot(plot, name, window, v_target)
     return out
 
 
-def _record_steps(plant: Any, fine: list[tuple[float, float]]) -> None:
-    """Append (t, v) of every step ``plant`` takes from now on to ``fine`` (its ``advance`` wrapped)."""
-    advance, cols = plant.advance, [PlantOutputs._fields.index("t"), PlantOutputs._fields.index("v")]
+def _record_steps(plant: Any, fine: list[tuple[float, float, float]]) -> None:
+    """Append (t, v, CH's slip [r/min]) of every step ``plant`` takes from now on to ``fine`` (its ``advance``
+    wrapped)."""
+    advance = plant.advance
+    cols = [PlantOutputs._fields.index(name) for name in ("t", "v", "omega_in", "omega_CH")]
 
     def recorded(inputs: Any, n_steps: int, trace: Any = None) -> Any:
         out = advance(inputs, n_steps, trace)
-        fine.extend([(out.t, out.v)] if trace is None else map(tuple, trace[:, cols].tolist()))
+        rows = [(out.t, out.v, out.omega_in, out.omega_CH)] if trace is None else trace[:, cols].tolist()
+        fine.extend((t, v, (w_in - w_ch) * CV.RAD_S_TO_RPM) for t, v, w_in, w_ch in rows)
         return out
 
     plant.advance = recorded
+
+
+def _plot(path: Path, name: str, window: list[tuple[float, float, float]], v_target: float) -> None:
+    """0.3 s of the window about its largest deviation from ``v_target``: the speed at every 1-ms step, as the TCU
+    samples it every 10 ms, its slow part and the +-20 % band; CH's true slip below it."""
+    from dsg_hil.paper.plots import require_matplotlib  # noqa: PLC0415 - the plots extra, only for --plot
+
+    plt = require_matplotlib()
+    t, v, slip = (np.asarray(column) for column in zip(*window))
+    slow = _slow_part(v)
+    worst = t[np.abs(v - v_target).argmax()]
+    start = min(max(worst - 0.15, t[0]), t[-1] - 0.3)
+    shown = (t >= start) & (t <= start + 0.3)
+    sampled = shown & (np.abs(np.round(t * 100) - t * 100) < 1e-6)  # the control periods' ends
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5))
+    top.axhspan(0.8 * v_target, 1.2 * v_target, color="0.92", label="±20 % of the desired speed")
+    top.plot(t[shown], v[shown], lw=0.8, label="vehicle speed, every 1-ms step (the check's samples)")
+    top.plot(t[sampled], v[sampled], "o", ms=4, label="every 10 ms (what the TCU sees: the alias)")
+    top.plot(t[shown], slow[shown], lw=2.0, label=f"below {SPLIT_HZ:g} Hz (the speed loop's part)")
+    top.set_ylabel("speed [m/s]")
+    top.set_ylim(0.7 * v_target, 1.35 * v_target)
+    top.legend(fontsize=7, loc="upper right", ncol=2)
+    top.set_title(f"{name}: steady creep on a cool CH after the handover")
+    bottom.plot(t[shown], slip[shown], lw=0.8, color="C3")
+    bottom.set_ylabel("CH slip [r/min]")
+    bottom.set_xlabel("time [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def _low_pass_ch(controller: Any, holder: dict[str, Any], tau_s: float) -> None:
@@ -167,14 +207,20 @@ def _low_pass_ch(controller: Any, holder: dict[str, Any], tau_s: float) -> None:
     controller.update = filtered
 
 
+def _slow_part(v: np.ndarray) -> np.ndarray:
+    """The part of the 1-ms speeds ``v`` below :data:`SPLIT_HZ` (their spectrum cut there)."""
+    spectrum, f = np.fft.rfft(v - v.mean()), np.fft.rfftfreq(len(v), 0.001)
+    return np.fft.irfft(np.where(f < SPLIT_HZ, spectrum, 0.0), len(v)) + v.mean()
+
+
 def _split(speeds: list[float], v_target: float) -> dict[str, Any]:
     """The 1-ms ``speeds`` split at :data:`SPLIT_HZ`: the slow part's range about ``v_target`` [%], the fast part's
     peak to peak [% of ``v_target``] and the frequency of its largest spectral peak [Hz]."""
     v = np.asarray(speeds)
-    spectrum, f = np.fft.rfft(v - v.mean()), np.fft.rfftfreq(len(v), 0.001)
-    slow = np.fft.irfft(np.where(f < SPLIT_HZ, spectrum, 0.0), len(v)) + v.mean()
+    slow = _slow_part(v)
     fast = v - slow
-    peak = f[f >= SPLIT_HZ][np.abs(spectrum[f >= SPLIT_HZ]).argmax()]
+    spectrum, f = np.abs(np.fft.rfft(fast)), np.fft.rfftfreq(len(v), 0.001)
+    peak = f[f >= SPLIT_HZ][spectrum[f >= SPLIT_HZ].argmax()]
     return {"speed_1ms_pct": _range_pct(tuple(v), v_target), "slow_pct": _range_pct(tuple(slow), v_target),
             "fast_pp_pct": round(100 * float(fast.max() - fast.min()) / v_target, 1), "fast_hz": round(float(peak))}
 
@@ -191,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--window", type=float, default=4.0, help="seconds of steady creep on CH measured")
     ap.add_argument("--lowpass", type=float, metavar="TAU",
                     help="also measure each run with CH's command low-passed (time constant TAU s) in the window")
+    ap.add_argument("--plot", type=Path, metavar="DIR",
+                    help="draw each run's window (gains as shipped, command as is) to DIR/RUN_judder.png")
     ap.add_argument("--json", action="store_true", help="one JSON object per run and gain")
     args = ap.parse_args(argv)
     unknown = [r for r in args.runs if r not in RUNS]
@@ -200,13 +248,18 @@ def main(argv: list[str] | None = None) -> int:
     if args.lowpass is not None and not args.lowpass > 0.0:
         print(f"handover_judder: --lowpass {args.lowpass}: a time constant > 0 s", file=sys.stderr)
         return 2
+    if args.plot is not None and not args.plot.is_dir():
+        print(f"handover_judder: --plot {args.plot}: not a directory", file=sys.stderr)
+        return 2
     with tempfile.TemporaryDirectory() as tmp:
         for factor in args.gain:
             calibration = calibration_with_gain(factor, Path(tmp))
             for name in args.runs:
                 for lowpass in (None, args.lowpass) if args.lowpass is not None else (None,):
+                    plot = args.plot / f"{name}_judder.png" if args.plot and factor == 1.0 and lowpass is None \
+                        else None
                     result = {"gain": factor, "lowpass_s": lowpass,
-                              **measure(name, calibration, args.window, lowpass)}
+                              **measure(name, calibration, args.window, lowpass, plot)}
                     print(json.dumps(result) if args.json else
                           "  ".join(f"{k} {v}" for k, v in result.items()), flush=True)
     return 0
