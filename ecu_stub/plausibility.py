@@ -135,18 +135,23 @@ class PeakHold:
     _seen: deque[tuple[float, float]] = field(default_factory=deque)
 
     def add(self, now: float, value: float) -> None:
-        """``value`` at ``now`` [s] (times not decreasing)."""
+        """``value`` at ``now`` [s] (times not decreasing); what has aged out dropped (the queue holds one window)."""
         seen = self._seen
         while seen and seen[-1][1] <= value:
             seen.pop()
         seen.append((now, value))
+        self._age(now)
 
     def peak(self, now: float) -> float:
         """The largest value added from ``now - window_s`` on (0 if none)."""
+        self._age(now)
+        seen = self._seen
+        return seen[0][1] if seen else 0.0
+
+    def _age(self, now: float) -> None:
         seen = self._seen
         while seen and now - seen[0][0] > self.window_s + _EPS_S:
             seen.popleft()
-        return seen[0][1] if seen else 0.0
 
     def clear(self) -> None:
         self._seen.clear()

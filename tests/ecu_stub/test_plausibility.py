@@ -125,14 +125,21 @@ def test_a_peak_hold_keeps_the_largest_of_its_window_and_what_follows_a_peak():
     peak, still acting) until 0.3, then 0; a larger value hides the smaller ones before it at once."""
     hold = PeakHold(0.2)
     assert hold.peak(0.0) == 0.0
-    for t, value in ((0.0, 2.0), (0.1, 1.5), (0.2, 0.0), (0.25, 0.0)):
+    for t, value in ((0.0, 2.0), (0.1, 1.5), (0.2, 0.0)):
         hold.add(t, value)
-    assert hold.peak(0.2) == 2.0 and hold.peak(0.21) == 1.5 and hold.peak(0.3) == 1.5 and hold.peak(0.31) == 0.0
+    assert hold.peak(0.2) == 2.0 and hold.peak(0.21) == 1.5
+    hold.add(0.25, 0.0)
+    assert hold.peak(0.3) == 1.5 and hold.peak(0.31) == 0.0
     hold.add(0.32, 0.5)
     hold.add(0.33, 1.0)
     assert hold.peak(0.33) == 1.0 and hold.peak(0.53) == 1.0 and hold.peak(0.54) == 0.0
     hold.clear()
     assert hold.peak(0.54) == 0.0
+    falling = PeakHold(0.2)  # a long, slowly falling series added, never asked: it holds one window, not the series
+    for k in range(10_000):
+        falling.add(0.01 * k, 100.0 - 0.001 * k)
+    assert len(falling._seen) <= 21  # one window of 10-ms values
+    assert falling.peak(99.99) == pytest.approx(100.0 - 0.001 * 9_979)  # 0.2 s back: from k = 9,979 on
 
 
 def test_vehicle_speed_stuck_at_zero_while_creeping_unbraked_is_replaced_at_the_step():
