@@ -12,7 +12,10 @@ factors; the calibration rewritten to a temporary file), and reports for each ru
   crossover, while nothing else changes): the vehicle's speed range about its target [%], the commanded CH
   pressure's range [%] and CH's true slip range [r/min].
 
-* in the same window, from the plant's every 1-ms step (the drivability check's own samples), the speed split at
+* through the run's worst handover as the check judges it (the crossover and ``HANDOVER_AFTER_S`` after), from the
+  plant's every 1-ms step, the speed split at ``SPLIT_HZ`` (keys ``handover_...``): how much of the deviation is
+  the fast part and how much the slow part (the loop's, and the friction map's);
+* in the steady window, from the plant's every 1-ms step (the drivability check's own samples), the speed split at
   ``SPLIT_HZ``: the slow part's range about the target [%] and the fast part's peak to peak [% of the target], with
   the frequency of the fast part's largest spectral peak [Hz] (the 10-ms control period sees it only as an alias);
 
@@ -45,6 +48,7 @@ import numpy as np
 
 from dsg_hil.common.units import CV
 from dsg_hil.physics.plant import PlantOutputs
+from dsg_hil.results.summary import HANDOVER_AFTER_S
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import parse_scenario
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space
@@ -124,7 +128,8 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
     out: dict[str, Any] = {"run": name, "handover_deviation_unbraked_pct": summary["handover_deviation_unbraked_pct"]}
     if start is None:
         return out
-    t0 = start + 1.0
+    t0 = start + HANDOVER_AFTER_S
+    out.update({f"handover_{key}": value for key, value in _worst_handover(rows, fine, v_target).items()})
     steady = []
     for t, state, active, v, P, slip in rows:
         if t < t0:
@@ -144,6 +149,23 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
         if plot is not None:
             _plot(plot, name, window, v_target)
     return out
+
+
+def _worst_handover(rows: list[tuple[float, str, str, float, float, float]], fine: list[tuple[float, float, float]],
+                    v_target: float) -> dict[str, Any]:
+    """The handover (either way) whose window as the check judges it (the crossover and ``HANDOVER_AFTER_S`` after)
+    deviates most at the 1-ms steps, split (:func:`_split`), with the clutch it went to and when it began."""
+    worst: dict[str, Any] = {}
+    for k in range(1, len(rows)):
+        if rows[k][1] == "HANDOVER" and rows[k - 1][1] != "HANDOVER":
+            begun, to = rows[k - 1][0], rows[k][2]
+            end = next((t for t, state, *_ in rows[k:] if state != "HANDOVER"), rows[-1][0]) + HANDOVER_AFTER_S
+            speeds = [v for t, v, _ in fine if begun < t <= end]
+            if speeds:
+                split = _split(speeds, v_target)
+                if not worst or max(map(abs, split["speed_1ms_pct"])) > max(map(abs, worst["speed_1ms_pct"])):
+                    worst = {"to": to, "at_s": round(begun, 2), **split}
+    return worst
 
 
 def _record_steps(plant: Any, fine: list[tuple[float, float, float]]) -> None:
