@@ -14,7 +14,8 @@ factors; the calibration rewritten to a temporary file), and reports for each ru
 
 * through the run's worst handover as the check judges it (the crossover and ``HANDOVER_AFTER_S`` after), from the
   plant's every 1-ms step, the speed split at ``SPLIT_HZ`` (keys ``handover_...``): how much of the deviation is
-  the fast part and how much the slow part (the loop's, and the friction map's);
+  the fast part and how much the slow part (the loop's, and the friction map's); for a handover to CH, CH's true
+  torque over the TCU's model of it at the lowest of its 0.1-s blocks, with the plant's mean mu and the map's there;
 * in the steady window, from the plant's every 1-ms step (the drivability check's own samples), the speed split at
   ``SPLIT_HZ``: the slow part's range about the target [%] and the fast part's peak to peak [% of the target], with
   the frequency of the fast part's largest spectral peak [Hz] (the 10-ms control period sees it only as an alias);
@@ -38,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 from dataclasses import replace
@@ -53,6 +55,7 @@ from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import parse_scenario
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space
 from ecu_stub.calibration import dump_calibration, raw_sections
+from ecu_stub.clutch_model import mu_lookup, nm_per_mpa
 
 # the sample's runs: their inputs as the sweep's table holds them (the generators' other settings do not act)
 KEYS = ("grade_rad", "engine_speed_rpm", "initial.T_clutch_c", "initial.T_oil_c", "params.vehicle.m",
@@ -101,7 +104,8 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
     first 0.3 s drawn there (:func:`_plot`)."""
     task = load_space(SAFETY_SPACE).task(0, RUNS[name])
     rows: list[tuple[float, str, str, float, float, float]] = []
-    fine: list[tuple[float, float, float]] = []  # (t, v, CH's slip [r/min]) of every plant step
+    fine: list[tuple[float, ...]] = []  # (t, v, CH's slip [r/min], M_CH [N m], mu_CH) of every plant step
+    model: list[tuple[float, float, float]] = []  # (t, CH's torque [N m] and mu by the TCU's model) every period
     holder: dict[str, Any] = {}
 
     def track(runner: Any) -> None:
@@ -112,6 +116,7 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
         slip = (o.omega_in - o.omega_CH) * CV.RAD_S_TO_RPM
         t = runner.plant.state.t
         rows.append((t, c.state, c.active, o.v, c.P_cmd["CH"], slip))
+        model.append((t, *_ch_model(c)))
         if lowpass_s is not None and "from" not in holder and len(rows) > 1 and c.state == "CREEP" \
                 and c.active == "CH" and rows[-2][1] == "HANDOVER":
             holder["from"], holder["until"] = t + 1.0, t + 1.0 + window_s
@@ -129,7 +134,7 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
     if start is None:
         return out
     t0 = start + HANDOVER_AFTER_S
-    out.update({f"handover_{key}": value for key, value in _worst_handover(rows, fine, v_target).items()})
+    out.update({f"handover_{key}": value for key, value in _worst_handover(rows, fine, model, v_target).items()})
     steady = []
     for t, state, active, v, P, slip in rows:
         if t < t0:
@@ -145,51 +150,88 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
                     "speed_pct": _range_pct(speeds, v_target),
                     "P_CH_cmd_pct": _range_pct(pressures, sum(pressures) / len(pressures)),
                     "slip_CH_rpm": [round(min(slips)), round(max(slips))],
-                    **_split([v for _, v, _ in window], v_target)})
+                    **_split([row[1] for row in window], v_target)})
         if plot is not None:
             _plot(plot, name, window, v_target)
     return out
 
 
-def _worst_handover(rows: list[tuple[float, str, str, float, float, float]], fine: list[tuple[float, float, float]],
-                    v_target: float) -> dict[str, Any]:
+def _ch_model(c: Any) -> tuple[float, float]:
+    """CH's torque [N m] and mu by the TCU's model (:mod:`ecu_stub.clutch_model`) at its last inputs: the map at its
+    predicted plate temperature, its filtered slip and the measured pressure."""
+    inp = c.inp
+    if not inp.plant_valid:
+        return math.nan, math.nan
+    P = max(inp.P_CH_mpa, 0.0)
+    mu = mu_lookup(c.cal.friction)(c._T_pred["CH"], c.mean_slip_rpm("CH", inp), P)
+    return nm_per_mpa(mu, c.cal.CH) * P, mu
+
+
+def _worst_handover(rows: list[tuple[float, str, str, float, float, float]], fine: list[tuple[float, ...]],
+                    model: list[tuple[float, float, float]], v_target: float) -> dict[str, Any]:
     """The handover (either way) whose window as the check judges it (the crossover and ``HANDOVER_AFTER_S`` after)
-    deviates most at the 1-ms steps, split (:func:`_split`), with the clutch it went to and when it began."""
+    deviates most at the 1-ms steps, split (:func:`_split`), with the clutch it went to and when it began; for one to
+    CH, also CH's true torque over the TCU's model of it at its lowest (:func:`_ch_against_model`)."""
     worst: dict[str, Any] = {}
     for k in range(1, len(rows)):
         if rows[k][1] == "HANDOVER" and rows[k - 1][1] != "HANDOVER":
             begun, to = rows[k - 1][0], rows[k][2]
             end = next((t for t, state, *_ in rows[k:] if state != "HANDOVER"), rows[-1][0]) + HANDOVER_AFTER_S
-            speeds = [v for t, v, _ in fine if begun < t <= end]
+            speeds = [row[1] for row in fine if begun < row[0] <= end]
             if speeds:
                 split = _split(speeds, v_target)
                 if not worst or max(map(abs, split["speed_1ms_pct"])) > max(map(abs, worst["speed_1ms_pct"])):
-                    worst = {"to": to, "at_s": round(begun, 2), **split}
+                    worst = {"to": to, "at_s": round(begun, 2), **split,
+                             **(_ch_against_model(fine, model, begun, end) if to == "CH" else {})}
     return worst
 
 
-def _record_steps(plant: Any, fine: list[tuple[float, float, float]]) -> None:
-    """Append (t, v, CH's slip [r/min]) of every step ``plant`` takes from now on to ``fine`` (its ``advance``
-    wrapped)."""
+def _ch_against_model(fine: list[tuple[float, ...]], model: list[tuple[float, float, float]], begun: float,
+                      end: float) -> dict[str, Any]:
+    """Over (``begun``, ``end``] in 0.1-s blocks where the TCU's model gives CH a quarter of its largest torque
+    there or more: the lowest ratio of CH's true torque (the mean of the block's 1-ms steps) to the model's, and in
+    that block the plant's mean mu against the map's."""
+    blocks = [(t0, t0 + 0.1) for t0 in np.arange(begun, end - 0.05, 0.1)]
+    largest = max((m for t, m, _ in model if begun < t <= end and m == m), default=0.0)
+    best: dict[str, Any] = {}
+    for lo, hi in blocks:
+        steps = [row for row in fine if lo < row[0] <= hi]
+        periods = [(m, mu) for t, m, mu in model if lo < t <= hi and m == m]
+        if not steps or not periods:
+            continue
+        m_model = sum(m for m, _ in periods) / len(periods)
+        if m_model < 0.25 * largest:
+            continue
+        ratio = sum(row[3] for row in steps) / len(steps) / m_model
+        if not best or ratio < best["CH_true_over_model"]:
+            mu_true, mu_map = sum(row[4] for row in steps) / len(steps), sum(mu for _, mu in periods) / len(periods)
+            best = {"CH_true_over_model": round(ratio, 3), "CH_mu_true_map": [round(mu_true, 4), round(mu_map, 4)]}
+    return best
+
+
+def _record_steps(plant: Any, fine: list[tuple[float, ...]]) -> None:
+    """Append (t, v, CH's slip [r/min], M_CH, mu_CH) of every step ``plant`` takes from now on to ``fine`` (its
+    ``advance`` wrapped)."""
     advance = plant.advance
-    cols = [PlantOutputs._fields.index(name) for name in ("t", "v", "omega_in", "omega_CH")]
+    names = ("t", "v", "omega_in", "omega_CH", "M_CH", "mu_CH")
+    cols = [PlantOutputs._fields.index(name) for name in names]
 
     def recorded(inputs: Any, n_steps: int, trace: Any = None) -> Any:
         out = advance(inputs, n_steps, trace)
-        rows = [(out.t, out.v, out.omega_in, out.omega_CH)] if trace is None else trace[:, cols].tolist()
-        fine.extend((t, v, (w_in - w_ch) * CV.RAD_S_TO_RPM) for t, v, w_in, w_ch in rows)
+        rows = [tuple(getattr(out, name) for name in names)] if trace is None else trace[:, cols].tolist()
+        fine.extend((t, v, (w_in - w_ch) * CV.RAD_S_TO_RPM, M, mu) for t, v, w_in, w_ch, M, mu in rows)
         return out
 
     plant.advance = recorded
 
 
-def _plot(path: Path, name: str, window: list[tuple[float, float, float]], v_target: float) -> None:
+def _plot(path: Path, name: str, window: list[tuple[float, ...]], v_target: float) -> None:
     """0.3 s of the window about its largest deviation from ``v_target``: the speed at every 1-ms step, as the TCU
     samples it every 10 ms, its slow part and the +-20 % band; CH's true slip below it."""
     from dsg_hil.paper.plots import require_matplotlib  # noqa: PLC0415 - the plots extra, only for --plot
 
     plt = require_matplotlib()
-    t, v, slip = (np.asarray(column) for column in zip(*window))
+    t, v, slip = (np.asarray(column) for column in list(zip(*window))[:3])
     slow = _slow_part(v)
     worst = t[np.abs(v - v_target).argmax()]
     start = min(max(worst - 0.15, t[0]), t[-1] - 0.3)
