@@ -32,7 +32,8 @@ the command low-passed is not driven by the command at all, and one above 50 Hz 
 steady slip with a narrow range in creep but a deep dip through the crossover points at the TCU's friction map
 instead (r03843).
 
-    python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--lowpass TAU] [--plot DIR] [--json] [RUN ...]
+    python bench/handover_judder.py [--gain 1.0 0.5] [--window 4.0] [--lowpass TAU] [--plot DIR]
+                                    [--calibration FILE] [--json] [RUN ...]
 """
 
 from __future__ import annotations
@@ -80,11 +81,12 @@ RUNS: dict[str, dict[str, Any]] = {name: dict(zip(KEYS, values)) for name, value
 }.items()}
 
 
-def calibration_with_gain(factor: float, directory: Path) -> str | None:
-    """A copy of the shipped calibration with the speed controller's kp and ki times ``factor`` (None for 1)."""
+def calibration_with_gain(factor: float, directory: Path, base: str | None = None) -> str | None:
+    """A copy of the calibration ``base`` (default: the shipped one) with the speed controller's kp and ki times
+    ``factor`` (``base`` itself for 1)."""
     if factor == 1.0:
-        return None
-    raw = raw_sections()
+        return base
+    raw = raw_sections(base)
     for key in ("kp_n_per_mps", "ki_n_per_m"):
         entry = dict(raw["speed"][key])
         entry["value"] = entry["value"] * factor
@@ -299,6 +301,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("runs", nargs="*", default=list(RUNS), help=f"sample runs (default: {' '.join(RUNS)})")
     ap.add_argument("--gain", type=float, nargs="+", default=[1.0, 0.5], help="speed-controller gain factors")
     ap.add_argument("--window", type=float, default=4.0, help="seconds of steady creep on CH measured")
+    ap.add_argument("--calibration", metavar="FILE", help="the TCU's calibration (default: the shipped one)")
     ap.add_argument("--lowpass", type=float, metavar="TAU",
                     help="also measure each run with CH's command low-passed (time constant TAU s) in the window")
     ap.add_argument("--plot", type=Path, metavar="DIR",
@@ -312,12 +315,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.lowpass is not None and not args.lowpass > 0.0:
         print(f"handover_judder: --lowpass {args.lowpass}: a time constant > 0 s", file=sys.stderr)
         return 2
+    if args.calibration is not None and not Path(args.calibration).is_file():
+        print(f"handover_judder: --calibration {args.calibration}: no such file", file=sys.stderr)
+        return 2
     if args.plot is not None and not args.plot.is_dir():
         print(f"handover_judder: --plot {args.plot}: not a directory", file=sys.stderr)
         return 2
     with tempfile.TemporaryDirectory() as tmp:
         for factor in args.gain:
-            calibration = calibration_with_gain(factor, Path(tmp))
+            calibration = calibration_with_gain(factor, Path(tmp), args.calibration)
             for name in args.runs:
                 for lowpass in (None, args.lowpass) if args.lowpass is not None else (None,):
                     plot = args.plot / f"{name}_judder.png" if args.plot and factor == 1.0 and lowpass is None \
