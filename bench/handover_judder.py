@@ -43,7 +43,9 @@ import json
 import math
 import sys
 import tempfile
+from bisect import bisect_right
 from dataclasses import replace
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -101,9 +103,9 @@ SPLIT_HZ = 30.0  # the speed's slow part (the loop's, below) and fast part (abov
 
 def measure(name: str, calibration: str | None, window_s: float, lowpass_s: float | None = None,
             plot: Path | None = None) -> dict[str, Any]:
-    """One run: its handover deviation, and its first steady creep on CH after a handover (ranges, ripple); with
-    ``lowpass_s``, CH's command low-passed through that window (:func:`_low_pass_ch`); with ``plot``, the window's
-    first 0.3 s drawn there (:func:`_plot`)."""
+    """One run: its handover deviation, its worst handover split (:func:`_worst_handover`), and its first steady
+    creep on CH after a handover (ranges, split); with ``lowpass_s``, CH's command low-passed through that window
+    (:func:`_low_pass_ch`); with ``plot``, that window drawn there (:func:`_plot`)."""
     task = load_space(SAFETY_SPACE).task(0, RUNS[name])
     rows: list[tuple[float, str, str, float, float, float]] = []
     fine: list[tuple[float, ...]] = []  # (t, v, CH's slip [r/min], M_CH [N m], mu_CH) of every plant step
@@ -147,7 +149,7 @@ def measure(name: str, calibration: str | None, window_s: float, lowpass_s: floa
     if steady:
         speeds, pressures, slips = zip(*steady)
         t1 = t0 + len(steady) * 0.01
-        window = [row for row in fine if t0 - 0.01 < row[0] <= t1]
+        window = _between(fine, t0 - 0.01, t1)
         out.update({"window_s": [round(t0, 2), round(t1, 2)],
                     "speed_pct": _range_pct(speeds, v_target),
                     "P_CH_cmd_pct": _range_pct(pressures, sum(pressures) / len(pressures)),
@@ -179,7 +181,7 @@ def _worst_handover(rows: list[tuple[float, str, str, float, float, float]], fin
         if rows[k][1] == "HANDOVER" and rows[k - 1][1] != "HANDOVER":
             begun, to = rows[k - 1][0], rows[k][2]
             end = next((t for t, state, *_ in rows[k:] if state != "HANDOVER"), rows[-1][0]) + HANDOVER_AFTER_S
-            speeds = [row[1] for row in fine if begun < row[0] <= end]
+            speeds = [row[1] for row in _between(fine, begun, end)]
             if speeds:
                 split = _split(speeds, v_target)
                 if not worst or max(map(abs, split["speed_1ms_pct"])) > max(map(abs, worst["speed_1ms_pct"])):
@@ -194,11 +196,11 @@ def _ch_against_model(fine: list[tuple[float, ...]], model: list[tuple[float, fl
     there or more: the lowest ratio of CH's true torque (the mean of the block's 1-ms steps) to the model's, and in
     that block the plant's mean mu against the map's."""
     blocks = [(t0, t0 + 0.1) for t0 in np.arange(begun, end - 0.05, 0.1)]
-    largest = max((m for t, m, _ in model if begun < t <= end and m == m), default=0.0)
+    largest = max((m for _, m, _ in _between(model, begun, end) if m == m), default=0.0)
     best: dict[str, Any] = {}
     for lo, hi in blocks:
-        steps = [row for row in fine if lo < row[0] <= hi]
-        periods = [(m, mu) for t, m, mu in model if lo < t <= hi and m == m]
+        steps = _between(fine, lo, hi)
+        periods = [(m, mu) for _, m, mu in _between(model, lo, hi) if m == m]
         if not steps or not periods:
             continue
         m_model = sum(m for m, _ in periods) / len(periods)
@@ -209,6 +211,11 @@ def _ch_against_model(fine: list[tuple[float, ...]], model: list[tuple[float, fl
             mu_true, mu_map = sum(row[4] for row in steps) / len(steps), sum(mu for _, mu in periods) / len(periods)
             best = {"CH_true_over_model": round(ratio, 3), "CH_mu_true_map": [round(mu_true, 4), round(mu_map, 4)]}
     return best
+
+
+def _between(rows: list, lo: float, hi: float) -> list:
+    """The rows (in time order, time first) with lo < t <= hi."""
+    return rows[bisect_right(rows, lo, key=itemgetter(0)):bisect_right(rows, hi, key=itemgetter(0))]
 
 
 def _record_steps(plant: Any, fine: list[tuple[float, ...]]) -> None:
