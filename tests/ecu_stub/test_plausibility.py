@@ -258,11 +258,12 @@ def bus():
 
 
 def tcu_with(speeds: dict, vehicle: dict, now: float, tcu: TcuRunner | can.BusABC,
-             plant: TxScheduler | None = None, driver: dict | None = None) -> tuple[TcuRunner, TxScheduler]:
-    """Given a bus: a TCU on it (real time), given one set of plant frames at ``now``; given that TCU and its plant
-    schedule, the next set of frames."""
+             plant: TxScheduler | None = None, driver: dict | None = None,
+             controller: CreepController | None = None) -> tuple[TcuRunner, TxScheduler]:
+    """Given a bus: a TCU on it (real time; ``controller``, default ecu-stub's), given one set of plant frames at
+    ``now``; given that TCU and its plant schedule, the next set of frames."""
     if not isinstance(tcu, TcuRunner):
-        tcu = TcuRunner(Codec(load_dbc(), TCU_USES), tcu)
+        tcu = TcuRunner(Codec(load_dbc(), TCU_USES), tcu, controller)
         plant = TxScheduler(Codec(load_dbc(), PLANT_USES), ["PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE",
                                                             "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"])
     assert plant is not None
@@ -355,10 +356,7 @@ def test_runner_allows_for_its_own_deceleration_request_in_the_step(bus, decel, 
     slipping = {"ClutchInputSpeed": 149.3, "CLOutputSpeed": round(rpm(v, R_CL), 1), "CHOutputSpeed":
                 round(rpm(v, R_CH), 1)}
     controller = _Braking(decel, full)
-    tcu, plant = tcu_with(slipping, {"VehicleSpeed": v}, 0.0, TcuRunner(Codec(load_dbc(), TCU_USES), bus,
-                                                                         controller),
-                          TxScheduler(Codec(load_dbc(), PLANT_USES), ["PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE",
-                                                                      "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER"]))
+    tcu, plant = tcu_with(slipping, {"VehicleSpeed": v}, 0.0, bus, controller=controller)
     for k in range(1, 10):
         tcu.control((k - 1) * DT)
         tcu_with(slipping, {"VehicleSpeed": v}, k * DT, tcu, plant)
