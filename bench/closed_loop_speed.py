@@ -5,7 +5,13 @@ TCU); the plant alone; plant and TCU as two processes on udp_multicast; the star
 memory of the commands' processes and of one process running the loop (a sweep worker's).
 
     python bench/closed_loop_speed.py [--seconds 60] [--udp-seconds 20] [--json] [--baseline-tree DIR] [--rounds 3]
-                                      [--same-cpu CPU] [--no-startup] [--loop-only]
+                                      [--same-cpu CPU] [--no-startup] [--loop-only] [--compiled]
+
+``--compiled``: only the one-process closed loop of this tree as its source runs it (pure Python, as an editable
+install) and as ``pip install .`` builds it (the modules of a control period compiled by mypyc, setup.py), side by
+side; the build's wheel made from a copy of the tree, unpacked into a temporary directory::
+
+    python bench/closed_loop_speed.py --compiled --seconds 240 --rounds 3
 
 ``--loop-only`` (with ``--baseline-tree``): only the one-process closed loop of the two trees side by side (real-time
 factor, the period's split, runs per core-hour, peak RSS), e.g. the default 240-s creep on a loaded machine::
@@ -40,11 +46,13 @@ import json
 import os
 import re
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -60,9 +68,9 @@ STARTUP_REPEATS = 3
 CREEP_S = 240.0  # the default creep's duration (runs per core-hour)
 
 
-def _timed(cls: type, name: str, inside: list[float]) -> Callable[[], None]:
+def _timed(cls: type, name: str, inside: list[float]) -> Callable[[], None] | None:
     """Wrap ``cls.name`` to add the wall and CPU time spent inside it to ``inside`` ([wall, CPU]); returns the
-    undo."""
+    undo (None for a compiled class, left as it is)."""
     inner = getattr(cls, name)
 
     def timed(*args, **kwargs):
@@ -73,7 +81,10 @@ def _timed(cls: type, name: str, inside: list[float]) -> Callable[[], None]:
             inside[0] += time.perf_counter() - t0
             inside[1] += time.process_time() - c0
 
-    setattr(cls, name, timed)
+    try:
+        setattr(cls, name, timed)
+    except TypeError:  # a class compiled by mypyc (setup.py): its methods cannot be replaced, no split
+        return None
     return lambda: setattr(cls, name, inner)
 
 
@@ -92,7 +103,8 @@ def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
         for restore in undo:
-            restore()
+            if restore is not None:
+                restore()
     periods, run = result.runner.n_periods, result.summary["wall_time_s"]  # run: the periods, without set-up
     loop_cpu = cpu * run / wall if wall > 0 else cpu  # the periods' CPU time (set-up taken out in proportion)
     us = 1e6 / periods
@@ -103,11 +115,30 @@ def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
             "setup_s": round(wall - run, 3), "period_us": round(us * run, 1),
             "physics_us_per_period": round(us * physics[0], 1), "rest_us_per_period": round(us * (run - physics[0]), 1),
             "rest_cpu_us_per_period": round(us * (cpu - physics[1]), 1),
-            "period_cpu_us": round(us * loop_cpu, 1), "split_cpu_us": {k: round(us * v, 1) for k, v in split.items()},
+            "period_cpu_us": round(us * loop_cpu, 1), "compiled": compiled(),
+            "split_cpu_us": {k: round(us * v, 1) for k, v in split.items()} if None not in undo else {},
             "runs_per_core_hour": round(3600.0 * seconds / loop_cpu / CREEP_S),
             "runs_per_core_hour_with_setup": round(3600.0 / (CREEP_S * loop_cpu / seconds + cpu - loop_cpu)),
             "frames_sent": result.summary["frames"]["sent"],
             "loop_peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
+
+
+def compiled() -> bool:
+    """Whether the TCU runs compiled (a regular install of this package: setup.py), not from its source."""
+    return (sys.modules[TcuRunner.__module__].__file__ or "").endswith(".so")
+
+
+def compiled_site(out: Path) -> str:
+    """This tree built as ``pip install .`` builds it (the closed loop compiled, setup.py), from a copy of its sources
+    (as a fresh clone: no ``build/`` of an earlier build), its wheel unpacked into ``out``: a directory for
+    PYTHONPATH."""
+    root, src = Path(__file__).resolve().parents[1], out / "src"
+    shutil.copytree(root, src, ignore=shutil.ignore_patterns(".*", "build", "dist", "out", "*.egg-info", "__pycache__"))
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(src)], check=True)
+    (wheel,) = out.glob("dsg_hil-*.whl")
+    with zipfile.ZipFile(wheel) as zf:
+        zf.extractall(out / "site")
+    return str(out / "site")
 
 
 def closed_loop_argv(seconds: float, transport: str = "local", reference: bool = False) -> list[str]:
@@ -301,6 +332,8 @@ def main() -> None:
     ap.add_argument("--no-startup", action="store_true", help="skip the start-up times of the commands")
     ap.add_argument("--loop-only", action="store_true", help="with --baseline-tree: only the one-process closed "
                     "loop of the two trees, side by side")
+    ap.add_argument("--compiled", action="store_true", help="only the one-process closed loop of this tree, pure "
+                    "Python (its source) and compiled (built as 'pip install .' builds it: setup.py), side by side")
     ap.add_argument("--closed-loop-only", action="store_true", help=argparse.SUPPRESS)  # see closed_loop_in
     ap.add_argument("--transport", default="local", help=argparse.SUPPRESS)
     ap.add_argument("--reference-codec", action="store_true", help=argparse.SUPPRESS)
@@ -308,6 +341,21 @@ def main() -> None:
     if args.closed_loop_only:
         closed_loop(0.5, args.transport, args.reference_codec)  # warm up: imports, caches, first calls
         print(json.dumps(closed_loop(args.seconds, args.transport, args.reference_codec)))
+        return
+
+    if args.compiled:
+        with tempfile.TemporaryDirectory() as tmp:
+            sbs = tree_vs_tree(compiled_site(Path(tmp)), args.seconds, args.rounds, args.same_cpu)
+        pure, built = sbs["this_tree"], sbs["baseline_tree"]
+        ratio = {"compiled_vs_pure": round(built["sim_s_per_cpu_s"] / pure["sim_s_per_cpu_s"], 2),
+                 "compiled_vs_pure_wall": round(built["sim_s_per_wall_s"] / pure["sim_s_per_wall_s"], 2)}
+        if args.json:
+            print(json.dumps({"seconds": args.seconds, "rounds": args.rounds, "pure": pure, "compiled": built,
+                              **ratio}))
+        else:
+            print_side_by_side(sbs, args.seconds, args.rounds, "the compiled build", ("pure Python", "compiled"))
+            print(f"compiled: {ratio['compiled_vs_pure']:.2f}x the pure Python's speed per CPU s, "
+                  f"{ratio['compiled_vs_pure_wall']:.2f}x in wall time")
         return
 
     if args.loop_only:
@@ -403,13 +451,15 @@ def main() -> None:
         print(f"  {name:<26}{t:6.2f}" + (f"   (baseline {base:.2f})" if base is not None else ""))
 
 
-def print_side_by_side(sbs: dict, seconds: float, rounds: int, baseline: str) -> None:
-    """The lines of ``--loop-only``: each tree's real-time factor, its period split, runs per core-hour, peak RSS."""
+def print_side_by_side(sbs: dict, seconds: float, rounds: int, baseline: str,
+                       labels: tuple[str, str] = ("this tree", "baseline tree")) -> None:
+    """The lines of ``--loop-only`` (and ``--compiled``): each tree's real-time factor, its period split (none for
+    a compiled one), runs per core-hour, peak RSS."""
     print(f"one-process lock-step closed loop (plant + ecu-stub, in-process bus), {seconds:g} simulated s of the "
           f"default creep, best of {rounds} fresh processes per tree")
     print(f"{'':<16}{'x real time':>12}{'x per CPU s':>12}{'CPU us/period':>14}   split (CPU us)"
           f"{'':<40}{'runs/core-h':>12}{'+ set-up':>9}{'RSS MB':>8}")
-    for label, r in (("this tree", sbs["this_tree"]), ("baseline tree", sbs["baseline_tree"])):
+    for label, r in zip(labels, (sbs["this_tree"], sbs["baseline_tree"])):
         split = "  ".join(f"{k} {v:5.1f}" for k, v in r["split_cpu_us"].items())
         print(f"{label:<16}{r['sim_s_per_wall_s']:>12.1f}{r['loop_sim_s_per_cpu_s']:>12.1f}{r['period_cpu_us']:>14.1f}"
               f"   {split:<54}{r['runs_per_core_hour']:>12}{r['runs_per_core_hour_with_setup']:>9}"

@@ -1,8 +1,12 @@
-"""What the package ships: the DBC as a real resource identical to dbc/, py.typed, one version, the wheel."""
+"""What the package ships: the DBC as a real resource identical to dbc/, py.typed, one version, the wheel, and in
+the wheel the closed loop compiled (setup.py), sending the same frames as the source."""
 
 from __future__ import annotations
 
+import ast
+import json
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -58,14 +62,37 @@ def test_marker_expressions_do_not_bring_back_the_vcan_tests():
         assert (expr == "vcan") or "deselected" in out, out
 
 
-@pytest.mark.slow
-def test_wheel_ships_the_dbc_typing_license_and_extras(tmp_path):
+def _wheel(out: Path, **env: str) -> Path:
+    """A wheel of this checkout built into ``out`` by pip (as ``pip install .`` builds it), with ``env`` added: from a
+    copy of its sources, as a fresh clone (pip builds in the tree, and a ``build/`` left there by an earlier build
+    would bring its modules into the wheel)."""
     if not (ROOT / "pyproject.toml").exists():
         pytest.skip("needs the source tree")
-    proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path), str(ROOT)],
-                          capture_output=True, text=True)
+    src = out / "src"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".*", "build", "dist", "out", "*.egg-info", "__pycache__"))
+    proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(src)],
+                          capture_output=True, text=True, env={**os.environ, **env}, timeout=900)
     assert proc.returncode == 0, proc.stderr
-    (wheel,) = tmp_path.glob("dsg_hil-*.whl")
+    (wheel,) = out.glob("dsg_hil-*.whl")
+    return wheel
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    """The wheel of this checkout (the compiled modules in it where this machine has a C compiler)."""
+    return _wheel(tmp_path_factory.mktemp("wheel"))
+
+
+def compiled_modules() -> list[str]:
+    """The modules setup.py compiles (its COMPILED), as paths without '.py' (read, not imported: it runs setup())."""
+    tree = ast.parse((ROOT / "setup.py").read_text(encoding="utf-8"))
+    (paths,) = [node.value for node in tree.body if isinstance(node, ast.Assign)
+                and any(isinstance(t, ast.Name) and t.id == "COMPILED" for t in node.targets)]
+    return [path.removesuffix(".py") for path in ast.literal_eval(paths)]
+
+
+@pytest.mark.slow
+def test_wheel_ships_the_dbc_typing_license_and_extras(wheel):
     with zipfile.ZipFile(wheel) as zf:
         names = set(zf.namelist())
         assert zf.read("dsg_hil/data/dsg_hil.dbc") == TOP_DBC.read_bytes()
@@ -78,3 +105,68 @@ def test_wheel_ships_the_dbc_typing_license_and_extras(tmp_path):
     assert "License-Expression: MIT" in meta and f"Version: {dsg_hil.__version__}" in meta
     requires = [line for line in meta.splitlines() if line.startswith("Requires-Dist: matplotlib")]
     assert "Provides-Extra: plots" in meta and requires and all('extra == "plots"' in r for r in requires)
+
+
+FRAME_RUNS = [(), ("--duration", "60", "--fault", "stuck:PLANT_VEHICLE.VehicleSpeed@20-23,value=0",
+                   "--fault", "drop:TCU_CMD@30-31", "--fault", "drop:PLANT_OIL_TEMP@40-45")]
+NEEDS_CC = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
+                              reason="no C compiler: pip builds the pure-Python package (setup.py)")
+
+
+@pytest.mark.slow
+@NEEDS_CC
+def test_wheel_holds_the_closed_loop_compiled_beside_its_source(wheel):
+    """setup.py: each module of COMPILED as a mypyc extension module next to its source, and their shared library."""
+    with zipfile.ZipFile(wheel) as zf:
+        names = zf.namelist()
+    for module in compiled_modules():
+        assert any(n.startswith(module + ".cpython-") and n.endswith(".so") for n in names), module
+        assert module + ".py" in names, module
+    assert any(n.startswith("dsg_hil_compiled__mypyc.") for n in names)
+
+
+@pytest.mark.slow
+def test_pure_python_wheel_on_request(tmp_path):
+    """DSG_HIL_PURE_PYTHON=1: no extension module in the wheel (what an editable install always is)."""
+    with zipfile.ZipFile(_wheel(tmp_path, DSG_HIL_PURE_PYTHON="1")) as zf:
+        assert not [n for n in zf.namelist() if n.endswith(".so")]
+
+
+def test_no_compiled_module_shadows_a_source_in_the_tree():
+    """An extension module next to its source is imported instead of it: one left in the checkout (an in-place
+    build) would run stale code under an editable install."""
+    stray = [str(p.relative_to(ROOT)) for package in ("dsg_hil", "ecu_stub") for p in (ROOT / package).rglob("*.so")]
+    assert not stray, f"remove {stray}: they shadow the sources"
+
+
+def _run_logged(path: Path, out: Path, *options: str) -> tuple[bytes, dict, str]:
+    """``dsg-hil run`` in lock-step with the package at ``path`` first on sys.path: its log, its summary and the file
+    ecu_stub.controller came from."""
+    out.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(path)}
+    subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-q", "--log", str(out / "run.log"), "--summary",
+                    str(out / "summary.json"), *options], check=True, env=env, cwd=out, timeout=600)
+    origin = subprocess.run([sys.executable, "-c", "import ecu_stub.controller as m; print(m.__file__)"],
+                            check=True, env=env, cwd=out, capture_output=True, text=True).stdout.strip()
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("wall_time_s", "realtime_factor", "interface", "command_latency_ms"):  # the machine's, not the run's
+        summary.pop(key, None)
+    return (out / "run.log").read_bytes(), summary, origin
+
+
+@pytest.mark.slow
+@NEEDS_CC
+@pytest.mark.parametrize("options", FRAME_RUNS,
+                         ids=["default creep", "faults"])
+def test_compiled_closed_loop_sends_the_same_frames(wheel, tmp_path, options):
+    """The compiled modules run the same arithmetic as the source: every frame of a lock-step run the same, bit for
+    bit (the default creep, with its handovers; a run through frame faults and the TCU's fallbacks)."""
+    site = tmp_path / "site"
+    with zipfile.ZipFile(wheel) as zf:
+        zf.extractall(site)
+    log_c, summary_c, origin_c = _run_logged(site, tmp_path / "compiled", *options)
+    log_p, summary_p, origin_p = _run_logged(ROOT, tmp_path / "pure", *options)
+    assert origin_c.endswith(".so") and origin_p.endswith(".py"), (origin_c, origin_p)
+    assert log_c.count(b"\n") > 1000
+    assert log_c == log_p
+    assert summary_c == summary_p

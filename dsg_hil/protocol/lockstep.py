@@ -17,6 +17,7 @@ import math
 import time
 from collections import Counter as Tally
 from collections.abc import Callable, Iterable
+from typing import TypeAlias
 
 import can
 
@@ -46,7 +47,9 @@ STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, befo
 SIGHTS_BEFORE_INCOMPLETE = 3  # responder: a tick seen this often is answered even with plant frames missing
 
 Frames = list[tuple[int, bytes]]  # (ID, data) of classic data frames
-Received = tuple[int, bytes] | can.Message  # what ``recv`` gives: a classic data frame as (ID, data), or any message
+# what ``recv`` gives: a classic data frame as (ID, data), or any message (an explicit alias: setup.py's mypyc build
+# types python-can as Any, where an implicit one would be a variable)
+Received: TypeAlias = tuple[int, bytes] | can.Message
 
 
 def choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
