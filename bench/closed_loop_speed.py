@@ -32,10 +32,11 @@ per wall second unless named per CPU second; memory is the peak resident set of 
 A period's split (``split_cpu_us``, CPU time): ``physics`` inside the plant's ``advance``, ``tcu`` inside the
 in-process TCU's ``pump`` (its frame handling, receive checks, controller and answer), ``results`` inside the run
 summary's ``on_period``/``on_status``, ``plant_io`` the rest (the plant's frames: values, encoding, sending, the
-lock-step wait and receive checks, its inputs; the timers' own cost, under 1 us, included). ``runs_per_core_hour``:
-runs of the default creep (240 s) per CPU hour, the loop alone and with each run's set-up in a warm process
-(``..._with_setup``: building the plant, the TCU and the bus, as a sweep worker does per run; the process's own
-start-up, imports and compiled code, it pays once). ``loop_peak_rss_mb``: the peak resident set of the
+lock-step wait and receive checks, its inputs; the timers' own cost, under 1 us, included); in the compiled build,
+whose compiled callers do not go through a wrapped method, ``physics`` and the rest (``compiled``).
+``runs_per_core_hour``: runs of the default creep (240 s) per CPU hour, the loop alone and with each run's set-up
+in a warm process (``..._with_setup``: building the plant, the TCU and the bus, as a sweep worker does per run; the
+process's own start-up, imports and compiled code, it pays once). ``loop_peak_rss_mb``: the peak resident set of the
 process that ran the loop.
 """
 
@@ -70,7 +71,7 @@ CREEP_S = 240.0  # the default creep's duration (runs per core-hour)
 
 def _timed(cls: type, name: str, inside: list[float]) -> Callable[[], None] | None:
     """Wrap ``cls.name`` to add the wall and CPU time spent inside it to ``inside`` ([wall, CPU]); returns the
-    undo (None for a compiled class, left as it is)."""
+    undo (None for a class compiled by mypyc, left as it is)."""
     inner = getattr(cls, name)
 
     def timed(*args, **kwargs):
@@ -81,10 +82,9 @@ def _timed(cls: type, name: str, inside: list[float]) -> Callable[[], None] | No
             inside[0] += time.perf_counter() - t0
             inside[1] += time.process_time() - c0
 
-    try:
-        setattr(cls, name, timed)
-    except TypeError:  # a class compiled by mypyc (setup.py): its methods cannot be replaced, no split
-        return None
+    if (sys.modules[cls.__module__].__file__ or "").endswith(".so"):  # compiled by mypyc (setup.py): its callers
+        return None  # call the method itself, not a replacement: no split
+    setattr(cls, name, timed)
     return lambda: setattr(cls, name, inner)
 
 
@@ -109,14 +109,14 @@ def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
     loop_cpu = cpu * run / wall if wall > 0 else cpu  # the periods' CPU time (set-up taken out in proportion)
     us = 1e6 / periods
     split = {"physics": physics[1], "plant_io": loop_cpu - physics[1] - tcu[1] - results[1], "results": results[1],
-             "tcu": tcu[1]}
+             "tcu": tcu[1]} if None not in undo else {"physics": physics[1], "compiled": loop_cpu - physics[1]}
     return {"sim_s_per_wall_s": round(seconds / wall, 2), "sim_s_per_cpu_s": round(seconds / cpu, 2),
             "loop_sim_s_per_cpu_s": round(seconds / loop_cpu, 2), "wall_s": round(wall, 3),
             "setup_s": round(wall - run, 3), "period_us": round(us * run, 1),
             "physics_us_per_period": round(us * physics[0], 1), "rest_us_per_period": round(us * (run - physics[0]), 1),
             "rest_cpu_us_per_period": round(us * (cpu - physics[1]), 1),
             "period_cpu_us": round(us * loop_cpu, 1), "compiled": compiled(),
-            "split_cpu_us": {k: round(us * v, 1) for k, v in split.items()} if None not in undo else {},
+            "split_cpu_us": {k: round(us * v, 1) for k, v in split.items()},
             "runs_per_core_hour": round(3600.0 * seconds / loop_cpu / CREEP_S),
             "runs_per_core_hour_with_setup": round(3600.0 / (CREEP_S * loop_cpu / seconds + cpu - loop_cpu)),
             "frames_sent": result.summary["frames"]["sent"],
