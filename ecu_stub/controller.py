@@ -113,6 +113,20 @@ class TcuInputs:
     pressure_trusted: bool = True
     accel_mps2: float = 0.0  # PLANT_VEHICLE.LongAccel: the body's acceleration + g sin(grade) (prefill_force)
 
+    def __init__(self, plant_valid: bool, engine_speed_rpm: float = 0.0, clutch_in_rpm: float = 0.0,
+                 cl_out_rpm: float = 0.0, ch_out_rpm: float = 0.0, v_mps: float = 0.0, P_CL_mpa: float = 0.0,
+                 P_CH_mpa: float = 0.0, T_oil_CL_c: float = 25.0, T_oil_CH_c: float = 25.0, T_sump_c: float = 25.0,
+                 creep_request: bool = False, brake_pct: float = 0.0, desired_speed_mps: float = 0.0,
+                 fault_bits: int = 0, pressure_trusted: bool = True, accel_mps2: float = 0.0) -> None:
+        # the dataclass's own __init__ written out: built every control period, and setup.py's mypyc build compiles
+        # a method written here but not one the dataclass generates (the fields and defaults above, the same)
+        self.plant_valid, self.engine_speed_rpm, self.clutch_in_rpm = plant_valid, engine_speed_rpm, clutch_in_rpm
+        self.cl_out_rpm, self.ch_out_rpm, self.v_mps = cl_out_rpm, ch_out_rpm, v_mps
+        self.P_CL_mpa, self.P_CH_mpa = P_CL_mpa, P_CH_mpa
+        self.T_oil_CL_c, self.T_oil_CH_c, self.T_sump_c = T_oil_CL_c, T_oil_CH_c, T_sump_c
+        self.creep_request, self.brake_pct, self.desired_speed_mps = creep_request, brake_pct, desired_speed_mps
+        self.fault_bits, self.pressure_trusted, self.accel_mps2 = fault_bits, pressure_trusted, accel_mps2
+
     def slip_rpm(self, clutch: str) -> float:
         return self.clutch_in_rpm - (self.cl_out_rpm if clutch == "CL" else self.ch_out_rpm)
 
@@ -134,6 +148,14 @@ class TcuOutputs:
     T_CH_pred_c: float
     fault_bits: int
     decel_request_mps2: float = 0.0  # asked of the brakes (TCU_CMD.DecelRequest; CreepController.decel_request)
+
+    def __init__(self, P_CL_cmd_mpa: float, P_CH_cmd_mpa: float, state: str, active_clutch: str, brake_request: bool,
+                 T_CL_pred_c: float, T_CH_pred_c: float, fault_bits: int, decel_request_mps2: float = 0.0) -> None:
+        # (written out as TcuInputs')
+        self.P_CL_cmd_mpa, self.P_CH_cmd_mpa, self.state, self.active_clutch = (P_CL_cmd_mpa, P_CH_cmd_mpa, state,
+                                                                                active_clutch)
+        self.brake_request, self.T_CL_pred_c, self.T_CH_pred_c = brake_request, T_CL_pred_c, T_CH_pred_c
+        self.fault_bits, self.decel_request_mps2 = fault_bits, decel_request_mps2
 
 
 class CreepController:

@@ -86,6 +86,10 @@ class MonitorVerdict:
     P_limit_mpa: dict[str, float]
     stop: bool
 
+    def __init__(self, bound_c: dict[str, float], P_limit_mpa: dict[str, float], stop: bool) -> None:
+        # (written out as ecu_stub.controller.TcuInputs')
+        self.bound_c, self.P_limit_mpa, self.stop = bound_c, P_limit_mpa, stop
+
 
 class ThermalMonitor:
     """The check of the module docstring. Holds no state: every cycle is judged on its own inputs."""
