@@ -21,7 +21,7 @@ from setuptools import setup
 COMPILED = [
     "ecu_stub/calibration.py", "ecu_stub/clutch_model.py", "ecu_stub/controller.py", "ecu_stub/monitor.py",
     "ecu_stub/pid.py", "ecu_stub/plausibility.py", "ecu_stub/runner.py", "ecu_stub/sensor_checks.py",
-    "dsg_hil/protocol/lockstep.py", "dsg_hil/protocol/validity.py",
+    "dsg_hil/protocol/lockstep.py", "dsg_hil/protocol/plan.py", "dsg_hil/protocol/validity.py",
     "dsg_hil/results/summary.py", "dsg_hil/sim/plant_io.py", "dsg_hil/sim/runner.py",
 ]
 PURE_ENV = "DSG_HIL_PURE_PYTHON"

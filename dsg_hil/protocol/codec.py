@@ -25,7 +25,9 @@ from cantools.database.can import Database, Message
 from .e2e import COUNTER, CRC, Protection, ProtectionError
 from ..common.errors import InputError
 from ..common.units import CV
-from .generated import dict_of, generate, generate_fused, unsupported
+from .generated import dict_of, generate, generate_fused, generate_planned, plan, unsupported
+from .plan import COMPILED as PLANS_COMPILED
+from .plan import MessagePlan
 from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
 
 __all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "load_dbc"]
@@ -73,11 +75,17 @@ def load_dbc(path: str | Path | None = None) -> Database:
 class Codec:
     """Encode and decode the messages named in ``uses`` ({message: [signals the code reads or writes]}).
 
-    ``reference``: encode and decode through cantools only (no generated functions)."""
+    ``reference``: encode and decode through cantools only (no generated functions). ``plans``: decode, and encode
+    from expressions (:meth:`expression_encoder`), by the messages' plans (:mod:`.plan`), which give the same frames
+    and values; by default where the plans run compiled (the mypyc build, :data:`.plan.COMPILED`), faster there
+    than the generated source, slower run by the interpreter."""
 
-    def __init__(self, db: Database, uses: Mapping[str, Sequence[str]], *, reference: bool = False) -> None:
+    def __init__(self, db: Database, uses: Mapping[str, Sequence[str]], *, reference: bool = False,
+                 plans: bool | None = None) -> None:
         self.db = db
         self.reference = reference
+        self._plans: dict[str, MessagePlan] = {}
+        use_plans = PLANS_COMPILED if plans is None else plans
         self._by_name: dict[str, Message] = {}
         self._by_id: dict[int, Message] = {}
         self._protection: dict[int, Protection] = {}
@@ -109,6 +117,9 @@ class Codec:
                 generated = generate(message, protection, FrameError, DecodedFrame)
                 self._encoders[name], self._decoders[message.frame_id] = generated.encode, generated.decode
                 self.sources[name] = generated.source
+                if use_plans:
+                    self._plans[name] = message_plan = plan(message, protection, FrameError, DecodedFrame)
+                    self._decoders[message.frame_id] = message_plan.decode
 
     # ---- lookup --------------------------------------------------------------------------------------------
     def message(self, name: str) -> Message:
@@ -149,6 +160,8 @@ class Codec:
         own state every cycle); else the dict, then :meth:`encoder`. ``floats``: every expression gives a float
         (no ``float()`` of it taken again)."""
         message = self._by_name[name]
+        if name in self._plans:
+            return generate_planned(message, self._plans[name], args, values, namespace, floats=floats)[0]
         if name in self.sources:
             return generate_fused(message, self._protection[message.frame_id], args, values, namespace,
                                   floats=floats)[0]

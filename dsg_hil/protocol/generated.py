@@ -10,7 +10,8 @@ no generated functions, and the codec keeps the cantools path for it.
 
 Why generated source (``exec``) rather than a loop over signal descriptions: one Python function per message
 with its constants inlined runs in about 1 us per frame, a generic loop several times that; the source of each
-function is kept (``source``) for reading and debugging.
+function is kept (``source``) for reading and debugging. Compiled by mypyc the loop is the faster (:mod:`.plan`):
+:func:`plan` gives it the numbers the source inlines, and the codec runs it in the compiled build.
 """
 
 from __future__ import annotations
@@ -26,9 +27,11 @@ from cantools.database.can import Message, Signal
 from cantools.database.conversion import BaseConversion, IdentityConversion, LinearIntegerConversion
 
 from .e2e import COUNTER, CRC, Protection
+from .plan import IDENTITY, LINEAR_INTEGER, SCALED, SCALED_OFFSET, MessagePlan, SignalPlan
 from .ranges import raw_range, signal_range
 
-__all__ = ["Decoder", "Encoder", "GeneratedMessage", "dict_of", "generate", "generate_fused", "unsupported"]
+__all__ = ["Decoder", "Encoder", "GeneratedMessage", "dict_of", "generate", "generate_fused", "generate_planned",
+           "plan", "unsupported"]
 
 Encoder = Callable[[Mapping[str, float], int], bytes]
 DEFAULT = "<default>"  # _encode_lines: a signal a fused encoder is given no value for
@@ -166,6 +169,49 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
 
 
+def plan(message: Message, protection: Protection, frame_error: type, decoded_frame: type) -> MessagePlan:
+    """The plan of ``message`` (check :func:`unsupported` first): the numbers :func:`generate` writes into its
+    source, for :class:`.plan.MessagePlan` to run (compiled: the codec's choice there, :data:`.plan.COMPILED`)."""
+    length, k = message.length, protection.crc_byte
+    values: list[SignalPlan] = []
+    counter = crc = None
+    order = []
+    for signal in message.signals:
+        conversion = _conversion(signal)
+        big, shift = _shift(signal, length)
+        lo, hi = signal_range(signal)
+        bits_lo, bits_hi = raw_range(signal)
+        scale, offset = conversion.scale, conversion.offset
+        kind = (IDENTITY if isinstance(conversion, IdentityConversion) else LINEAR_INTEGER
+                if isinstance(conversion, LinearIntegerConversion) else SCALED if not offset else SCALED_OFFSET)
+        int_values = not isinstance(scale, float) and not isinstance(offset, float)  # :func:`_to_physical` in ints
+        default = 0.0
+        if signal.name not in (COUNTER, CRC):
+            default = _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi),
+                               lo, hi)
+        s = SignalPlan(signal.name, big == "G", shift, (1 << signal.length) - 1, signal.length, signal.is_signed,
+                       kind, float(scale), float(offset), int_values, int(scale) if int_values else 1,
+                       int(offset) if int_values else 0,
+                       bool(offset) or (isinstance(scale, float) and scale < 0), float(lo), float(hi), float(lo),
+                       float(hi), default, not lo - 1e-9 <= bits_lo <= bits_hi <= hi + 1e-9, lo - 1e-9, hi + 1e-9,
+                       f"[{lo:g}, {hi:g}]")
+        if signal.name == COUNTER:
+            counter, index = s, -1
+        elif signal.name == CRC:
+            if not s.checked:
+                continue  # (its value checked as the CRC, not returned)
+            crc, index = s, -2
+        else:
+            values.append(s)
+            index = len(values) - 1
+        order.append(index)
+    assert counter is not None  # (Protection.of: every protected message has one)
+    constant, terms = _crc_terms(protection)
+    return MessagePlan(message.name, length, values, counter, protection.counter_modulus, 8 * k, constant,
+                       [(table, shift, mask) for _, table, shift, mask in terms], crc, frame_error, decoded_frame,
+                       order)
+
+
 def _encode_lines(signal: Signal, protection: Protection, length: int, value: str | None = None,
                   is_float: bool = False) -> list[str]:
     """Source lines putting ``signal`` into the frame (``F`` or ``G``): clamped (NaN or missing: the default), to
@@ -212,18 +258,43 @@ def generate_fused(message: Message, protection: Protection, args: Sequence[str]
     ``{signal: float(expression)}``, byte for byte, without the dict built and looked up. ``namespace``: names the
     expressions use besides ``args``; ``floats``: every expression gives a float (else each is taken as
     ``float(expression)``). Returns the function and its source."""
-    unknown = set(values) - {s.name for s in message.signals} | set(values) & {COUNTER, CRC}
-    if unknown:
-        raise ValueError(f"{message.name}: no signal {sorted(unknown)[0]} to give a value")
-    taken = set(args) & {"F", "G", "v", "r", "d", "q", "m", "counter", "INF", "from_bytes"}
-    if taken:
-        raise ValueError(f"{message.name}: argument {sorted(taken)[0]!r} is a name the encoder uses")
+    _check_expressions(message, args, values)
     lines = [f"def encode({', '.join((*args, 'counter'))}):", "    F = G = 0"]
     for signal in message.signals:
         lines += _encode_lines(signal, protection, message.length, values.get(signal.name, DEFAULT), floats)
     source = "\n".join([*lines, *_encode_end(message, protection)]) + "\n"
     scope: dict = {"INF": math.inf, "from_bytes": int.from_bytes, **_crc_expression(protection)[1], **(namespace or {})}
     exec(_compiled(source, f"{message.name} fused"), scope)  # noqa: S102 - our own source
+    return scope["encode"], source
+
+
+def _check_expressions(message: Message, args: Sequence[str], values: Mapping[str, str]) -> None:
+    """A ValueError for a value given to no signal of ``message`` (or to its Counter or CRC), or an argument named as
+    a name the generated encoders use."""
+    unknown = set(values) - {s.name for s in message.signals} | set(values) & {COUNTER, CRC}
+    if unknown:
+        raise ValueError(f"{message.name}: no signal {sorted(unknown)[0]} to give a value")
+    taken = set(args) & {"F", "G", "v", "r", "d", "q", "m", "counter", "INF", "from_bytes", "ENCODE"}
+    if taken:
+        raise ValueError(f"{message.name}: argument {sorted(taken)[0]!r} is a name the encoder uses")
+
+
+def generate_planned(message: Message, message_plan: MessagePlan, args: Sequence[str], values: Mapping[str, str],
+                     namespace: Mapping[str, object] | None = None, *,
+                     floats: bool = False) -> tuple[Callable[..., bytes], str]:
+    """:func:`generate_fused`'s encoder run by ``message_plan`` (:meth:`.plan.MessagePlan.encode_values`): the
+    generated part only the expressions, as a tuple of floats (a signal not named: its default, which its clamp
+    leaves as it is; ``float()`` of each unless ``floats``). The same bytes; the codec's choice where the plan runs
+    compiled. Returns the function and its source."""
+    _check_expressions(message, args, values)
+    items = []
+    for s in message_plan.values:
+        value = values.get(s.name)
+        items.append(repr(s.default) if value is None else value if floats else f"float({value})")
+    source = (f"def encode({', '.join((*args, 'counter'))}):\n"
+              f"    return ENCODE(({', '.join(items)}{',' if len(items) == 1 else ''}), counter)\n")
+    scope: dict = {**(namespace or {}), "ENCODE": message_plan.encode_values}
+    exec(_compiled(source, f"{message.name} planned"), scope)  # noqa: S102 - our own source
     return scope["encode"], source
 
 
@@ -270,11 +341,19 @@ def _as_float(conversion: BaseConversion, value: str) -> str:
 
 def _crc_expression(protection: Protection) -> tuple[str, dict[str, bytes]]:
     """Source of the frame's CRC (final XOR included) from ``F``, its data as a little-endian integer with the
-    CRC byte ignored, and the tables it reads. The CRC is affine in the data bytes (the table of a CRC without
-    reflection is linear: T[a ^ b] = T[a] ^ T[b]), so it is a constant (the frame ID's bytes, then zeros) XOR
-    what each data byte contributes given how many covered bytes follow it (:func:`_byte_contribution`); two
-    neighbouring data bytes are looked up as one 16-bit index (:func:`_pair_contribution`): 4 look-ups for a
-    frame of 8 bytes instead of 7 steps of the register."""
+    CRC byte ignored, and the tables it reads (:func:`_crc_terms`)."""
+    constant, terms = _crc_terms(protection)
+    source = " ^ ".join([str(constant), *(f"{name}[{_field('F', shift, mask)}]" for name, _, shift, mask in terms)])
+    return source, {name: table for name, table, _, _ in terms}
+
+
+def _crc_terms(protection: Protection) -> tuple[int, list[tuple[str, bytes, int, int]]]:
+    """The frame's CRC (final XOR included) as a constant XOR table look-ups of ``F``, its data as a little-endian
+    integer with the CRC byte ignored: (constant, [(name, table, shift, mask)]). The CRC is affine in the data bytes
+    (the table of a CRC without reflection is linear: T[a ^ b] = T[a] ^ T[b]), so it is a constant (the frame ID's
+    bytes, then zeros) XOR what each data byte contributes given how many covered bytes follow it
+    (:func:`_byte_contribution`); two neighbouring data bytes are looked up as one 16-bit index
+    (:func:`_pair_contribution`): 4 look-ups for a frame of 8 bytes instead of 7 steps of the register."""
     from .crc import _TABLE  # noqa: PLC0415
 
     covered = [p for p in range(protection.length) if p != protection.crc_byte]
@@ -282,22 +361,18 @@ def _crc_expression(protection: Protection) -> tuple[str, dict[str, bytes]]:
     constant = _crc_after_header(protection)
     for _ in covered:
         constant = _TABLE[constant]
-    terms, tables = [str(constant ^ 0xFF)], {}
-    p = 0
+    terms, p = [], 0
     while p < protection.length:
         if p not in following:
             p += 1
         elif p + 1 in following:
-            name = f"P{following[p]}_{following[p + 1]}"
-            tables[name] = _pair_contribution(following[p], following[p + 1])
-            terms.append(f"{name}[{_field('F', 8 * p, 0xFFFF)}]")
+            a, b = following[p], following[p + 1]
+            terms.append((f"P{a}_{b}", _pair_contribution(a, b), 8 * p, 0xFFFF))
             p += 2
         else:
-            name = f"L{following[p]}"
-            tables[name] = _byte_contribution(following[p])
-            terms.append(f"{name}[{_field('F', 8 * p, 255)}]")
+            terms.append((f"L{following[p]}", _byte_contribution(following[p]), 8 * p, 255))
             p += 1
-    return " ^ ".join(terms), tables
+    return constant ^ 0xFF, terms
 
 
 @functools.lru_cache(maxsize=64)

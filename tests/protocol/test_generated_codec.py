@@ -1,7 +1,9 @@
 """The codec generated per message from the DBC against the cantools path (``Codec(..., reference=True)``): the
 same bytes for random, out-of-range, missing and non-finite values, and the same decoded values or the same
 rejection (reason and text) for random, corrupted, resized and re-sealed frames; on the shipped DBC and on one
-with what the shipped one lacks (Motorola byte order, integer scaling, value tables, a float signal)."""
+with what the shipped one lacks (Motorola byte order, integer scaling, value tables, a float signal). Each case
+twice: with the generated functions, and with the messages' plans (``Codec(..., plans=True)``, :mod:`.plan`: what the
+compiled build decodes and encodes expressions with), here run by the interpreter."""
 
 from __future__ import annotations
 
@@ -48,9 +50,9 @@ SIG_VALTYPE_ 302 Ratio : 1;
 """
 
 
-def codecs(db) -> tuple[Codec, Codec]:
+def codecs(db, planned: bool) -> tuple[Codec, Codec]:
     uses = {m.name: () for m in db.messages}
-    return Codec(db, uses), Codec(db, uses, reference=True)
+    return Codec(db, uses, plans=planned), Codec(db, uses, reference=True)
 
 
 def random_value(rng: random.Random, signal) -> float | int | bool | None:
@@ -83,20 +85,25 @@ def same_decode(generated: Codec, reference: Codec, frame_id: int, data: bytes) 
     return str(results[0][0])
 
 
+@pytest.fixture(params=[False, True], ids=["generated", "plans"])
+def planned(request) -> bool:
+    return request.param
+
+
 @pytest.fixture(scope="module", params=["shipped", "extra"])
 def db(request):
     return load_dbc() if request.param == "shipped" else cantools.database.load_string(EXTRA_DBC, "dbc",
                                                                                       strict=True)
 
 
-def test_every_message_it_can_is_generated_and_the_rest_stays_on_cantools(db):
-    generated, _ = codecs(db)
+def test_every_message_it_can_is_generated_and_the_rest_stays_on_cantools(db, planned):
+    generated, _ = codecs(db, planned)
     expected = {m.name for m in db.messages} - {"WITH_FLOAT"}
     assert set(generated.sources) == expected
 
 
-def test_encode_is_byte_identical_to_cantools(db):
-    generated, reference = codecs(db)
+def test_encode_is_byte_identical_to_cantools(db, planned):
+    generated, reference = codecs(db, planned)
     rng = random.Random(9)
     n = 0
     for message in db.messages:
@@ -114,11 +121,11 @@ def test_encode_is_byte_identical_to_cantools(db):
     assert n >= 1800
 
 
-def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db):
+def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db, planned):
     """``Codec.expression_encoder``: values as expressions of its arguments (here ``x[name]``), the signals it does
     not name at their defaults; the same bytes as ``encode`` of the dict, fused where the message is generated, and
     on the cantools path."""
-    generated, reference = codecs(db)
+    generated, reference = codecs(db, planned)
     rng = random.Random(21)
     n = 0
     for message in db.messages:
@@ -146,8 +153,8 @@ def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db):
         generated.expression_encoder(db.messages[0].name, ("v",), {})
 
 
-def test_decode_gives_the_same_values_or_the_same_rejection(db):
-    generated, reference = codecs(db)
+def test_decode_gives_the_same_values_or_the_same_rejection(db, planned):
+    generated, reference = codecs(db, planned)
     rng = random.Random(10)
     reasons: dict[str, int] = {}
     for message in db.messages:
@@ -173,8 +180,8 @@ def test_decode_gives_the_same_values_or_the_same_rejection(db):
         assert reasons.get("range", 0) > 50
 
 
-def test_generated_decode_takes_bytearray_as_received(db):
-    generated, reference = codecs(db)
+def test_generated_decode_takes_bytearray_as_received(db, planned):
+    generated, reference = codecs(db, planned)
     message = db.messages[0]
     data = generated.encode(message.name, {}, 5)
     assert generated.decode(message.frame_id, bytearray(data)) == reference.decode(message.frame_id, data)
