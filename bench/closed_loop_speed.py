@@ -233,6 +233,7 @@ def env_for(tree: str | None) -> dict[str, str]:
     """The environment of a subprocess using ``tree``'s package (None: this one's)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = tree if tree is not None else str(Path(__file__).resolve().parents[1])
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")  # as dsg-hil's commands run (dsg_hil.common.cli.one_blas_thread)
     return env
 
 

@@ -21,6 +21,7 @@ a few standard-library imports) Python's own handling applies: an entry point im
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -30,7 +31,7 @@ from typing import Any
 
 from .errors import EXIT_OK, EXIT_SIGINT, EXIT_SIGTERM, exit_code
 
-__all__ = ["Terminated", "raise_terminated", "run_main", "signals_held"]
+__all__ = ["Terminated", "one_blas_thread", "raise_terminated", "run_main", "signals_held"]
 
 
 class Terminated(BaseException):
@@ -47,6 +48,16 @@ def _error(message: str, status: int) -> int:
     return status
 
 
+def one_blas_thread() -> None:
+    """One OpenBLAS thread for a command's process (``OPENBLAS_NUM_THREADS=1``, numpy's and scipy's), unless the user
+    set theirs; only before numpy is imported, where it takes effect. The plant's matrices are 12 x 12, where BLAS
+    threads only cost: woken by a run's set-up (its matrix exponentials) they spin for a while, 0.1-0.2 s of another
+    core per run, and on a core shared by two hardware threads they slowed the lock-step loop by about 10 % (36-38
+    against 40-42 us per period, bench/closed_loop_speed.py). Dask's workers have one already (its nanny)."""
+    if "numpy" not in sys.modules:
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
 def run_main(parse: Callable[[list[str] | None], argparse.Namespace], argv: list[str] | None,
              run: Callable[[argparse.Namespace], int | None], stop: threading.Event | None = None,
              cut_short: Callable[[argparse.Namespace, str], None] | None = None) -> int:
@@ -54,6 +65,7 @@ def run_main(parse: Callable[[list[str] | None], argparse.Namespace], argv: list
     instead of raising :class:`Terminated`, for a command that ends cleanly when asked (ecu-stub). ``cut_short(args,
     reason)``: called (further signals held) when Ctrl-C or SIGTERM ended the command, ``reason`` ``interrupted``
     or ``terminated``."""
+    one_blas_thread()
     handler = raise_terminated if stop is None else lambda signum, frame: stop.set()
     main_thread = threading.current_thread() is threading.main_thread()  # only there can signals be handled
     previous = signal.getsignal(signal.SIGTERM) if main_thread else None

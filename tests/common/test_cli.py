@@ -116,3 +116,18 @@ def test_a_signal_held_acts_when_the_block_ends_and_an_ignored_sigint_stays_igno
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.parametrize(("preset", "numpy_first", "expected"), [(None, False, "1"), ("4", False, "4"),
+                                                                 (None, True, None)])
+def test_one_blas_thread_unless_the_user_set_theirs_or_numpy_is_loaded(preset, numpy_first, expected):
+    """one_blas_thread (run_main calls it first): OPENBLAS_NUM_THREADS=1 in a fresh process, a user's value kept, and
+    nothing once numpy is imported (too late to take effect)."""
+    code = ("import os, sys\n" + ("import numpy\n" if numpy_first else "") +
+            "from dsg_hil.common.cli import one_blas_thread\none_blas_thread()\n"
+            "print(os.environ.get('OPENBLAS_NUM_THREADS'))")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if preset is not None:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+    assert out.strip() == str(expected)
