@@ -126,6 +126,32 @@ def test_wheel_holds_the_closed_loop_compiled_beside_its_source(wheel):
 
 
 @pytest.mark.slow
+@NEEDS_CC
+def test_a_failed_compile_gives_the_whole_pure_python_package(tmp_path):
+    """setup.py's AllOrNone: a compiler that fails (CC=false) leaves no extension module at all in the wheel, and
+    says so (the modules share one library: some compiled and some not would not import)."""
+    with zipfile.ZipFile(_wheel(tmp_path, CC="false")) as zf:
+        assert not [n for n in zf.namelist() if n.endswith(".so")]
+
+
+@pytest.mark.slow
+@NEEDS_CC
+def test_the_codec_tests_pass_on_the_compiled_plans(wheel, tmp_path):
+    """tests/protocol/test_generated_codec.py (the plans against cantools on random and corrupted frames) and
+    tests/protocol/test_plan.py run on the unpacked wheel, its plan module compiled (DSG_HIL_EXPECT_COMPILED)."""
+    site = tmp_path / "site"
+    with zipfile.ZipFile(wheel) as zf:
+        zf.extractall(site)
+    env = {**os.environ, "PYTHONPATH": str(site), "DSG_HIL_EXPECT_COMPILED": "1"}
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=append",
+                           str(ROOT / "tests" / "protocol" / "test_generated_codec.py"),
+                           str(ROOT / "tests" / "protocol" / "test_plan.py")],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:]
+    assert " passed" in proc.stdout and "skipped" not in proc.stdout
+
+
+@pytest.mark.slow
 def test_pure_python_wheel_on_request(tmp_path):
     """DSG_HIL_PURE_PYTHON=1: no extension module in the wheel (what an editable install always is)."""
     with zipfile.ZipFile(_wheel(tmp_path, DSG_HIL_PURE_PYTHON="1")) as zf:
@@ -146,7 +172,8 @@ def _run_logged(path: Path, out: Path, *options: str) -> tuple[bytes, dict, str]
     env = {**os.environ, "PYTHONPATH": str(path)}
     subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-q", "--log", str(out / "run.log"), "--summary",
                     str(out / "summary.json"), *options], check=True, env=env, cwd=out, timeout=600)
-    origin = subprocess.run([sys.executable, "-c", "import ecu_stub.controller as m; print(m.__file__)"],
+    origin = subprocess.run([sys.executable, "-c", "import ecu_stub.controller as m, dsg_hil.protocol.plan as p; "
+                             "print(m.__file__ if p.COMPILED == m.__file__.endswith('.so') else 'mixed')"],
                             check=True, env=env, cwd=out, capture_output=True, text=True).stdout.strip()
     summary = json.loads((out / "summary.json").read_text())
     for key in ("wall_time_s", "realtime_factor", "interface", "command_latency_ms"):  # the machine's, not the run's

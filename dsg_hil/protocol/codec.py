@@ -117,8 +117,9 @@ class Codec:
                 generated = generate(message, protection, FrameError, DecodedFrame)
                 self._encoders[name], self._decoders[message.frame_id] = generated.encode, generated.decode
                 self.sources[name] = generated.source
-                if use_plans:
-                    self._plans[name] = message_plan = plan(message, protection, FrameError, DecodedFrame)
+                message_plan = plan(message, protection, FrameError, DecodedFrame) if use_plans else None
+                if message_plan is not None:
+                    self._plans[name] = message_plan
                     self._decoders[message.frame_id] = message_plan.decode
 
     # ---- lookup --------------------------------------------------------------------------------------------

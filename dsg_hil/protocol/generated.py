@@ -145,8 +145,7 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
         lo, hi = signal_range(signal)
         enc += _encode_lines(signal, protection, length)
         # decode: from the frame, to physical, range check
-        bits_lo, bits_hi = raw_range(signal)
-        checked = not lo - 1e-9 <= bits_lo <= bits_hi <= hi + 1e-9  # else no value of its bits is out of range
+        checked = _checked(signal)
         if signal.name == CRC and not checked:
             continue  # checked above, its value not returned
         dec.append(f"    r = {_field(acc, shift, mask)}")
@@ -169,9 +168,11 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
 
 
-def plan(message: Message, protection: Protection, frame_error: type, decoded_frame: type) -> MessagePlan:
+def plan(message: Message, protection: Protection, frame_error: type, decoded_frame: type) -> MessagePlan | None:
     """The plan of ``message`` (check :func:`unsupported` first): the numbers :func:`generate` writes into its
-    source, for :class:`.plan.MessagePlan` to run (compiled: the codec's choice there, :data:`.plan.COMPILED`)."""
+    source, for :class:`.plan.MessagePlan` to run (compiled: the codec's choice there, :data:`.plan.COMPILED`).
+    None where a bound, scale or offset is an integer no float holds (beyond 2**53: the source compares and
+    computes with the integer), which keeps the generated functions."""
     length, k = message.length, protection.crc_byte
     values: list[SignalPlan] = []
     counter = crc = None
@@ -180,21 +181,18 @@ def plan(message: Message, protection: Protection, frame_error: type, decoded_fr
         conversion = _conversion(signal)
         big, shift = _shift(signal, length)
         lo, hi = signal_range(signal)
-        bits_lo, bits_hi = raw_range(signal)
         scale, offset = conversion.scale, conversion.offset
+        if any(float(x) != x for x in (lo, hi, scale, offset)):  # a float compares and computes otherwise
+            return None
         kind = (IDENTITY if isinstance(conversion, IdentityConversion) else LINEAR_INTEGER
                 if isinstance(conversion, LinearIntegerConversion) else SCALED if not offset else SCALED_OFFSET)
         int_values = not isinstance(scale, float) and not isinstance(offset, float)  # :func:`_to_physical` in ints
-        default = 0.0
-        if signal.name not in (COUNTER, CRC):
-            default = _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi),
-                               lo, hi)
+        default = _default(signal) if signal.name not in (COUNTER, CRC) else 0.0
         s = SignalPlan(signal.name, big == "G", shift, (1 << signal.length) - 1, signal.length, signal.is_signed,
                        kind, float(scale), float(offset), int_values, int(scale) if int_values else 1,
                        int(offset) if int_values else 0,
                        bool(offset) or (isinstance(scale, float) and scale < 0), float(lo), float(hi), float(lo),
-                       float(hi), default, not lo - 1e-9 <= bits_lo <= bits_hi <= hi + 1e-9, lo - 1e-9, hi + 1e-9,
-                       f"[{lo:g}, {hi:g}]")
+                       float(hi), default, _checked(signal), lo - 1e-9, hi + 1e-9, f"[{lo:g}, {hi:g}]")
         if signal.name == COUNTER:
             counter, index = s, -1
         elif signal.name == CRC:
@@ -225,8 +223,7 @@ def _encode_lines(signal: Signal, protection: Protection, length: int, value: st
     if signal.name == CRC:
         return []
     lo, hi = signal_range(signal)
-    default = _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi),
-                       lo, hi)  # a number: see unsupported()
+    default = _default(signal)
     clamp = [f"if not {_compared(lo)} <= v <= {_compared(hi)}:",  # a value in range: two comparisons, no more
              f"    v = {default!r} if v != v or v == INF or v == -INF else {lo!r} if v < {_compared(lo)} else {hi!r}"]
     if value is None:
@@ -290,7 +287,7 @@ def generate_planned(message: Message, message_plan: MessagePlan, args: Sequence
     items = []
     for s in message_plan.values:
         value = values.get(s.name)
-        items.append(repr(s.default) if value is None else value if floats else f"float({value})")
+        items.append(repr(s.default) if value is None else f"({value})" if floats else f"float({value})")
     source = (f"def encode({', '.join((*args, 'counter'))}):\n"
               f"    return ENCODE(({', '.join(items)}{',' if len(items) == 1 else ''}), counter)\n")
     scope: dict = {**(namespace or {}), "ENCODE": message_plan.encode_values}
@@ -317,6 +314,20 @@ def _clamped(default: float, lo: float, hi: float) -> float:
     if v > hi:
         v = hi
     return v
+
+
+def _default(signal: Signal) -> float:
+    """A value signal's default, a missing or non-finite value's replacement: its initial value, else 0, clamped to
+    its range (a number: see :func:`unsupported`)."""
+    lo, hi = signal_range(signal)
+    return _clamped(cast(float, signal.initial) if signal.initial is not None else min(max(0.0, lo), hi), lo, hi)
+
+
+def _checked(signal: Signal) -> bool:
+    """Whether decoding checks the signal's DBC range: some value its bits carry is outside it."""
+    lo, hi = signal_range(signal)
+    bits_lo, bits_hi = raw_range(signal)
+    return not lo - 1e-9 <= bits_lo <= bits_hi <= hi + 1e-9
 
 
 def _compared(bound: float) -> str:

@@ -1,7 +1,8 @@
 """Per-message encoding and decoding from a plan: the numbers :mod:`.generated` writes into its source (bit
 positions, scale, offset, range, the Counter and the CRC's tables), held as typed data and run by one typed loop per
 frame, with the same operations in the same order as that source, so the same frames and the same values and errors
-bit for bit (``tests/protocol/test_plan.py`` compares the two on random and corrupted frames).
+bit for bit (``tests/protocol/test_generated_codec.py`` compares both with cantools on random and corrupted frames;
+``tests/test_packaging.py`` runs that compiled, and compares the frames of whole runs).
 
 Run by the interpreter a loop over a plan is slower than the generated source; compiled by mypyc (the regular
 install's build, ``setup.py``) it is 2-3 times faster, and the codec takes it there (:data:`COMPILED`): the decoders,
@@ -13,11 +14,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from importlib.machinery import EXTENSION_SUFFIXES
 from typing import Any
 
 __all__ = ["COMPILED", "IDENTITY", "LINEAR_INTEGER", "SCALED", "SCALED_OFFSET", "MessagePlan", "SignalPlan"]
 
-COMPILED = __file__.endswith(".so")  # this module built by mypyc: the codec runs its plans
+COMPILED = __file__.endswith(tuple(EXTENSION_SUFFIXES))  # this module built by mypyc: the codec runs its plans
 IDENTITY, LINEAR_INTEGER, SCALED, SCALED_OFFSET = 0, 1, 2, 3  # SignalPlan.kind: cantools' conversion (to raw)
 _INF = math.inf
 
@@ -76,9 +78,11 @@ class MessagePlan:
     def encode_values(self, values: tuple[float, ...], counter: int) -> bytes:
         """The frame of ``values`` (floats, one per value signal in DBC order: a generated fused encoder's
         ``v = expression``, a missing signal given its default), the Counter ``counter``, the CRC sealed."""
+        signals = self.values
+        if len(values) != len(signals):
+            raise ValueError(f"{self.name}: {len(values)} values for {len(signals)} signals")
         F = 0
         G = 0
-        signals = self.values
         for i in range(len(signals)):
             s = signals[i]
             v: float = values[i]

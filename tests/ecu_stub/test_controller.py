@@ -3,6 +3,8 @@ its margin, dwell, start-up assumption, stop when neither clutch can take over (
 
 from __future__ import annotations
 
+import dataclasses
+import inspect
 import math
 from dataclasses import replace
 
@@ -10,7 +12,8 @@ import pytest
 
 from ecu_stub.calibration import FrictionMap, load_calibration
 from ecu_stub.clutch_model import SLIP_FILTER_S, friction_coefficient, friction_heat, plate_step
-from ecu_stub.controller import CreepController, TcuInputs
+from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
+from ecu_stub.monitor import MonitorVerdict
 from ecu_stub.pid import PID
 
 DT = 0.01
@@ -453,3 +456,17 @@ def test_over_its_target_the_speed_control_asks_the_brakes_to_decelerate_and_the
     # IDLE asks nothing of the brakes' deceleration (a standing vehicle is held by BrakeRequest)
     out = run(ctrl, clock, BRAKED, 0.1)
     assert out.state == "IDLE" and out.decel_request_mps2 == 0.0
+
+
+@pytest.mark.parametrize("cls", [TcuInputs, TcuOutputs, MonitorVerdict])
+def test_written_out_init_takes_the_dataclass_fields(cls):
+    """TcuInputs, TcuOutputs, MonitorVerdict write their __init__ out (the mypyc build compiles it): the dataclass's
+    fields, in order, with their defaults, each set (a field added but not to __init__ fails here)."""
+    fields = dataclasses.fields(cls)
+    params = list(inspect.signature(cls.__init__).parameters.values())[1:]
+    assert [p.name for p in params] == [f.name for f in fields]
+    assert [p.default for p in params] == [inspect.Parameter.empty if f.default is dataclasses.MISSING else f.default
+                                           for f in fields]
+    given = [object() for _ in params]
+    obj = cls(*given)
+    assert [getattr(obj, f.name) for f in fields] == given
