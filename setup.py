@@ -43,9 +43,13 @@ def ext_modules() -> list:
         exts = mypycify(["--no-site-packages", "--ignore-missing-imports", "--config-file=", *COMPILED],
                         group_name="dsg_hil_compiled", opt_level="3")
     except (SystemExit, Exception) as exc:  # noqa: BLE001 - any failure: the pure-Python package
-        print(f"dsg-hil: building pure Python, not compiled ({type(exc).__name__}: {exc})", file=sys.stderr)
+        _say_pure(exc)
         return []
     return exts
+
+
+def _say_pure(exc: BaseException) -> None:
+    print(f"dsg-hil: building pure Python, not compiled ({type(exc).__name__}: {exc})", file=sys.stderr)
 
 
 class AllOrNone(build_ext):
@@ -63,7 +67,7 @@ class AllOrNone(build_ext):
                     if os.path.exists(path):
                         os.remove(path)
             self.extensions = []
-            print(f"dsg-hil: building pure Python, not compiled ({type(exc).__name__}: {exc})", file=sys.stderr)
+            _say_pure(exc)
 
 
 setup(ext_modules=ext_modules(), cmdclass={"build_ext": AllOrNone})

@@ -55,6 +55,7 @@ import tempfile
 import time
 import zipfile
 from collections.abc import Callable
+from importlib.machinery import EXTENSION_SUFFIXES
 from pathlib import Path
 
 from dsg_hil.physics.params import load_params
@@ -82,8 +83,8 @@ def _timed(cls: type, name: str, inside: list[float]) -> Callable[[], None] | No
             inside[0] += time.perf_counter() - t0
             inside[1] += time.process_time() - c0
 
-    if (sys.modules[cls.__module__].__file__ or "").endswith(".so"):  # compiled by mypyc (setup.py): its callers
-        return None  # call the method itself, not a replacement: no split
+    if _compiled_module(cls.__module__):  # compiled by mypyc (setup.py): its callers call the method itself, not a
+        return None  # replacement: no split
     setattr(cls, name, timed)
     return lambda: setattr(cls, name, inner)
 
@@ -125,7 +126,12 @@ def closed_loop(seconds: float, transport: str, reference: bool) -> dict:
 
 def compiled() -> bool:
     """Whether the TCU runs compiled (a regular install of this package: setup.py), not from its source."""
-    return (sys.modules[TcuRunner.__module__].__file__ or "").endswith(".so")
+    return _compiled_module(TcuRunner.__module__)
+
+
+def _compiled_module(name: str) -> bool:
+    """Whether the imported module ``name`` is an extension module (compiled by mypyc, setup.py)."""
+    return (sys.modules[name].__file__ or "").endswith(tuple(EXTENSION_SUFFIXES))
 
 
 def compiled_site(out: Path) -> str:

@@ -26,8 +26,7 @@ from .e2e import COUNTER, CRC, Protection, ProtectionError
 from ..common.errors import InputError
 from ..common.units import CV
 from .generated import dict_of, generate, generate_fused, generate_planned, plan, unsupported
-from .plan import COMPILED as PLANS_COMPILED
-from .plan import MessagePlan
+from .plan import COMPILED as PLANS_COMPILED, MessagePlan
 from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
 
 __all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "load_dbc"]

@@ -188,11 +188,9 @@ def plan(message: Message, protection: Protection, frame_error: type, decoded_fr
                 if isinstance(conversion, LinearIntegerConversion) else SCALED if not offset else SCALED_OFFSET)
         int_values = not isinstance(scale, float) and not isinstance(offset, float)  # :func:`_to_physical` in ints
         default = _default(signal) if signal.name not in (COUNTER, CRC) else 0.0
-        s = SignalPlan(signal.name, big == "G", shift, (1 << signal.length) - 1, signal.length, signal.is_signed,
-                       kind, float(scale), float(offset), int_values, int(scale) if int_values else 1,
-                       int(offset) if int_values else 0,
-                       bool(offset) or (isinstance(scale, float) and scale < 0), float(lo), float(hi), float(lo),
-                       float(hi), default, _checked(signal), lo - 1e-9, hi + 1e-9, f"[{lo:g}, {hi:g}]")
+        s = SignalPlan(signal.name, big == "G", shift, signal.length, signal.is_signed, kind, float(scale),
+                       float(offset), int_values, bool(offset) or (isinstance(scale, float) and scale < 0),
+                       float(lo), float(hi), default, _checked(signal))
         if signal.name == COUNTER:
             counter, index = s, -1
         elif signal.name == CRC:

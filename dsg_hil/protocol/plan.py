@@ -25,22 +25,22 @@ _INF = math.inf
 
 
 class SignalPlan:
-    """One signal: where its bits are, how a value becomes them and back, its range. ``kind`` (encoding): a value's
-    raw integer as :func:`.generated._to_raw` computes it; ``int_values`` (decoding): raw x ``int_scale`` +
-    ``int_offset`` in integers (an identity or integer conversion), else raw x ``scale`` (+ ``offset`` where
-    ``offset_added``) in floats; ``checked``: a decoded value outside [``lo_tol``, ``hi_tol``] is an error."""
+    """One signal: where its bits are, how a value becomes them and back, its range [``lo``, ``hi``] (floats: the
+    plan holds no bound a float cannot, :func:`.generated.plan`). ``kind`` (encoding): a value's raw integer as
+    :func:`.generated._to_raw` computes it; ``int_values`` (decoding): raw x scale + offset in integers (an identity
+    or integer conversion), else in floats (+ ``offset`` only where ``offset_added``); ``checked``: a decoded value
+    more than 1e-9 outside the range is an error."""
 
-    def __init__(self, name: str, big: bool, shift: int, mask: int, length: int, signed: bool, kind: int,
-                 scale: float, offset: float, int_values: bool, int_scale: int, int_offset: int, offset_added: bool,
-                 lo_cmp: float, hi_cmp: float, lo: float, hi: float, default: float, checked: bool, lo_tol: float,
-                 hi_tol: float, range_text: str) -> None:
-        self.name, self.big, self.shift, self.mask, self.length, self.signed = name, big, shift, mask, length, signed
-        self.sign_bit, self.span = 1 << (length - 1), 1 << length
-        self.kind, self.scale, self.offset = kind, scale, offset
-        self.int_values, self.int_scale, self.int_offset, self.offset_added = (int_values, int_scale, int_offset,
-                                                                               offset_added)
-        self.lo_cmp, self.hi_cmp, self.lo, self.hi, self.default = lo_cmp, hi_cmp, lo, hi, default
-        self.checked, self.lo_tol, self.hi_tol, self.range_text = checked, lo_tol, hi_tol, range_text
+    def __init__(self, name: str, big: bool, shift: int, length: int, signed: bool, kind: int, scale: float,
+                 offset: float, int_values: bool, offset_added: bool, lo: float, hi: float, default: float,
+                 checked: bool) -> None:
+        self.name, self.big, self.shift, self.signed = name, big, shift, signed
+        self.mask, self.sign_bit, self.span = (1 << length) - 1, 1 << (length - 1), 1 << length
+        self.kind, self.scale, self.offset, self.offset_added = kind, scale, offset, offset_added
+        self.int_values = int_values
+        self.int_scale, self.int_offset = (int(scale), int(offset)) if int_values else (1, 0)
+        self.lo, self.hi, self.default, self.checked = lo, hi, default, checked
+        self.lo_tol, self.hi_tol, self.range_text = lo - 1e-9, hi + 1e-9, f"[{lo:g}, {hi:g}]"
 
 
 class MessagePlan:
@@ -86,8 +86,8 @@ class MessagePlan:
         for i in range(len(signals)):
             s = signals[i]
             v: float = values[i]
-            if not s.lo_cmp <= v <= s.hi_cmp:
-                v = s.default if v != v or v == _INF or v == -_INF else s.lo if v < s.lo_cmp else s.hi
+            if not s.lo <= v <= s.hi:
+                v = s.default if v != v or v == _INF or v == -_INF else s.lo if v < s.lo else s.hi
             r = _to_raw(s, v)
             if s.big:
                 G |= (r & s.mask) << s.shift
