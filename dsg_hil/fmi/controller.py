@@ -14,8 +14,7 @@ asked, without one); all are Reals in the DBC's units. Each control
 cycle at ``now`` sets the inputs and calls ``doStep(now, cycle)`` (``cycle``: the DBC's TCU_CMD cycle time); the
 outputs are the cycle's commands (:mod:`dsg_hil.fmi.tcu`).
 
-One instance per process: a new run resets it (fmi2Reset), never instantiates a second (PythonFMU's FMUs fail to
-instantiate twice in one process).
+One instance per controller: a new run resets it (fmi2Reset) rather than instantiating another.
 """
 
 from __future__ import annotations

@@ -25,11 +25,15 @@ MODELS = {"plant": ("dsg_hil.fmi.plant", "PlantSlave", "dsg_hil_plant"),
 _SCRIPT = '''"""{model} of dsg-hil {version} as an FMI 2.0 co-simulation FMU, written by 'dsg-hil fmu export': the class
 is dsg-hil's, so the host's Python needs dsg_hil installed (pip install 'dsg-hil[fmi]')."""
 
+from dsg_hil.fmi.slave import balance_namespace
 from {module} import {cls}
 
 
 class {identifier}({cls}):
     pass
+
+
+balance_namespace(globals(), locals())  # PythonFMU's binary releases a reference to globals() it did not take
 '''
 
 

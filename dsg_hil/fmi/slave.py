@@ -1,8 +1,10 @@
 """What both FMUs' slaves share: Real variables kept by name (PythonFMU's Fmi2Slave, its getters and setters on a
-dict), and a model description completed with units (:func:`complete_description`)."""
+dict), a model description completed with units (:func:`complete_description`), and the balance of a reference
+PythonFMU's binary releases (:func:`balance_namespace`)."""
 
 from __future__ import annotations
 
+import ctypes
 from typing import Any
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
@@ -10,7 +12,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from .. import __version__
 from .signals import Signal
 
-__all__ = ["SignalSlave", "complete_description", "described"]
+__all__ = ["SignalSlave", "balance_namespace", "complete_description", "described"]
 
 
 def complete_description(xml: Any, units: dict[str, str]) -> Any:
@@ -34,6 +36,21 @@ def complete_description(xml: Any, units: dict[str, str]) -> Any:
         SubElement(definitions, "Unit", {"name": unit})
     xml.insert(list(xml).index(xml.find("CoSimulation")) + 1, definitions)
     return xml
+
+
+def balance_namespace(namespace: dict[str, Any], local: dict[str, Any]) -> None:
+    """Give an FMU's slave module's ``namespace`` (its ``globals()``) back the reference PythonFMU's binary takes
+    from it: called at the module's top level with ``globals(), locals()``.
+
+    The binary (since PythonFMU 0.6.4, checked up to 0.7.0: ``findClass`` in ``PySlaveInstance.cpp``) finds the
+    slave class by running the module's source once more in the module's namespace, with a ``locals`` of its own,
+    then releases the namespace (``Py_DECREF`` of ``PyModule_GetDict``'s borrowed reference), a reference it never
+    took. One short, per instance, so that at the host's shutdown the namespace is freed while its module still
+    holds it ("corrupted double-linked list", a segmentation fault). That run is the only one with ``locals``
+    apart from ``globals`` (an import runs a module in its namespace), so one reference more there is exactly
+    what it takes; ``tests/fmi/test_namespace.py`` counts them."""
+    if local is not namespace:
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
 
 
 def described(signal: Signal) -> str:

@@ -22,7 +22,7 @@ HANDOVER_BY_S = 40.0  # the shipped creep hands CL over to CH at 33 s: the runs 
 def test_ecu_stub_s_controller_as_an_fmu_gives_the_same_frames_bit_for_bit(fmus, tmp_path):
     ref, fmu, summary = tmp_path / "ecu_stub.log", tmp_path / "fmu.log", tmp_path / "fmu.json"
     common = ["-i", "virtual", "--duration", f"{HANDOVER_BY_S:g}"]
-    # the FMU in a process of its own (one instance per process: conftest.py)
+    # the FMU in a process of its own (conftest.py)
     done = subprocess.run([sys.executable, "-m", "dsg_hil", "run", *common, "--controller", str(fmus["tcu"]),
                            "--log", str(fmu), "--summary", str(summary)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
