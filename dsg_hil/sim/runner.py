@@ -72,6 +72,7 @@ class PlantRunner:
         self.link = LockstepMaster(codec, PLANT_RX, self._send, bus.recv, self._use_stamped)  # lock-step protocol
         self._keep: Callable[[int, bytes, float], None] | None = None  # lock-step: the period's frames, re-sent
         self._cmd_on_bus: float | None = None
+        self._checked_at = 0.0  # when TCU_CMD's validity was last checked (_check_command)
         self._held: PlantInputs | None = None  # the last inputs (_inputs)
         self._traces: dict[int, np.ndarray] = {}  # by number of steps: the plant's trace of a period (_advance)
         self._driver_braking = False  # the driver's pedal above 0 in the last period (_advance; the summary's)
@@ -266,14 +267,21 @@ class PlantRunner:
             self.summary.on_status(self.plant.state.t, frame.values, self.out)
 
     def _check_command(self, now: float) -> None:
-        valid = self.link.rx.states["TCU_CMD"].valid(now)  # (rx.valid, a look-up less: every period)
+        """Whether TCU_CMD is valid at ``now``, the time frames are judged on (real time: the clock; lock-step:
+        the tick); a change is logged, a fallback with the silence it measured and the time since its previous
+        check (on a busy machine a check comes late: the silence is the limit plus at most that)."""
+        state = self.link.rx.states["TCU_CMD"]
+        valid = state.valid(now)  # (rx.valid, a look-up less: every period)
         if self.command_valid and not valid:
             self.summary.fallback_events += 1
-            log.warning("t=%.3f s: TCU_CMD missing for %.0f ms: hydraulics unpowered (pressures decay to 0)",
-                        self.plant.state.t, CV.S_TO_MS * self.rx.states["TCU_CMD"].deadline)
+            silent = now - state.last_time if state.last_time is not None else float("nan")
+            log.warning("t=%.3f s: TCU_CMD missing for %.1f ms (limit %.0f ms; previous check %.1f ms before): "
+                        "hydraulics unpowered (pressures decay to 0)", self.plant.state.t, CV.S_TO_MS * silent,
+                        CV.S_TO_MS * state.deadline, CV.S_TO_MS * (now - self._checked_at))
         elif valid and not self.command_valid and self.summary.fallback_events:
             log.warning("t=%.3f s: valid TCU_CMD again: control resumes", self.plant.state.t)
         self.command_valid = valid
+        self._checked_at = now
 
     # ---- physics -------------------------------------------------------------------------------------------
     def _inputs(self, driver: DriverInput, now: float) -> PlantInputs:

@@ -3,6 +3,8 @@ when TCU_CMD misses its deadline (3 cycle times), control resumes when commands 
 
 from __future__ import annotations
 
+import re
+
 import can
 import pytest
 
@@ -52,7 +54,7 @@ class ScriptedBus(can.BusABC):
         return self.now
 
 
-def test_command_timeout_falls_back_and_recovers():
+def test_command_timeout_falls_back_and_recovers(caplog):
     db = load_dbc()
     codec = Codec(db, PLANT_USES)
     bus = ScriptedBus(codec, gap=(1.0, 2.0))
@@ -74,6 +76,13 @@ def test_command_timeout_falls_back_and_recovers():
     assert summary.fallback_events == 1
     # invalid from 30 ms after the last command before the gap (0.99 s) to the first after it (2.0 s)
     assert summary.fallback_time_s == pytest.approx(2.0 - (0.99 + 0.03), abs=0.003)
+    # the warning: the silence measured on the clock, from the last command (0.99 s), at the first 1-ms step's check
+    # after the 30-ms limit
+    found = [re.search(r"missing for ([0-9.]+) ms \(limit 30 ms; previous check ([0-9.]+) ms before\)", r.message)
+             for r in caplog.records]
+    (silent, since_check), = [(float(m[1]), float(m[2])) for m in found if m]
+    assert since_check == pytest.approx(1.0, abs=0.05)
+    assert 30.0 < silent <= 30.0 + since_check + 0.05
     names = {codec.message(n).frame_id for n in ("PLANT_ENGINE", "PLANT_OIL_TEMP", "SIM_TRUTH_CL")}
     assert names <= {m.arbitration_id for m in bus.sent}
     engine = [m.timestamp for m in bus.sent if m.arbitration_id == codec.frame_id("PLANT_ENGINE")]
