@@ -8,6 +8,8 @@ plant.py       PlantSlave: the plant behind PythonFMU's Fmi2Slave
 tcu.py         the conversions between ecu-stub's controller and the DBC signals of a controller FMU
 tcu_slave.py   TcuSlave: ecu-stub's controller as an FMU (to test the controller direction with)
 controller.py  a controller FMU run through FMPy behind ecu-stub's bus side
+host.py        instantiate: an FMU instantiated through FMPy, PythonFMU's reference fault made good
+cosim.py       the plant FMU and a controller FMU co-simulated in FMPy, without CAN
 export.py      export_fmu: PythonFMU's builder
 
 pythonfmu and fmpy are imported only when an FMU is written or opened (the fmi extra); without them those calls

@@ -35,6 +35,7 @@ from ecu_stub.runner import TCU_USES, TcuRunner
 from ..common.errors import InputError, RunError
 from ..common.files import read_input_file
 from ..protocol import Codec
+from .host import instantiate
 from .signals import BUS_INPUTS, TCU_INPUTS, TCU_OUTPUTS
 from .tcu import OPTIONAL_OUTPUTS, ValueTables, input_values, tcu_outputs
 
@@ -124,7 +125,7 @@ class ControllerFmu:
                 d = self._description
                 self._fmu = FMU2Slave(guid=d.guid, unzipDirectory=self._unzipped,
                                       modelIdentifier=d.coSimulation.modelIdentifier, instanceName="tcu")
-                self._fmu.instantiate()
+                instantiate(self._fmu, self._unzipped)
             else:
                 self._fmu.reset()
             self._fmu.setupExperiment(startTime=0.0)

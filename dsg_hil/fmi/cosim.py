@@ -18,6 +18,7 @@ from typing import Any
 from ..protocol import load_dbc
 from ..sim.plant_io import SIGNALS
 from ..sim.scenario import Scenario, load_scenario
+from .host import instantiate
 from .signals import PLANT_INPUTS, PLANT_OUTPUTS, TCU_OUTPUTS
 
 __all__ = ["CoSimulation", "cosimulate", "open_fmu"]
@@ -42,9 +43,10 @@ def open_fmu(path: str | Path, name: str) -> tuple[Any, dict[str, int]]:
     from fmpy.fmi2 import FMU2Slave  # noqa: PLC0415
 
     md = read_model_description(str(path))
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.coSimulation.modelIdentifier,
+    unzipped = extract(str(path))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
                     instanceName=name)
-    fmu.instantiate()
+    instantiate(fmu, unzipped)
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()
