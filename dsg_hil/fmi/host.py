@@ -42,13 +42,13 @@ def _slave_namespace(resources: Path) -> dict[str, Any] | None:
     marker = resources / "slavemodule.txt"
     if not marker.is_file():
         return None
-    lines = marker.read_text(encoding="utf-8").split()
-    if not lines:
+    words = marker.read_text(encoding="utf-8").split()  # its first line: the module's name
+    if not words:
         return None
     if str(resources) not in sys.path:
         sys.path.insert(0, str(resources))  # where the binary puts it
     try:
-        module = importlib.import_module(lines[0])
+        module = importlib.import_module(words[0])
     except Exception:  # noqa: BLE001 - the FMU's own code: its binary reports the error on instantiating
         return None
     return module.__dict__
