@@ -317,7 +317,9 @@ def test_tcu_kill_detected_within_3_cycles_then_recovers(db, tcu_killed):
           f"previous check {since_check:.1f} ms before); resumed after {first_again - start:.2f} s of plant time; "
           f"fallback events {summary['command_fallback']['events']}")
     assert limit == pytest.approx(3 * cycle * 1000)  # the DBC's 3 cycle times, as the plant judges them
-    assert limit < silent <= limit + since_check + 0.1, event  # at the first check after the limit (0.1: printed)
+    # at the first check after the limit: a silence over it prints (to 0.1 ms) as at least the limit, and at most
+    # the limit plus the time since the previous check (each printed to 0.1 ms)
+    assert limit <= silent <= limit + since_check + 0.1, event
     end = next((r for r in resumed if r >= start), None)
     assert end is not None, "control never resumed after the TCU was started again"
     pressure = db.get_message_by_name("PLANT_PRESSURE")
