@@ -1,9 +1,9 @@
 #!/bin/sh
 # Re-identify the TCU calibration on the current plant (issue 18): record the identification runs (eleven of creep,
-# 44 short torque handovers, 28 launches meant to be handed over to a cool CH: heavy, cold, at low slip or at high
-# pressure, 24 of which are with today's TCU; ecu_stub/data/identification) in lock-step with the bundled ecu-stub
-# and its current calibration, then fit and write the calibration, with the commit and calibration the logs were
-# recorded with in its header (identify --provenance).
+# 44 short torque handovers, 34 launches meant to be handed over to a cool CH: heavy, cold, at low slip, at high
+# pressure or slow and steep, 27 of which are with today's TCU; ecu_stub/data/identification) in lock-step with the
+# bundled ecu-stub and its current calibration, then fit and write the calibration, with the commit and calibration
+# the logs were recorded with in its header (identify --provenance).
 #
 #   bench/reidentify.sh LOGDIR [CALIBRATION_OUT]   (from the repository root; default out: the shipped file)
 #   bench/reidentify.sh --check LOGDIR             record the runs, fit nothing: exit 1 if the shipped

@@ -71,16 +71,16 @@ FRESH_SUBSET = {"heavy_fast": 30.0, "paper": 10.0}
 
 def test_each_identification_run_documents_one_command_and_the_heavy_ones_set_the_heaviest_vehicle():
     """bench/reidentify.sh records each run with the --set options of its one documented '#   dsg-hil run' line: the
-    heavy runs (handover_heavy*, map_ch_heavy*) the calibration's m_max; the low-slip and high-pressure creeps on CH
-    (map_ch_lowslip*, map_ch_press*) the shipped vehicle or one mass within the calibration's m_min..m_max, as their
-    first line says; the others none."""
+    heavy runs (handover_heavy*, map_ch_heavy*) the calibration's m_max; the low-slip, high-pressure and slow creeps on
+    CH (map_ch_lowslip*, map_ch_press*, map_ch_slow*) the shipped vehicle or one mass within the calibration's
+    m_min..m_max, as their first line says; the others none."""
     vehicle = load_calibration().vehicle
     for path in sorted(IDENTIFICATION.glob("*.toml")):
         text = path.read_text()
         lines = [line for line in text.splitlines() if line.startswith("#   dsg-hil run ")]
         assert len(lines) == 1, path.name
         sets = re.findall(r"--set (\S+)", lines[0])
-        if path.stem.startswith(("map_ch_lowslip", "map_ch_press")) and sets:
+        if path.stem.startswith(("map_ch_lowslip", "map_ch_press", "map_ch_slow")) and sets:
             found = re.fullmatch(r"vehicle\.m=(\d+)", sets[0])
             assert found is not None and len(sets) == 1, path.name
             mass = found.group(1)
