@@ -13,13 +13,14 @@ The same judder from both says it is formula (6) on Table I's driveline, not the
 +-20 % band of the drivability check says how much of the band is left to any controller (none acts here: the
 inputs are held).
 
-    python bench/judder_reference.py RUN T0 [--span 0.5]      e.g. r01753 26.0, r00857 27.0
+    python bench/judder_reference.py RUN T0 [--span 0.5] [--json]      e.g. r01753 26.0, r00857 27.0
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -65,16 +66,22 @@ def plant_at(name: str, t0: float) -> tuple[Any, Any]:
     return held["plant"], held["inputs"]
 
 
-def describe(slip_rpm: np.ndarray, v: np.ndarray, target: float) -> str:
-    """CH's slip range, the speed's range, its fast part's spectral peak and peak to peak [% of target]; the second
-    half of the span."""
+def describe(slip_rpm: np.ndarray, v: np.ndarray, target: float) -> dict[str, Any]:
+    """CH's slip range [r/min], the speed's range [m/s], its fast part's spectral peak [Hz] and peak to peak [% of
+    target]; the second half of the span."""
     slip, v = slip_rpm[len(slip_rpm) // 2:], v[len(v) // 2:]
     k = PERIOD_STEPS
     fast = (v - np.convolve(v, np.ones(k) / k, mode="same"))[k:-k]
     peak_hz = np.fft.rfftfreq(len(fast), 1e-3)[np.abs(np.fft.rfft(fast - fast.mean())).argmax()]
-    return (f"CH slip {slip.min():6.1f}..{slip.max():6.1f} r/min, speed {1e3 * v.min():5.1f}..{1e3 * v.max():5.1f} "
-            f"mm/s, fast part at {peak_hz:3.0f} Hz, {100 * (fast.max() - fast.min()) / target:5.1f} % of the target "
-            f"peak to peak")
+    return {"slip_CH_rpm": [round(float(slip.min()), 1), round(float(slip.max()), 1)],
+            "speed_mps": [round(float(v.min()), 4), round(float(v.max()), 4)], "fast_hz": round(float(peak_hz), 1),
+            "fast_pp_pct": round(float(100 * (fast.max() - fast.min()) / target), 1)}
+
+
+def _line(d: dict[str, Any]) -> str:
+    (s0, s1), (v0, v1) = d["slip_CH_rpm"], d["speed_mps"]
+    return (f"CH slip {s0:6.1f}..{s1:6.1f} r/min, speed {1e3 * v0:5.1f}..{1e3 * v1:5.1f} mm/s, fast part at "
+            f"{d['fast_hz']:3.0f} Hz, {d['fast_pp_pct']:5.1f} % of the target peak to peak")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -82,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("run", choices=sorted(RUNS), help="a sample run of bench/handover_judder.py")
     ap.add_argument("t0", type=float, help="when to copy the plant [s]: in steady creep on CH")
     ap.add_argument("--span", type=float, default=0.5, help="seconds followed with the inputs held")
+    ap.add_argument("--json", action="store_true", help="one JSON object instead of lines")
     args = ap.parse_args(argv)
     plant, inputs = plant_at(args.run, args.t0)
     target = RUNS[args.run]["driver.desired_speed_mps"]
@@ -96,9 +104,14 @@ def main(argv: list[str] | None = None) -> int:
     slip_ref = (y[:, IDX["1"]] - y[:, IDX["3"]]) * CV.RAD_S_TO_RPM
     v_ref = np.array([vehicle_speed(w, pt.i_b, vehicle.r_w) for w in y[:, IDX["5"]]])
     n = len(t_eval)
+    steps, reference = describe(slip[:n], v[:n], target), describe(slip_ref, v_ref, target)
+    if args.json:
+        print(json.dumps({"run": args.run, "t0_s": plant.state.t, "steps": steps, "solve_ivp": reference,
+                          "stick_slip_changes": changes}))
+        return 0
     print(f"{args.run} from t = {plant.state.t:.3f} s, inputs held: {inputs}")
-    print(f"  1-ms steps:  {describe(slip[:n], v[:n], target)}")
-    print(f"  solve_ivp:   {describe(slip_ref, v_ref, target)} ({changes} stick/slip changes)")
+    print(f"  1-ms steps:  {_line(steps)}")
+    print(f"  solve_ivp:   {_line(reference)} ({changes} stick/slip changes)")
     return 0
 
 

@@ -76,3 +76,14 @@ def test_sweep_scaling_figures():
     assert len(one["worker_peak_rss_mb"]) == 1 and len(two["worker_peak_rss_mb"]) == 2
     assert out["worker_peak_rss_mb_max"] == max(one["worker_peak_rss_mb"] + two["worker_peak_rss_mb"]) > 0
     assert out["runs_per_core_hour"] == round(60 * one["runs_per_min"])
+
+
+def test_judder_reference_the_fixed_step_plant_and_solve_ivp_judder_alike():
+    """From r01753's plant in steady creep on CH, the inputs held for 0.3 s: CH sticks and slips in both (its slip
+    touching 0), the vehicle speed's fast part at the same frequency and within 10 % of each other's amplitude."""
+    out = bench_json("judder_reference.py", "r01753", "26.0", "--span", "0.3")
+    steps, ref = out["steps"], out["solve_ivp"]
+    assert out["stick_slip_changes"] > 10
+    assert steps["slip_CH_rpm"][0] < 5.0 and ref["slip_CH_rpm"][0] < 5.0
+    assert abs(steps["fast_hz"] - ref["fast_hz"]) <= 3.0
+    assert steps["fast_pp_pct"] == pytest.approx(ref["fast_pp_pct"], rel=0.1) and ref["fast_pp_pct"] > 5.0
