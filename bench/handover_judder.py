@@ -60,27 +60,10 @@ from dsg_hil.sweep.space import SAFETY_SPACE, load_space
 from ecu_stub.calibration import dump_calibration, raw_sections
 from ecu_stub.clutch_model import mu_lookup, nm_per_mpa
 
-# the sample's runs: their inputs as the sweep's table holds them (the generators' other settings do not act)
-KEYS = ("grade_rad", "engine_speed_rpm", "initial.T_clutch_c", "initial.T_oil_c", "params.vehicle.m",
-        "driver.behaviour", "driver.desired_speed_mps", "driver.creep_s", "driver.stop_s", "driver.drag_level",
-        "driver.drag_onset_s", "driver.drag_duration_s")
-RUNS: dict[str, dict[str, Any]] = {name: dict(zip(KEYS, values)) for name, values in {
-    "r00652": (0.184370789598004, 948.2784860158861, 69.80807028178678, 86.61325087837126, 8298.792725087817,
-               "overheat_restart", 0.08579475690638856, 58.37174993638431, 8.340529146911479, 0.09983494458933198,
-               66.16528601033124, 233.73787929912368),
-    "r00857": (0.14476453132093034, 831.1312202491097, 95.54113910389941, 56.21144806759565, 8341.197503748841,
-               "overheat_restart", 0.05339452584310453, 35.17404027248082, 11.97928176521196, 0.03878309450312592,
-               36.47450371762947, 178.33588605025523),
-    "r01753": (0.22713559771481176, 825.8118937532072, 121.31496154742162, 54.439970156702046, 6182.865214748008,
-               "brake_drag", 0.053145153336646905, 40.65932131583172, 17.654316736945255, 0.08338826203244894,
-               228.12203979546445, 126.19142269806377),
-    "r03843": (0.19718890915232415, 1045.365768019011, 63.089843292809086, 94.77018155627229, 7952.77219125052,
-               "brake_drag", 0.06143896692737886, 10.970762834732344, 10.57015483815429, 0.013560103985758597,
-               183.0583866295659, 142.5542950921455),
-    "r04681": (0.19103900803285326, 988.0833050213257, 78.6484617160881, 91.41456730677356, 9714.861878936683,
-               "brake_drag", 0.050838824794822705, 16.742545998589982, 12.880153124038511, 0.01192565338293773,
-               141.65365863972733, 129.77246878922898),
-}.items()}
+# the sample's runs (their inputs: tests/ecu_stub/sample_runs.py, shared with the closed-loop tests); the checkout
+# appended to the path, so that an installed (compiled) dsg_hil still comes first
+sys.path.append(str(Path(__file__).resolve().parents[1]))
+from tests.ecu_stub.sample_runs import RUNS  # noqa: E402
 
 
 def calibration_with_gain(factor: float, directory: Path, base: str | None = None) -> str | None:

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from handover_judder import RUNS  # noqa: E402 - the sample runs' inputs, one place
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # the checkout, after an installed dsg_hil
+from tests.ecu_stub.sample_runs import RUNS  # noqa: E402 - the sample runs' inputs, one place
 
 from dsg_hil.common.units import CV  # noqa: E402
 from dsg_hil.physics.continuous import solve_hybrid  # noqa: E402
