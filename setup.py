@@ -5,27 +5,32 @@ closed loop 2.4 times as fast, the same frames bit for bit, ``tests/test_packagi
 effect at once; so does any install with ``DSG_HIL_PURE_PYTHON=1``. Where the extensions cannot be built (no C
 compiler, no Python headers, mypy refusing the source) the install is the pure-Python package, all of it (the
 compiled modules share one library: some compiled and some not would not import), and its build output says so;
-the compiled modules are the ones :data:`COMPILED` names.
+the compiled modules are the ones ``dsg_hil/common/build.py`` names (:data:`COMPILED`).
 """
 
 from __future__ import annotations
 
+import ast
 import os
 import sys
 
 from setuptools import setup
 from setuptools.command.build_ext import build_ext
 
-# The per-period path of a closed-loop run (bench/closed_loop_speed.py): the TCU, the lock-step bus ends, the plant's
-# I/O, the run's summary. Not a module with a class derived from a third-party one (protocol/local.py's can.BusABC):
-# with the third-party types unknown to mypy (below), mypyc would make it a native class, which the base cannot
-# initialise.
-COMPILED = [
-    "ecu_stub/calibration.py", "ecu_stub/clutch_model.py", "ecu_stub/controller.py", "ecu_stub/monitor.py",
-    "ecu_stub/pid.py", "ecu_stub/plausibility.py", "ecu_stub/runner.py", "ecu_stub/sensor_checks.py",
-    "dsg_hil/protocol/lockstep.py", "dsg_hil/protocol/plan.py", "dsg_hil/protocol/validity.py",
-    "dsg_hil/results/summary.py", "dsg_hil/sim/plant_io.py", "dsg_hil/sim/runner.py",
-]
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _compiled() -> list[str]:
+    """The modules mypyc compiles: ``COMPILED`` of ``dsg_hil/common/build.py``, read as it stands (not imported: the
+    build's environment need not have the package's dependencies), so the installed package knows them too."""
+    with open(os.path.join(HERE, "dsg_hil", "common", "build.py"), encoding="utf-8") as f:
+        tree = ast.parse(f.read())
+    (value,) = [node.value for node in tree.body if isinstance(node, ast.Assign)
+                and any(isinstance(t, ast.Name) and t.id == "COMPILED" for t in node.targets)]
+    return list(ast.literal_eval(value))
+
+
+COMPILED = _compiled()
 PURE_ENV = "DSG_HIL_PURE_PYTHON"
 BUILDS = {"bdist_wheel", "build", "build_ext", "install"}  # setup.py commands that build modules (not
 # egg_info, dist_info, sdist, nor editable_wheel: pip's editable install)

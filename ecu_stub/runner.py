@@ -33,18 +33,20 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import Any, cast
 
 import can
 
 from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec, ProtocolError, RxMonitor, TxScheduler
-from dsg_hil.protocol.frame import data_frame
+from dsg_hil.protocol.frame import FrameListener, data_frame
 from dsg_hil.protocol.lockstep import Frames, LockstepResponder, choices, frame_io
 from dsg_hil.protocol.validity import RxState, all_valid
 
 from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
+from .interface import TcuController
 from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, SensorChecks
 
@@ -87,15 +89,15 @@ class TcuRunner:
     :class:`~dsg_hil.protocol.lockstep.LockstepResponder`, which also keeps the receive checks ``rx`` and the
     transmit schedule ``tx``) runs the control step per tick; in real time :meth:`run` does, on its own clock."""
 
-    def __init__(self, codec: Codec, bus: can.BusABC, controller: CreepController | None = None,
-                 listeners: tuple[Callable[[can.Message], None], ...] = ()) -> None:
+    def __init__(self, codec: Codec, bus: can.BusABC, controller: TcuController | None = None,
+                 listeners: Sequence[FrameListener] = ()) -> None:
         for name in TCU_USES:
             codec.message(name)
         self.codec, self.bus = codec, bus
-        self.listeners = listeners
+        self.listeners = tuple(listeners)
         self._channel = getattr(bus, "channel", None)  # of the frames recorded for the listeners
         self._send_frame, recv = frame_io(bus)  # the in-process bus: frames as (ID, data), no can.Message
-        self.controller = controller or CreepController()
+        self.controller: TcuController = controller or CreepController()
         self.cycle = codec.cycle_time("TCU_CMD")
         self.cycle_ms = codec.cycle_time_ms("TCU_CMD")
         self.states = choices(codec, "TCU_STATUS", "State")
@@ -257,7 +259,8 @@ class TcuRunner:
 
     def _restart(self, now: float) -> None:
         """A lock-step run starts (the presence probe, or a first tick): a fresh controller, the plant's time."""
-        self.controller = type(self.controller)(self.controller.cal)
+        fresh = cast(Callable[[Any], TcuController], type(self.controller))  # its class, built from its cal
+        self.controller = fresh(self.controller.cal)
         if self.speed_vote is not None:
             self.speed_vote.reset()
         self._braked_at = -math.inf

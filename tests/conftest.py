@@ -8,6 +8,12 @@ import pytest
 from dsg_hil.physics.params import load_params
 from dsg_hil.e2e.vcan import ENV_REQUIRE
 
+# The tests test the installed package (a regular install: the compiled build), never the checkout they come from:
+# pytest imports them with --import-mode=importlib (pyproject.toml), which puts no directory on sys.path, and the
+# Python processes they start (from the checkout, some of them) do not put their working directory or script's
+# directory first either. tests/test_packaging.py checks both.
+os.environ.setdefault("PYTHONSAFEPATH", "1")
+
 
 def pytest_configure(config):
     register_plugin(config)

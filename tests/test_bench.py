@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -17,8 +18,10 @@ pytestmark = pytest.mark.slow
 
 
 def bench_json(script: str, *args: str) -> dict:
+    # a script's own directory first on sys.path (bench/, no package in it: its siblings), as run by hand
+    env = {key: value for key, value in os.environ.items() if key != "PYTHONSAFEPATH"}
     proc = subprocess.run([sys.executable, str(BENCH / script), "--json", *args], capture_output=True, text=True,
-                          timeout=600, cwd=BENCH)
+                          timeout=600, cwd=BENCH, env=env)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads(proc.stdout)
 

@@ -3,7 +3,7 @@ the wheel the closed loop compiled (setup.py), sending the same frames as the so
 
 from __future__ import annotations
 
-import ast
+import importlib
 import json
 import os
 import shutil
@@ -18,6 +18,7 @@ import pytest
 import dsg_hil
 from dsg_hil.protocol.codec import DEFAULT_DBC
 from dsg_hil.e2e.vcan import ENV_REQUIRE
+from dsg_hil.common.build import COMPILED, EXPECT_ENV, build, compiled_modules as loaded_modules
 from dsg_hil.sweep.code import CODE_PACKAGES, digest_of
 
 ROOT = Path(__file__).resolve().parents[1]  # the checkout (or unpacked sdist) these tests came from
@@ -85,11 +86,8 @@ def wheel(tmp_path_factory) -> Path:
 
 
 def compiled_modules() -> list[str]:
-    """The modules setup.py compiles (its COMPILED), as paths without '.py' (read, not imported: it runs setup())."""
-    tree = ast.parse((ROOT / "setup.py").read_text(encoding="utf-8"))
-    (paths,) = [node.value for node in tree.body if isinstance(node, ast.Assign)
-                and any(isinstance(t, ast.Name) and t.id == "COMPILED" for t in node.targets)]
-    return [path.removesuffix(".py") for path in ast.literal_eval(paths)]
+    """The modules setup.py compiles (dsg_hil.common.build.COMPILED), as paths without '.py'."""
+    return [path.removesuffix(".py") for path in COMPILED]
 
 
 @pytest.mark.slow
@@ -149,11 +147,11 @@ def test_a_failed_compile_gives_the_whole_pure_python_package(tmp_path):
 @NEEDS_CC
 def test_the_codec_tests_pass_on_the_compiled_plans(wheel, tmp_path):
     """tests/protocol/test_generated_codec.py (the plans against cantools on random and corrupted frames) and
-    tests/protocol/test_plan.py run on the unpacked wheel, its plan module compiled (DSG_HIL_EXPECT_COMPILED)."""
+    tests/protocol/test_plan.py run on the unpacked wheel, its plan module compiled (EXPECT_ENV)."""
     site = tmp_path / "site"
     with zipfile.ZipFile(wheel) as zf:
         zf.extractall(site)
-    env = {**os.environ, "PYTHONPATH": str(site), "DSG_HIL_EXPECT_COMPILED": "1"}
+    env = {**os.environ, "PYTHONPATH": str(site), EXPECT_ENV: "1"}
     proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=append",
                            str(ROOT / "tests" / "protocol" / "test_generated_codec.py"),
                            str(ROOT / "tests" / "protocol" / "test_plan.py")],
@@ -208,3 +206,44 @@ def test_compiled_closed_loop_sends_the_same_frames(wheel, tmp_path, options):
     assert log_c.count(b"\n") > 1000
     assert log_c == log_p
     assert summary_c == summary_p
+
+
+def _installed() -> tuple[metadata.Distribution, bool]:
+    """dsg-hil's distribution and whether it is an editable install (pip's direct_url.json, PEP 610)."""
+    dist = metadata.distribution("dsg-hil")
+    direct = json.loads(dist.read_text("direct_url.json") or "{}")
+    return dist, bool(direct.get("dir_info", {}).get("editable", False))
+
+
+def test_the_tests_import_the_installed_package_never_the_checkout():
+    """The suite tests what is installed: a regular install's package from site-packages (pytest runs with
+    --import-mode=importlib, which puts no test directory on sys.path), and the same in a subprocess started from
+    the checkout (tests/conftest.py sets PYTHONSAFEPATH: 'python -m'/'-c' do not put the working directory first)."""
+    dist, editable = _installed()
+    where = {}
+    for package in ("dsg_hil", "ecu_stub"):
+        module = importlib.import_module(package)
+        where[package] = Path(module.__file__ or "").resolve()
+        if not editable:
+            assert where[package] == Path(str(dist.locate_file(f"{package}/__init__.py"))).resolve(), \
+                f"{package} imported from {where[package]}, not from the regular install in {dist.locate_file('')}"
+    child = subprocess.run([sys.executable, "-c", "import dsg_hil, ecu_stub; print(dsg_hil.__file__); "
+                            "print(ecu_stub.__file__)"], cwd=ROOT if ROOT.is_dir() else None, capture_output=True,
+                           text=True, check=True).stdout.split()
+    assert [Path(p).resolve() for p in child] == [where["dsg_hil"], where["ecu_stub"]]
+
+
+def test_the_build_loaded_is_all_compiled_or_all_pure_and_compiled_where_expected():
+    """dsg_hil.common.build: every module of COMPILED loaded from its extension module, or none (a mix does not
+    import: one shared library). Where the install's own record lists them (a regular install with a C compiler)
+    they are the ones loaded; with DSG_HIL_EXPECT_COMPILED set (CI's run of the shipped build) they must be."""
+    loaded = loaded_modules()
+    assert set(loaded.values()) in ({True}, {False}), loaded
+    dist, editable = _installed()
+    shipped = {str(f).split(".")[0].replace("/", ".") for f in dist.files or () if str(f).endswith(".so")
+               and str(f).split("/")[0] in ("dsg_hil", "ecu_stub")}
+    if not editable and shipped:
+        assert shipped == set(loaded) and build() == "compiled", (shipped, loaded)
+    if os.environ.get(EXPECT_ENV, "") not in ("", "0"):
+        assert not editable and build() == "compiled", \
+            f"{EXPECT_ENV} is set but the build loaded is {build()} (editable: {editable}): {loaded}"

@@ -9,6 +9,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from ..common.build import EXPECT_ENV
 from ..common.files import check_output_path
 from ..e2e import vcan
 from . import command_help
@@ -84,8 +85,12 @@ def _do_vcan(args: argparse.Namespace) -> int:
     outdir = Path(args.outdir or tempfile.mkdtemp(prefix="dsg-hil-vcan-")).resolve()
     outdir.mkdir(parents=True, exist_ok=True)
     env = {vcan.ENV_REQUIRE: "1", vcan.ENV_DURATION: f"{args.duration:g}", vcan.ENV_OUTDIR: str(outdir)}
-    if os.environ.get("PYTHONPATH"):  # the caller's, forwarded into the VM (e.g. a checkout other than the venv's)
-        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
+    for name in ("PYTHONPATH", EXPECT_ENV):  # the caller's, forwarded into the VM (e.g. a checkout other than the
+        if os.environ.get(name):  # venv's; the compiled build required)
+            env[name] = os.environ[name]
+    # the tests run the installed package (the compiled build of a regular install) even where the working directory
+    # is its checkout: 'python -m pytest' would put that first on sys.path
+    env["PYTHONSAFEPATH"] = "1"
     if args.load:
         command = vcan.with_load(command, args.load)
     env[vcan.ENV_WHERE] = "native" if native else "emulated VM (QEMU TCG)"

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from ..common.build import EXPECT_ENV, build
 from ..protocol import load_dbc
 from ..protocol.codec import DEFAULT_DBC
 from .vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
@@ -34,6 +35,11 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "vcan: end-to-end on a real SocketCAN vcan0 (run with 'dsg-hil vcan')")
 
 
+def pytest_report_header(config):
+    """Which build the end-to-end tests run (the processes they start import the same package)."""
+    return f"dsg-hil build: {build()} ({Path(str(DEFAULT_DBC)).parents[1]})"
+
+
 def pytest_collection_modifyitems(items):
     for item in items:
         if Path(str(item.fspath)).parent == Path(__file__).parent:
@@ -44,6 +50,9 @@ def pytest_collection_modifyitems(items):
 def vcan_ready():
     missing = [] if vcan_present() else ["vcan0 (no /sys/class/net/vcan0)"]
     missing += [tool for tool in ("candump", "canplayer") if shutil.which(tool) is None]
+    if os.environ.get(EXPECT_ENV, "") not in ("", "0") and build() != "compiled":
+        pytest.fail(f"{EXPECT_ENV} is set but the build loaded is {build()}: the tests would not test the "
+                    "compiled build", pytrace=False)
     if missing:
         reason = f"needs {', '.join(missing)}: run 'dsg-hil vcan' (native or VM), see README"
         if os.environ.get(ENV_REQUIRE):

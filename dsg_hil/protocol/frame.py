@@ -4,9 +4,15 @@ classic data frame of ``data``, at a fifth of the cost."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import can
 
-__all__ = ["data_frame"]
+__all__ = ["FrameListener", "data_frame"]
+
+# What a run tells every frame it took or sent (a log writer, a can.Listener, a list's append): any callable of a
+# frame. The runners keep a sequence of them (a tuple or a list alike).
+FrameListener = Callable[[can.Message], object]
 
 _Message = can.Message
 _new = _Message.__new__

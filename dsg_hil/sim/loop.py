@@ -8,7 +8,7 @@ another ``TcuRunner``-like object is given; it talks to the plant only through C
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +17,7 @@ from cantools.database.can import Database
 
 from ..physics.params import Params
 from ..protocol.faults import FaultSpec
+from ..protocol.frame import FrameListener
 from .run import (ECU_STUB, RunConfig, TcuFactory, answer_at_once, attach_tcu, open_run, plant_for,
                   private_channel)
 from .runner import PlantRunner
@@ -40,7 +41,7 @@ class LoopResult:
 
 def run_closed_loop(scenario: Scenario, params: Params | None = None, *, db: Database | None = None,
                     tcu_factory: TcuFactory | None = None, capture: bool = False,
-                    listeners: tuple[Callable[[can.Message], None], ...] = (),
+                    listeners: Sequence[FrameListener] = (),
                     progress: Callable[[str], None] | None = None, faults: Iterable[FaultSpec] | None = None,
                     fault_seed: int = 0, on_period: Callable[[PlantRunner], None] | None = None,
                     transport: str = "local", reference_codec: bool = False) -> LoopResult:

@@ -44,6 +44,7 @@ from ..physics.params import Params, load_params, with_overrides
 from ..physics.plant import PlantOutputs
 from ..protocol import Codec, load_dbc
 from ..protocol.bus import FrameLog, bus_args, bus_name, log_channel, open_bus
+from ..protocol.frame import FrameListener
 from ..protocol.faults import FaultError, FaultSpec, check_faults, parse_fault, with_faults
 from ..protocol.local import local_pair
 from ..protocol.lockstep import answers_lost_by
@@ -167,7 +168,7 @@ class RunConfig:
     tcu_output: str | Path | None = None
     capture: bool = False
     truth: bool = False
-    listeners: tuple[Callable[[can.Message], None], ...] = ()
+    listeners: Sequence[FrameListener] = ()
     on_period: Callable[[PlantRunner], None] | None = None
     reply_timeout: float = 5.0
     startup_timeout: float = 60.0
@@ -295,9 +296,9 @@ class Run:
             return False
         return tcu != ECU_STUB or self.bus_config["interface"] in ("local", "virtual")
 
-    def _listeners(self) -> tuple[Callable[[can.Message], None], ...]:
+    def _listeners(self) -> tuple[FrameListener, ...]:
         config = self.config
-        listeners = config.listeners
+        listeners = tuple(config.listeners)
         if config.log is not None:
             log = FrameLog(str(config.log), log_channel(self.bus_config), option="log")
             self._stack.callback(log.stop)

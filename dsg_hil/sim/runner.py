@@ -21,7 +21,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter as Tally
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 
 import can
 import numpy as np
@@ -32,7 +32,7 @@ from ..physics.powertrain import brake_for_decel
 from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, commanded_decel, commanded_pressures, frame_encoder
 from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
-from ..protocol.frame import data_frame
+from ..protocol.frame import FrameListener, data_frame
 from ..protocol.lockstep import LockstepMaster, PeerLost, PeerTimeout, Received
 from ..protocol.validity import NEW, NS_PER_MS, NS_PER_S
 from .scenario import DriverInput, Scenario
@@ -46,13 +46,13 @@ __all__ = ["PeerLost", "PeerTimeout", "PlantRunner"]  # the errors (common.error
 
 class PlantRunner:
     def __init__(self, plant: Plant, scenario: Scenario, codec: Codec, bus: can.BusABC,
-                 listeners: tuple[Callable[[can.Message], None], ...] = (),
+                 listeners: Sequence[FrameListener] = (),
                  progress: Callable[[str], None] | None = None) -> None:
         for name in PLANT_USES:  # resolved at start-up by the codec; fail here if not
             codec.message(name)
         self.plant, self.scenario, self.codec, self.bus = plant, scenario, codec, bus
         self.on_tick: Callable[[], object] | None = None  # lock-step: called as each tick is sent (RunConfig.on_period)
-        self.listeners = listeners
+        self.listeners = tuple(listeners)
         self.progress = progress
         self.period = codec.cycle_time("TCU_CMD")
         self.period_ms = codec.cycle_time_ms("TCU_CMD")

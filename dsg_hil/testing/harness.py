@@ -113,13 +113,14 @@ def _tcu_factory(controller: Any) -> str | TcuFactory:
     """How the in-process TCU is built: ecu-stub (``None`` or its controller) or a Controller."""
     if controller is None or _is_fmu(controller):  # an FMU: its factory is set once the FMU is open
         return ECU_STUB
-    from ecu_stub.controller import CreepController
+    from ecu_stub.interface import TcuController
     from ecu_stub.runner import TCU_USES, TcuRunner
 
-    if isinstance(controller, CreepController):
+    if isinstance(controller, TcuController):  # ecu-stub's CreepController (any calibration), or its like
         return lambda db, bus: TcuRunner(Codec(db, TCU_USES), bus, controller)
     if isinstance(controller, Controller):
         return lambda db, bus: PythonControllerTcu(Codec(db, TCU_USES), bus, controller)
-    raise TypeError(f"controller: expected None, an ecu-stub CreepController, a command line (list of str), a "
+    raise TypeError(f"controller: expected None, an ecu-stub CreepController (or an object with update(inputs, now) "
+                    f"and cal), a command line (list of str), a "
                     f"ControllerProcess, an object with step(t, inputs) or an .fmu path; got "
                     f"{type(controller).__name__}")

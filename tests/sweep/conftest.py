@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -40,9 +42,20 @@ def small_space(tmp_path: Path) -> Path:
     return path
 
 
+@functools.cache
+def _tests_only() -> str:
+    """A directory holding nothing but a link to this checkout's ``tests`` package: on PYTHONPATH it makes the tests
+    importable (the planted controllers, ``tests.sweep.unsafe:Slipper``) without the checkout's ``dsg_hil``
+    shadowing the installed one (the compiled build under test)."""
+    where = Path(tempfile.mkdtemp(prefix="dsg-hil-tests-path-"))
+    (where / "tests").symlink_to(REPO / "tests", target_is_directory=True)
+    return str(where)
+
+
 def sweep_env() -> dict[str, str]:
-    """The environment of a sweep process or Dask worker: the tests importable (the planted controller)."""
-    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    """The environment of a sweep process or Dask worker: the tests importable (the planted controller), the
+    package the installed one."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([_tests_only(), os.environ.get("PYTHONPATH", "")])}
 
 
 def sweep(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:
