@@ -20,17 +20,17 @@ from setuptools.command.build_ext import build_ext
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def _compiled() -> list[str]:
-    """The modules mypyc compiles: ``COMPILED`` of ``dsg_hil/common/build.py``, read as it stands (not imported: the
+def _build_constant(name: str):
+    """``name`` (``COMPILED``, ``GROUP``) of ``dsg_hil/common/build.py``, read as it stands (not imported: the
     build's environment need not have the package's dependencies), so the installed package knows them too."""
     with open(os.path.join(HERE, "dsg_hil", "common", "build.py"), encoding="utf-8") as f:
         tree = ast.parse(f.read())
     (value,) = [node.value for node in tree.body if isinstance(node, ast.Assign)
-                and any(isinstance(t, ast.Name) and t.id == "COMPILED" for t in node.targets)]
-    return list(ast.literal_eval(value))
+                and any(isinstance(t, ast.Name) and t.id == name for t in node.targets)]
+    return ast.literal_eval(value)
 
 
-COMPILED = _compiled()
+COMPILED, GROUP = list(_build_constant("COMPILED")), _build_constant("GROUP")
 PURE_ENV = "DSG_HIL_PURE_PYTHON"
 BUILDS = {"bdist_wheel", "build", "build_ext", "install"}  # setup.py commands that build modules (not
 # egg_info, dist_info, sdist, nor editable_wheel: pip's editable install)
@@ -46,7 +46,7 @@ def ext_modules() -> list:
         # third-party packages typed as Any whether the build's environment has them or not (--no-site-packages):
         # the same build on a fresh machine (before its dependencies are installed) as on a set-up one
         exts = mypycify(["--no-site-packages", "--ignore-missing-imports", "--config-file=", *COMPILED],
-                        group_name="dsg_hil_compiled", opt_level="3")
+                        group_name=GROUP, opt_level="3")
     except (SystemExit, Exception) as exc:  # noqa: BLE001 - any failure: the pure-Python package
         _say_pure(exc)
         return []

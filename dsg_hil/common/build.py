@@ -8,7 +8,7 @@ from __future__ import annotations
 import importlib
 from importlib.machinery import EXTENSION_SUFFIXES
 
-__all__ = ["COMPILED", "EXPECT_ENV", "build", "compiled_modules"]
+__all__ = ["COMPILED", "EXPECT_ENV", "GROUP", "build", "compiled_modules"]
 
 # The per-period path of a closed-loop run (bench/closed_loop_speed.py): the TCU, the lock-step bus ends, the plant's
 # I/O, the run's summary, as paths from the project's root (setup.py takes this tuple as it stands, with ast). Not a
@@ -20,6 +20,7 @@ COMPILED = (
     "dsg_hil/protocol/lockstep.py", "dsg_hil/protocol/plan.py", "dsg_hil/protocol/validity.py",
     "dsg_hil/results/summary.py", "dsg_hil/sim/plant_io.py", "dsg_hil/sim/runner.py",
 )
+GROUP = "dsg_hil_compiled"  # mypyc's group: the compiled modules' machine code is one library, GROUP + "__mypyc"
 EXPECT_ENV = "DSG_HIL_EXPECT_COMPILED"  # set (not "" or "0"): the tests fail unless every module runs compiled
 
 

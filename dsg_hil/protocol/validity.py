@@ -155,25 +155,26 @@ class RxMonitor:
             return REJECTED, None
         return self.take_data(msg.arbitration_id, bytes(msg.data), now)
 
-    def take_data(self, frame_id: int, data: bytes, now: float) -> tuple[str, DecodedFrame | None]:
-        """:meth:`take` of a classic data frame with an 11-bit ID, given by its ID and data."""
+    def take_data(self, frame_id: int, data: bytes | bytearray, now: float) -> tuple[str, DecodedFrame | None]:
+        """:meth:`take` of a classic data frame with an 11-bit ID, given by its ID and data (a bytearray, as
+        python-can's ``Message.data``, taken as its bytes)."""
         known = self._by_id.get(frame_id)
         if known is None:
             return IGNORED, None
+        if not isinstance(data, bytes):
+            data = bytes(data)
         state, decode, memo = known
         self.received += 1
-        kept = data.__class__ is bytes  # (a bytearray is decoded each time)
-        frame = memo.get(data) if kept else None
+        frame = memo.get(data)
         if frame is None:
             try:
                 frame = decode(data)
             except FrameError as exc:
                 self._reject(state, exc.reason, str(exc))
                 return REJECTED, None
-            if kept:
-                if len(memo) >= DECODED_KEPT:
-                    memo.clear()
-                memo[data] = frame
+            if len(memo) >= DECODED_KEPT:
+                memo.clear()
+            memo[data] = frame
         if data == state.last_data:
             state.duplicates += 1
             return DUPLICATE, frame

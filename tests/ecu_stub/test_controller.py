@@ -3,8 +3,8 @@ its margin, dwell, start-up assumption, stop when neither clutch can take over (
 
 from __future__ import annotations
 
+import ast
 import dataclasses
-import inspect
 import math
 from dataclasses import replace
 
@@ -15,6 +15,8 @@ from ecu_stub.clutch_model import SLIP_FILTER_S, friction_coefficient, friction_
 from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
 from ecu_stub.monitor import MonitorVerdict
 from ecu_stub.pid import PID
+
+from ..source import definition
 
 DT = 0.01
 CAL = load_calibration()
@@ -463,10 +465,19 @@ def test_written_out_init_takes_the_dataclass_fields(cls):
     """TcuInputs, TcuOutputs, MonitorVerdict write their __init__ out (the mypyc build compiles it): the dataclass's
     fields, in order, with their defaults, each set (a field added but not to __init__ fails here)."""
     fields = dataclasses.fields(cls)
-    params = list(inspect.signature(cls.__init__).parameters.values())[1:]
-    assert [p.name for p in params] == [f.name for f in fields]
-    assert [p.default for p in params] == [inspect.Parameter.empty if f.default is dataclasses.MISSING else f.default
-                                           for f in fields]
-    given = [object() for _ in params]
+    init = definition(cls.__init__).args  # (from the source: a compiled __init__ shows no signature)
+    params = init.args[1:]
+    assert [p.arg for p in params] == [f.name for f in fields]
+    defaults = [dataclasses.MISSING] * (len(params) - len(init.defaults)) + [ast.literal_eval(d) for d in init.defaults]
+    assert defaults == [f.default for f in fields]
+    given = [distinct(f, i) for i, f in enumerate(fields)]
     obj = cls(*given)
     assert [getattr(obj, f.name) for f in fields] == given
+
+
+def distinct(field: dataclasses.Field, i: int) -> object:
+    """A value of the field's type (the compiled build checks them) unlike its default and any other field's."""
+    kind = field.type.partition("[")[0] if isinstance(field.type, str) else field.type.__name__  # (compiled: a type)
+    if kind == "bool":
+        return field.default is not True
+    return {"float": 1000.5 + i, "int": 1000 + i, "str": f"value {i}", "dict": {"CL": float(i)}}[kind]

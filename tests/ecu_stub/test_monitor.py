@@ -67,15 +67,19 @@ def test_controller_stops_when_the_monitor_limits_the_clutch_that_carries_the_ve
     ctrl, clock = creeping()
     inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
     run(ctrl, clock, inp, 0.5)
-    # CL just under its handover limit at zero heat (no dwell yet), but a full command's heat to come passes T_safe,
-    # and CH cannot take over (hot): the strategy alone would keep creeping on CL
-    T = S.T_safe_c - S.prediction_error_k - 0.5
-    ctrl.T_pred = {"CL": T, "CH": S.T_safe_c - 5.0}
+    # a strategy that would plan around the margin: the monitor judges with a T_safe 30 K lower than the strategy's
+    # (the controller's methods are read-only in the compiled build: the monitor's calibration is the seam). CL under
+    # the strategy's handover limit, but for the monitor a full command's heat to come passes T_safe, and CH cannot
+    # take over (hot for the monitor)
+    T_safe = S.T_safe_c - 30.0
+    ctrl.monitor = ThermalMonitor(replace(FLAT, strategy=replace(S, T_safe_c=T_safe)))
+    T = T_safe - S.prediction_error_k - 0.5
+    ctrl.T_pred = {"CL": T, "CH": T_safe - 5.0}
     ctrl.near_limit_since = None
-    ctrl.limit = lambda clutch, heat_w=None: S.T_safe_c  # a strategy that would plan around the margin
-    out = ctrl.update(replace(inp, P_CL_mpa=0.0, T_oil_CL_c=T, T_oil_CH_c=S.T_safe_c - 5.0), clock.tick())
+    assert T < ctrl.limit("CL")  # the strategy alone keeps creeping on CL
+    out = ctrl.update(replace(inp, P_CL_mpa=0.0, T_oil_CL_c=T, T_oil_CH_c=T_safe - 5.0), clock.tick())
     assert out.state == "STOPPED_OVERHEAT" and out.brake_request
-    assert ctrl.bound["CL"] == pytest.approx(S.T_safe_c, abs=1e-6) and out.P_CL_cmd_mpa > 0.0  # ramps out from there
+    assert ctrl.bound["CL"] == pytest.approx(T_safe, abs=1e-6) and out.P_CL_cmd_mpa > 0.0  # ramps out from there
 
 
 def test_controller_releases_the_off_going_clutch_faster_when_its_bound_would_pass_t_safe():

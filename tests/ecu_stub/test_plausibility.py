@@ -24,7 +24,9 @@ from ecu_stub.plausibility import (
     shaft_speed_mps,
     tolerance_mps,
 )
-from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
+from ecu_stub.calibration import load_calibration
+from ecu_stub.controller import TcuInputs, TcuOutputs
+from ecu_stub.interface import TcuController
 from ecu_stub.runner import FAULT_IMPLAUSIBLE, TCU_USES, TcuRunner
 
 R_CL, R_CH = 0.034443, 0.059517  # the shipped calibration's speed ratios [m/s per rad/s]
@@ -259,7 +261,7 @@ def bus():
 
 def tcu_with(speeds: dict, vehicle: dict, now: float, tcu: TcuRunner | can.BusABC,
              plant: TxScheduler | None = None, driver: dict | None = None,
-             controller: CreepController | None = None) -> tuple[TcuRunner, TxScheduler]:
+             controller: TcuController | None = None) -> tuple[TcuRunner, TxScheduler]:
     """Given a bus: a TCU on it (real time; ``controller``, default ecu-stub's), given one set of plant frames at
     ``now``; given that TCU and its plant schedule, the next set of frames."""
     if not isinstance(tcu, TcuRunner):
@@ -331,12 +333,14 @@ def test_runner_allows_for_the_drivers_brake_in_the_step(bus, pedal, at_once):
         assert got[-1].v_mps == pytest.approx(v, abs=0.001) and got[-1].fault_bits == FAULT_IMPLAUSIBLE
 
 
-class _Braking(CreepController):
-    """Asks the brakes for a fixed deceleration (DecelRequest) or the full brake (BrakeRequest) every cycle; keeps
-    the inputs it is given."""
+class _Braking:
+    """A :class:`~ecu_stub.interface.TcuController` (not a subclass: the compiled build's CreepController cannot be
+    subclassed by Python code) with the shipped calibration, so the runner votes the speeds with it: asks the brakes
+    for a fixed deceleration (DecelRequest) or the full brake (BrakeRequest) every cycle; keeps the inputs it is
+    given."""
 
     def __init__(self, decel_mps2: float, full: bool) -> None:
-        super().__init__()
+        self.cal = load_calibration()
         self.decel_mps2, self.full = decel_mps2, full
         self.seen: list[TcuInputs] = []
 

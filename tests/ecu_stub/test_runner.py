@@ -4,7 +4,7 @@ missing frame, at the first control cycle past the 3-cycle RX deadline of its la
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 
 import can
 import pytest
@@ -12,6 +12,8 @@ import pytest
 from dsg_hil.sim.plant_io import PLANT_USES
 from dsg_hil.protocol import Codec, TxScheduler, load_dbc
 from dsg_hil.protocol.lockstep import probe_tick
+from ecu_stub.calibration import TcuCalibration
+from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
 from ecu_stub.runner import TCU_USES, TcuRunner
 
 SYNC_PROBE = probe_tick(Codec(load_dbc(), PLANT_USES))  # the DBC's Tick value PROBE
@@ -44,14 +46,31 @@ def setup():
     bus.shutdown()
 
 
+def recording(on_update: Callable[[float, TcuOutputs], None]) -> type:
+    """A :class:`~ecu_stub.interface.TcuController` class around ecu-stub's CreepController that tells
+    ``on_update(now, outputs)`` of each step (the compiled build's controller can be neither patched nor
+    subclassed). Its instances rebuild as the runner does at a lock-step start, ``type(c)(c.cal)``, with the same
+    ``on_update``; ``cal`` and ``T_pred`` are the inner controller's, so the runner's checks run as with it."""
+
+    class Recorded:
+        def __init__(self, cal: TcuCalibration | None = None) -> None:
+            self.inner = CreepController(cal)
+            self.cal = self.inner.cal
+
+        @property
+        def T_pred(self) -> dict[str, float] | None:
+            return self.inner.T_pred
+
+        def update(self, inputs: TcuInputs, now: float) -> TcuOutputs:
+            out = self.inner.update(inputs, now)
+            on_update(now, out)
+            return out
+
+    return Recorded
+
+
 def counting(tcu: TcuRunner, steps: list) -> None:
-    update = tcu.controller.update
-
-    def counted(inputs, now):
-        steps.append(now)
-        return update(inputs, now)
-
-    tcu.controller.update = counted
+    tcu.controller = recording(lambda now, out: steps.append(now))(tcu.controller.cal)
 
 
 def probed(plant_codec: Codec, tcu: TcuRunner) -> TxScheduler:
@@ -165,14 +184,7 @@ def test_realtime_tcu_reports_fault_within_three_cycles_of_the_plants_death():
     bus = DyingPlantBus(Codec(db, PLANT_USES), dies_at=2.0)
     tcu = TcuRunner(Codec(db, TCU_USES), bus)
     states: list[tuple[float, str]] = []
-    update = tcu.controller.update
-
-    def recorded(inputs, now):
-        out = update(inputs, now)
-        states.append((bus.now, out.state))
-        return out
-
-    tcu.controller.update = recorded
+    tcu.controller = recording(lambda now, out: states.append((bus.now, out.state)))()
     tcu.run(duration=2.5, clock=bus.clock)
     bus.shutdown()
     assert states and not tcu.lockstep
@@ -216,14 +228,7 @@ def test_a_starved_realtime_tcu_controls_on_the_frames_waiting_not_on_a_fault():
     bus = StallingTcuBus(Codec(db, PLANT_USES), every=0.3, stall=0.08)
     tcu = TcuRunner(Codec(db, TCU_USES), bus)
     states: list[str] = []
-    update = tcu.controller.update
-
-    def recorded(inputs, now):
-        out = update(inputs, now)
-        states.append(out.state)
-        return out
-
-    tcu.controller.update = recorded
+    tcu.controller = recording(lambda now, out: states.append(out.state))()
     tcu.run(duration=3.0, clock=bus.clock)
     bus.shutdown()
     assert bus.stalls >= 8 and len(states) > 100 and not tcu.lockstep

@@ -296,11 +296,19 @@ def test_rows_of_an_array_count_as_samples_one_by_one(chunk):
                           creep, 0.1)
     assert json.dumps(rows.as_json()) == json.dumps(one.as_json())
     skip = ("runs", "_rows", "stop", "_rest")
-    assert {k: v for k, v in vars(rows).items() if k not in skip} == {k: v for k, v in vars(one).items()
-                                                                        if k not in skip}
+    assert {k: v for k, v in attributes(rows).items() if k not in skip} == {k: v for k, v in attributes(one).items()
+                                                                              if k not in skip}
     assert one.stop is not None and rows.stop is not None and rows.stop[0] == one.stop[0]
     assert [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in rows.runs] == \
         [(r.clutch, r.start, r.end, r.lagged.t if r.lagged else None) for r in one.runs]
+
+
+def attributes(obj: object) -> dict[str, object]:
+    """An object's attributes by name: ``vars``, or a compiled class's (mypyc: no ``__dict__``; its floats unboxed,
+    so a NaN read is a new object, unequal to another: NaN as a string here)."""
+    names = getattr(type(obj), "__mypyc_attrs__", None)
+    found = vars(obj) if names is None else {name: getattr(obj, name) for name in names}
+    return {k: "nan" if isinstance(v, float) and math.isnan(v) else v for k, v in found.items()}
 
 
 def row_by_row_and_in_blocks(speeds: list[list[float]]) -> tuple[CreepMetrics, CreepMetrics]:

@@ -4,7 +4,6 @@ run's ``as_json()``, and every ``stop_reason`` value the code can produce docume
 from __future__ import annotations
 
 import ast
-import inspect
 import re
 from pathlib import Path
 
@@ -13,6 +12,8 @@ import pytest
 from dsg_hil.results.summary import CreepMetrics
 from dsg_hil.sim import run as run_module
 from dsg_hil.sim.run import RunConfig, open_run
+
+from ..source import definition
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 HEADING = "### The summary, key by key"
@@ -68,8 +69,8 @@ def _identifiers(node: ast.AST) -> set[str]:
 def test_every_stop_reason_is_documented():
     """The values ``_stop_reason`` (a run ended early) and ``CreepMetrics.as_json`` (assigned to its ``reason``:
     the creep's) can give."""
-    early = _identifiers(ast.parse(inspect.getsource(run_module._stop_reason)))
-    as_json = ast.parse(inspect.getsource(CreepMetrics.as_json).strip())
+    early = _identifiers(definition(run_module._stop_reason))
+    as_json = definition(CreepMetrics.as_json)
     creep = set().union(*(_identifiers(node.value) for node in ast.walk(as_json) if isinstance(node, ast.Assign)
                           and any(isinstance(t, ast.Name) and t.id == "reason" for t in node.targets)))
     assert "peer_lost" in early and "end_of_record" in creep  # the search finds them
