@@ -157,7 +157,8 @@ BUS = ["-i", "virtual"]
 OUT = ["--summary", "s.json", "--log", "r.log"]
 # (program, argv, bad: 'option' or 'file', form, needle). In the directory: bad.toml (not TOML), garbage.log,
 # notblf.blf (text), short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty
-# directory), small.dbc (a DBC without the plant's messages), badkey.toml and noctl.toml (sweep spaces).
+# directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
+# (bad ones).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -220,9 +221,9 @@ CASES = [
     ("identify", ["short.log", "--write", "cal.toml"], "file", ERROR,
      "short.log: thermal fit: no plate temperature record"),  # no usable data
     # issue 35, items 3 and 5-8: each a pass with nothing run, a raw exit 1 or a file left behind before
-    ("dsg-hil", ["sweep", "badkey.toml", "--n", "0", "--out", "o"], "option", USAGE,
+    ("dsg-hil", ["sweep", "space.toml", "--n", "0", "--out", "o"], "option", USAGE,
      "argument --n: must be >= 1, got 0"),
-    ("dsg-hil", ["sweep", "badkey.toml", "--workers", "0", "--out", "o"], "option", USAGE,
+    ("dsg-hil", ["sweep", "space.toml", "--workers", "0", "--out", "o"], "option", USAGE,
      "argument --workers: must be >= 1, got 0"),
     ("dsg-hil", ["sweep", "badkey.toml", "--out", "o"], "file", ERROR,  # the key itself, not the first input
      "badkey.toml: inputs.params.vehicle.mass: no parameter 'vehicle.mass'"),
@@ -255,6 +256,7 @@ def write_inputs(where: Path) -> None:
     (where / "small.dbc").write_text('VERSION ""\n\nBU_: A\n\nBO_ 100 X: 8 A\n SG_ S : 0|8@1+ (1,0) [0|255] "" A\n',
                                      encoding="utf-8")  # a DBC, without the plant's messages
     space = 'name = "t"\nn = 2\nduration_s = 1.0\n[inputs]\ngrade_rad = {uniform = [-0.15, 0.1]}\n'
+    (where / "space.toml").write_text(space, encoding="utf-8")  # a good sweep space
     (where / "badkey.toml").write_text(space + '"params.vehicle.mass" = {uniform = [1000.0, 2000.0]}\n',
                                        encoding="utf-8")  # a sweep space drawing a parameter that is none
     (where / "noctl.toml").write_text(space + '[controller]\nkind = "python"\ntarget = "nosuch_module:make"\n',
