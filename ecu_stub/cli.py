@@ -21,12 +21,12 @@ from dsg_hil.common.cli import run_main, signals_held
 from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import check_output_path
 
-__all__ = ["EXAMPLE_FAULTS", "by_cause", "main"]
+__all__ = ["EXAMPLE_FAULTS", "by_cause", "main", "version"]
 
 EXAMPLE_FAULTS = ("drop:TCU_CMD@10-12", "stuck:TCU_STATUS.T_CL_Pred@5-8,value=20")  # --help: the TCU's own frames
 
 
-def _version() -> str:
+def version() -> str:
     """The version of the dsg-hil distribution that ships ecu-stub (dsg_hil.__version__, through its metadata)."""
     try:
         return metadata.version("dsg-hil")
@@ -46,7 +46,7 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                     "pass 250 degC, and stops the vehicle when neither can take over. Knows the plant only through "
                     "the DBC. Answers SIM_SYNC ticks when the plant runs in lockstep, else runs on its own clock at "
                     "the TCU_CMD cycle time.")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     add_bus_arguments(parser, fresh_udp=False)
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
     parser.add_argument("--calibration", metavar="FILE",

@@ -47,6 +47,7 @@ from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec, load_dbc
 from dsg_hil.protocol.logs import decoded_frames
 
+from .cli import version
 from .calibration import FrictionMap, TcuCalibration, dump_calibration, load_calibration, raw_sections, torque_falls
 from .clutch_model import friction_heat, mu_lookup, plate_step, slip_filter_weight
 
@@ -421,6 +422,7 @@ def _identify(records: list[Record], base: TcuCalibration,
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="python -m ecu_stub.identify", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     parser.add_argument("logs", nargs="+", metavar="LOG", help="recorded runs (candump -L .log, .asc, .blf)")
     parser.add_argument("--calibration", metavar="FILE", help="base calibration (default: the shipped one)")
     parser.add_argument("--write", metavar="FILE", help="write the identified calibration here")

@@ -9,13 +9,13 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from typing import TYPE_CHECKING
 
+import can.cli
+
 from ..protocol.faults import add_fault_arguments
 from . import command_help
 from .common import positive_number, progress
 
 if TYPE_CHECKING:
-    import can
-
     from ..protocol.faults import FaultInjector
 
 __all__ = ["add_subparser", "bridge"]
@@ -28,11 +28,11 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                     "frame from --to back to --from unchanged. "
                     "For a node whose software cannot be changed: put it alone on --from (e.g. a real ECU on "
                     "can0) and the plant on --to (e.g. vcan0, dsg-hil plant in real time).")
-    for end in ("from", "to"):
-        parser.add_argument(f"--{end}-interface", required=True, metavar="INTERFACE",
-                            help=f"python-can interface of the {end} bus")
-        parser.add_argument(f"--{end}-channel", required=True, metavar="CHANNEL",
-                            help=f"channel of the {end} bus")
+    for end in ("from", "to"):  # python-can's bus options, each end's prefixed (--from-bus-kwargs port=...)
+        can.cli.add_bus_arguments(parser, prefix=end, group_title=f"the {end} bus (python-can's options)")
+        for action in parser._actions:
+            if action.dest in (f"{end}_interface", f"{end}_channel"):
+                action.required = True
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
     parser.add_argument("--duration", type=positive_number, metavar="S", help="stop after S seconds (default: "
                         "never; Ctrl-C)")
@@ -57,13 +57,12 @@ def bridge(source: can.BusABC, sink: can.BusABC, injector: FaultInjector, clock:
 
 def _do_bridge(args: argparse.Namespace) -> int:
     from ..protocol import load_dbc  # noqa: PLC0415 - python-can and cantools at run time only
-    from ..protocol.bus import bus_name, open_bus, resolve_bus_config  # noqa: PLC0415
+    from ..protocol.bus import bus_config, bus_name, open_bus  # noqa: PLC0415
     from ..protocol.faults import FaultInjector, faults_from_args  # noqa: PLC0415
 
     db = load_dbc(args.dbc)
     injector = FaultInjector(db, faults_from_args(args), args.fault_seed)
-    configs = [resolve_bus_config(getattr(args, f"{end}_interface"), getattr(args, f"{end}_channel"))
-               for end in ("from", "to")]
+    configs = [bus_config(args, prefix=end) for end in ("from", "to")]
     with ExitStack() as stack:
         source, sink = (open_bus(config) for config in configs)
         stack.callback(source.shutdown)

@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from ..physics.params import Params
 
-__all__ = ["add_params_option", "non_negative_int", "params_from", "positive_number", "progress", "set_overrides",
-           "set_quiet"]
+__all__ = ["add_params_option", "non_negative_int", "params_from", "positive_int", "positive_number", "progress",
+           "set_overrides", "set_quiet"]
 
 
 def positive_number(text: str) -> float:
@@ -26,12 +26,21 @@ def positive_number(text: str) -> float:
 
 def non_negative_int(text: str) -> int:
     """An argparse type: a whole number >= 0 (else a usage error, exit 2)."""
+    return _whole_at_least(text, 0)
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number >= 1 (else a usage error, exit 2): a count of runs or workers."""
+    return _whole_at_least(text, 1)
+
+
+def _whole_at_least(text: str, low: int) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    if value < low:
+        raise argparse.ArgumentTypeError(f"must be >= {low}, got {text}")
     return value
 
 

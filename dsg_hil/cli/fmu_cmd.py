@@ -32,7 +32,10 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 def _do_fmu(args: argparse.Namespace) -> int:
     from ..fmi.export import export_fmu  # noqa: PLC0415 - the package (pythonfmu: when the FMU is written)
+    from ..physics.params import CONFIGURATIONS  # noqa: PLC0415
 
-    path = export_fmu(args.out, model=args.model, params=args.params)
+    # a configuration's name ('fitted', 'table1') is accepted wherever a parameter file is: its file goes in
+    params = CONFIGURATIONS.get(args.params, args.params) if args.params is not None else None
+    path = export_fmu(args.out, model=args.model, params=params)
     progress(f"wrote {path} ({args.model}; needs dsg_hil[fmi] in the host's Python)")
     return 0

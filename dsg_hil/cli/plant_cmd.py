@@ -35,14 +35,15 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 def _do_plant(args: argparse.Namespace) -> int:
     with ExitStack() as stack:
         with signals_held(SETTING_UP):  # a signal now: the run ends once set up, its summary written
-            from ..sim.run import open_run  # noqa: PLC0415 - the plant (numpy ...) when a run starts
+            from ..sim.run import EcuStubProcess, open_run  # noqa: PLC0415 - the plant (numpy ...) when a run starts
             from ..sim.runner import PeerTimeout  # noqa: PLC0415
 
             run = stack.enter_context(open_run(run_config(args, tcu=None)))
             started(args)
         progress(f"plant: {run.scenario.name}, {run.scenario.duration_s:g} s, {args.mode} on {run.interface}")
         warning = per_process_warning(run.bus_config)
-        progress(f"warning: {warning}" if warning else f"TCU: ecu-stub {shlex.join(bus_args(run.bus_config))}")
+        progress(f"warning: {warning}" if warning else f"TCU: ecu-stub {shlex.join(bus_args(run.bus_config))} "
+                 f"--idle-exit {EcuStubProcess.idle_exit:g}")  # it ends once the plant has gone, as run's does
         try:
             summary = run.run()
         except PeerTimeout as exc:  # (PeerLost too: the type decides the summary's stop reason)

@@ -7,7 +7,7 @@ import argparse
 from collections.abc import Iterable
 from pathlib import Path
 
-from ..common.errors import LogError
+from ..common.errors import InputError, LogError
 from ..common.files import check_output_path
 from . import command_help
 from .common import progress
@@ -101,6 +101,12 @@ def _do_plot(args: argparse.Namespace) -> int:
     output = args.output if args.output is not None else str(Path(args.log).with_suffix(".png"))
     check_output_path("--output" if args.output is not None else "LOG.png", output)
     require_matplotlib()
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 - the backend savefig uses
+
+    kinds = FigureCanvasAgg.get_supported_filetypes()  # png, pdf, svg ...: checked before the log is decoded
+    if Path(output).suffix.lower().removeprefix(".") not in kinds:
+        raise InputError(f"{'--output' if args.output is not None else 'LOG.png'} {output}: the image's extension "
+                         f"is one of {', '.join(f'.{kind}' for kind in sorted(kinds))}")
     data = series(args.log, load_dbc(args.dbc))
     plot_log(data, Path(args.log).name, Path(output))
     progress(f"wrote {output}")

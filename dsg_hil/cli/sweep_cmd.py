@@ -9,7 +9,7 @@ import argparse
 from ..common.errors import EXIT_OK, EXIT_OUT_OF_BAND, EXIT_RUN_FAILED
 from ..common.files import check_output_path
 from . import command_help
-from .common import non_negative_int, progress, set_overrides
+from .common import positive_int, progress, set_overrides
 
 __all__ = ["add_subparser"]
 
@@ -28,10 +28,10 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                     "why); 0 when every run was judged and none violates. Needs pip install 'dsg-hil[sweep]'.")
     parser.add_argument("space", metavar="SPACE", help="the space file (TOML), e.g. dsg_hil/data/sweeps/safety.toml")
     parser.add_argument("--out", metavar="DIR", help="results directory (default: ./sweep-<space name>)")
-    parser.add_argument("--n", type=non_negative_int, metavar="N", help="runs (--search: its budget); "
+    parser.add_argument("--n", type=positive_int, metavar="N", help="runs (--search: its budget); "
                         "default: the space's n")
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=non_negative_int, metavar="N",
+    where.add_argument("--workers", type=positive_int, metavar="N",
                        help="worker processes of the local cluster (default: one per core)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask cluster's scheduler "
                        "(tcp://HOST:8786; default: DASK_SCHEDULER_ADDRESS, else a local cluster)")
@@ -51,6 +51,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 def _do_sweep(args: argparse.Namespace) -> int:
     from ..sweep import load_space, run_search, run_sweep, write_page  # noqa: PLC0415 - Dask when it runs
     from ..sweep.code import code_digest, code_note  # noqa: PLC0415
+    from ..sweep.controllers import check_importable  # noqa: PLC0415
+    from ..sweep.engine import scheduler_address  # noqa: PLC0415
     from ..sweep.results import ResultStore  # noqa: PLC0415
 
     space = load_space(args.space)
@@ -62,6 +64,8 @@ def _do_sweep(args: argparse.Namespace) -> int:
         space = space.with_parameters({k: value_of(checked, k, "--set") for k in overrides})
     out = args.out or f"sweep-{space.name}"
     check_output_path("--out", out, directory=True)
+    if space.controller["kind"] == "python" and scheduler_address(args.scheduler) is None:
+        check_importable(space)  # the local cluster's workers import it alike: found now, not in every run
     options = {"workers": args.workers or None, "scheduler": args.scheduler, "resume": args.resume,
                "keep_logs": args.keep_logs, "progress": progress}
     if args.search:

@@ -55,7 +55,8 @@ def _do_validate(args: argparse.Namespace) -> int:
         for row in r.checks():
             all_ok &= bool(row[4])
             print("  " + _fmt_row(*row))
-    if args.json:
+    if args.json:  # a missing directory made, as for every output (check_output_path)
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(validation_json(results), indent=2) + "\n", encoding="utf-8")
         progress(f"wrote {args.json}")
     if args.plots:

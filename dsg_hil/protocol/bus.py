@@ -57,13 +57,17 @@ def add_bus_arguments(parser: argparse.ArgumentParser, fresh_udp: bool = True) -
              "or the config file: socketcan on vcan0 where it exists, else virtual (one process only). " + udp)
 
 
-def bus_config(args: argparse.Namespace, fresh_udp: bool = False) -> dict[str, Any]:
-    """The python-can configuration from the options of :func:`add_bus_arguments`.
+def bus_config(args: argparse.Namespace, fresh_udp: bool = False, prefix: str = "") -> dict[str, Any]:
+    """The python-can configuration from the options of :func:`add_bus_arguments` (``prefix``: those of
+    ``can.cli.add_bus_arguments(parser, prefix=...)``, ``--PREFIX-interface`` ..., as ``dsg-hil bridge`` has).
 
     ``fresh_udp``: give ``udp_multicast`` without a channel a group of its own (the plant); else (the TCU) that
     is an error naming what to pass."""
-    given = {key: getattr(args, key) for key in _FROM_FLAGS if getattr(args, key, None) is not None}
-    given.update(getattr(args, "bus_kwargs", None) or {})
+    def option(key: str) -> Any:
+        return getattr(args, f"{prefix}_{key}" if prefix else key, None)
+
+    given = {key: option(key) for key in _FROM_FLAGS if option(key) is not None}
+    given.update(option("bus_kwargs") or {})
     config = resolve_bus_config(context=getattr(args, "config_context", None), **given)
     if config["interface"] == UDP_MULTICAST and config.get("channel") is None:
         if not fresh_udp:
@@ -87,6 +91,10 @@ def resolve_bus_config(interface: str | None = None, channel: str | None = None,
         if "interface" in given or "None" not in str(exc):
             raise InputError(f"interface: {exc}") from None
         config = {**extra, "interface": None, "channel": given.get("channel", os.environ.get("CAN_CHANNEL"))}
+    except (ValueError, TypeError) as exc:  # python-can checks port and state ("Port config must be a number!")
+        bad = [f"{key}={extra[key]}" for key in ("port", "state") if key in extra]
+        where = f"--bus-kwargs {' '.join(bad)}" if bad else "the python-can configuration"
+        raise InputError(f"{where}: {exc}") from None
     if not config.get("interface"):
         if vcan0_present():
             config.update(interface="socketcan", channel=config.get("channel") or "vcan0")

@@ -52,6 +52,19 @@ class Summary:
     def handovers(self) -> list[Any]:
         return list(self.metrics["handovers"])
 
+    def __getattr__(self, name: str) -> Any:
+        """``summary.rollback_m``: every key of the JSON document is an attribute (the fields and the properties
+        above, the creep metrics, what a caller added), as it is an item (``summary["rollback_m"]``)."""
+        if not name.startswith("__"):  # (copy and pickle look up dunders before the fields are set)
+            for table in (self.__dict__.get("metrics", {}), self.__dict__.get("extra", {})):
+                if name in table:
+                    return table[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}: not a key of its JSON "
+                             f"document (as_json())")
+
+    def __dir__(self) -> list[str]:
+        return sorted({*super().__dir__(), *self.metrics, *self.extra})
+
     def as_json(self) -> dict[str, Any]:
         """The JSON document (``dsg-hil run --summary``): the bookkeeping around the flat creep metrics."""
         return {"scenario": self.scenario, "mode": self.mode, "interface": self.interface,

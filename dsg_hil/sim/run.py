@@ -43,6 +43,7 @@ from ..common.files import check_output_path
 from ..physics.params import Params, load_params, with_overrides
 from ..physics.plant import PlantOutputs
 from ..protocol import Codec, load_dbc
+from ..protocol.codec import ProtocolError
 from ..protocol.bus import FrameLog, bus_args, bus_name, log_channel, open_bus
 from ..protocol.frame import FrameListener
 from ..protocol.faults import FaultError, FaultSpec, check_faults, parse_fault, with_faults
@@ -203,6 +204,7 @@ class Run:
         self.scenario = resolve_scenario(config.scenario, config.duration)
         self.params = resolve_params(config.params)
         self.db = config.dbc if isinstance(config.dbc, Database) else load_dbc(config.dbc)
+        codec = self._plant_codec()
         self.frames: list[can.Message] = []
         self._truth: list[tuple[float, PlantOutputs]] = []
         self.tcu: Any = None
@@ -217,7 +219,6 @@ class Run:
         # nothing was opened or written up to here: bad input fails before this line
         plant_bus, tcu_bus = self._open_buses(direct)
         listeners = self._listeners()
-        codec = Codec(self.db, PLANT_USES, reference=config.reference_codec)
         self.runner = PlantRunner(plant_for(self.scenario, self.params), self.scenario, codec, plant_bus,
                                   listeners, config.progress)
         self.runner.link.notify = config.progress  # "waiting for a TCU", while the lock-step handshake waits
@@ -241,6 +242,15 @@ class Run:
         for option, path in (("log", self.config.log), ("summary", self.config.summary),
                              ("tcu_output", self.config.tcu_output)):
             check_output_path(option, None if path is None else str(path))
+
+    def _plant_codec(self) -> Codec:
+        """The plant's codec: a DBC without a message or signal the plant sends or reads (the TCU's among them)
+        fails here, naming the file, before anything is opened or written."""
+        try:
+            return Codec(self.db, PLANT_USES, reference=self.config.reference_codec)
+        except ProtocolError as exc:
+            name = "the DBC given" if isinstance(self.config.dbc, Database) else self.config.dbc or "the shipped DBC"
+            raise ProtocolError(f"{name}: {exc}") from None
 
     def _calibration(self) -> Any:
         """The bundled TCU's calibration, loaded now so a bad file fails before anything opens (None: default)."""

@@ -272,7 +272,12 @@ class PlantRunner:
         check (on a busy machine a check comes late: the silence is the limit plus at most that)."""
         state = self.link.rx.states["TCU_CMD"]
         valid = state.valid(now)  # (rx.valid, a look-up less: every period)
-        if self.command_valid and not valid:
+        if not valid and not self.command_valid and state.last_time is None and now >= state.deadline \
+                and not self.summary.fallback_events:  # never a command by its deadline: a fallback from the start
+            self.summary.fallback_events += 1
+            log.warning("t=%.3f s: no TCU_CMD in the first %.0f ms: hydraulics unpowered", self.plant.state.t,
+                        CV.S_TO_MS * state.deadline)
+        elif self.command_valid and not valid:
             self.summary.fallback_events += 1
             silent = now - state.last_time if state.last_time is not None else float("nan")
             log.warning("t=%.3f s: TCU_CMD missing for %.1f ms (limit %.0f ms; previous check %.1f ms before): "
@@ -414,7 +419,7 @@ class PlantRunner:
                     self.summary.command_latency_s.append(latency)
                 self._cmd_on_bus = None
             self._advance(1, now)
-            if k % self.steps_per_period == 0:
+            if (k + 1) % self.steps_per_period == 0:  # a period's last step, as in lock-step (t=10.0 of 10 s)
                 self._report()
         wall = self.summary.wall_time_s = clock() - start
         self.summary.realtime_factor = self.scenario.duration_s / wall if wall > 0 else None

@@ -11,14 +11,17 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..common.errors import InputError
 from ..protocol import Codec
 from ..protocol.bus import UDP_MULTICAST, fresh_udp_group
 from ..sim.run import ECU_STUB
 
-__all__ = ["config_for"]
+if TYPE_CHECKING:
+    from .space import Space
+
+__all__ = ["check_importable", "config_for"]
 
 
 def _import(target: str) -> Any:
@@ -27,6 +30,15 @@ def _import(target: str) -> Any:
         return getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as exc:
         raise InputError(f"controller.target {target!r}: cannot import ({exc})") from exc
+
+
+def check_importable(space: Space) -> None:
+    """A ``python`` controller's ``module:factory`` imports here (:class:`InputError` naming the space file and
+    key): before a local cluster starts, whose workers would each find it missing in every run."""
+    try:
+        _import(space.controller["target"])
+    except InputError as exc:
+        raise InputError(f"{space.origin}: {exc}") from None
 
 
 def config_for(controller: Mapping[str, Any]) -> dict[str, Any]:

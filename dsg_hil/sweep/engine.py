@@ -28,7 +28,7 @@ from .results import ResultStore, read_manifest, write_manifest
 from .space import Space
 from .worker import run_task, warm
 
-__all__ = ["RETRIES", "Progress", "SweepResult", "open_client", "resumed_n", "run_sweep", "submit"]
+__all__ = ["RETRIES", "Progress", "SweepResult", "open_client", "resumed_n", "run_sweep", "scheduler_address", "submit"]
 
 RETRIES = 2  # a task that raised (in Dask, e.g. its worker could not import it) is run again this often; a task whose
 # worker died is run again by the scheduler (``distributed.scheduler.allowed-failures``, default 3 workers lost)
@@ -82,7 +82,8 @@ class Progress:
                                                                   if self.dashboard else ""))
 
 
-def _scheduler_address(scheduler: str | None) -> str | None:
+def scheduler_address(scheduler: str | None) -> str | None:
+    """The cluster a sweep runs on: ``--scheduler``, else ``DASK_SCHEDULER_ADDRESS``; None: a local one."""
     return scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
 
 
@@ -95,7 +96,7 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
         from distributed import Client, LocalCluster  # noqa: PLC0415
     except ImportError as exc:
         raise InputError("dsg-hil sweep needs Dask distributed: pip install 'dsg-hil[sweep]'") from exc
-    address = _scheduler_address(scheduler)
+    address = scheduler_address(scheduler)
     if address is not None and workers is not None:
         raise InputError("--workers: the cluster at --scheduler (or DASK_SCHEDULER_ADDRESS) has its own workers")
     with contextlib.ExitStack() as stack:

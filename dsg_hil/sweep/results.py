@@ -101,12 +101,14 @@ class ResultStore:
         number = len(list(self.table.glob("part-*.parquet")))
         path = self.table / f"part-{number:05d}.parquet"
         tmp = path.with_name(f".{path.name}.tmp")
-        rows = _uniform(self._pending)
-        # a column with no value in this batch gets a type all the same (text for TEXT_COLUMNS, else a number), so
-        # that the parts read as one dataset (pyarrow takes the first part's schema and cannot cast into null)
+        parts = sorted(self.table.glob("part-*.parquet"))
+        first = pq.read_schema(parts[0]) if parts else None  # pyarrow.parquet.read_table(OUT/table) reads its
+        rows = _uniform(self._pending, () if first is None else first.names)  # columns: every part has them
+        # a column with no value in this batch gets a type all the same (the first part's, else text for
+        # TEXT_COLUMNS, else a number), so that the parts read as one dataset (pyarrow cannot cast into null)
         inferred = pa.Table.from_pylist(rows).schema
-        schema = pa.schema([pa.field(c, pa.string() if c in _TEXT_COLUMNS else pa.float64())
-                            if pa.types.is_null(inferred.field(c).type) else inferred.field(c) for c in rows[0]])
+        schema = pa.schema([_typed(c, first, pa) if pa.types.is_null(inferred.field(c).type) else inferred.field(c)
+                            for c in rows[0]])
         pq.write_table(pa.Table.from_pylist(rows, schema=schema), tmp)
         os.replace(tmp, path)
         self._pending, self._last_flush = [], time.monotonic()
@@ -122,10 +124,18 @@ class ResultStore:
 _TEXT_COLUMNS = frozenset({"error"})  # the row's columns that hold text where they have a value (else numbers)
 
 
-def _uniform(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """Rows with the same columns (None where a row lacks one), each column of one type (numbers as float)."""
+def _typed(column: str, first: Any, pa: Any) -> Any:
+    """The field of a column without a value in a batch: the first part's, else text or a number."""
+    if first is not None and column in first.names:
+        return first.field(column)
+    return pa.field(column, pa.string() if column in _TEXT_COLUMNS else pa.float64())
+
+
+def _uniform(rows: Iterable[Mapping[str, Any]], first: Iterable[str] = ()) -> list[dict[str, Any]]:
+    """Rows with the same columns (``first``'s, then the rows'; None where a row lacks one), each column of one
+    type (numbers as float)."""
     rows = list(rows)
-    columns = list(dict.fromkeys(k for r in rows for k in r))
+    columns = list(dict.fromkeys([*first, *(k for r in rows for k in r)]))
     numeric = {c for c in columns if all(isinstance(r.get(c), (int, float)) and not isinstance(r.get(c), bool)
                                          for r in rows if r.get(c) is not None)}
     return [{c: (float(r[c]) if c in numeric and r.get(c) is not None else r.get(c)) for c in columns}

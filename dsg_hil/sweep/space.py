@@ -46,7 +46,7 @@ from typing import Any
 
 from ..common.errors import InputError
 from ..common.files import read_input_file
-from ..physics.params import ParameterError, load_params, with_overrides
+from ..physics.params import ParameterError, load_params, value_of, with_overrides
 from ..protocol.codec import load_dbc
 from ..protocol.faults import FaultError, check_against_dbc, parse_fault
 from ..sim.scenario import DEFAULT_SCENARIO, ScenarioError, parse_scenario
@@ -297,7 +297,7 @@ def _check_input(key: str, dist: Dist, origin: str) -> None:
     if key.startswith("params."):
         if dist.kind == "choice" and not all(isinstance(v, (int, float)) for v in dist.args):
             raise SpaceError(f"{where}: a parameter takes numbers")
-        return  # checked with the corner values in _check_corners (the unknown key named by with_overrides)
+        return  # its key, then its corner values: in _check_corners
     if key.startswith("driver."):
         name = key.removeprefix("driver.")
         if name not in SETTINGS:
@@ -336,6 +336,12 @@ def _check_corners(space: Space) -> None:
     """Every input's extreme values make a valid scenario and valid parameters (errors name the input)."""
     plain = {k: d.args[0] for k, d in space.inputs.items()}
     base_params = load_params()
+    for key in space.inputs:  # a key that is no parameter, named as itself (not as the first input's corner)
+        if key.startswith("params."):
+            try:
+                value_of(base_params, key.removeprefix("params."), f"inputs.{key}")
+            except ParameterError as exc:
+                raise SpaceError(f"{space.origin}: {exc}") from exc
     for key, dist in space.inputs.items():
         for value in _corners(dist):
             values = {**plain, key: value}

@@ -85,6 +85,10 @@ class UnexplainedFault:
         self._last = t
 
 
+# the summary's keys whose value is a table or null (no first CH slip): the table's columns either way
+SPLIT: dict[str, tuple[str, ...]] = {"mu_CH_first_slip": ("start", "end"), "P_CH_first_slip_mpa": ("start", "end")}
+
+
 def _number(value: Any) -> float | None:
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
@@ -101,6 +105,8 @@ def summary_row(summary: Mapping[str, Any]) -> dict[str, Any]:
                         if not isinstance(v, (Mapping, list))})
         elif isinstance(value, list):
             row[f"n_{key}"] = len(value)
+        elif value is None and key in SPLIT:  # the columns of a run that has the value, null (one schema)
+            row.update({f"{key}.{part}": None for part in SPLIT[key]})
         elif isinstance(value, (int, float, str)) or value is None:
             row[key] = value
     peaks = [v for v in (summary.get("max_plate_temp_c") or {}).values() if isinstance(v, (int, float))]

@@ -157,7 +157,8 @@ BUS = ["-i", "virtual"]
 OUT = ["--summary", "s.json", "--log", "r.log"]
 # (program, argv, bad: 'option' or 'file', form, needle). In the directory: bad.toml (not TOML), garbage.log,
 # notblf.blf (text), short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty
-# directory).
+# directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
+# (bad ones).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -219,6 +220,30 @@ CASES = [
      "--write /proc/nope/cal.toml: /proc is not a writable directory"),
     ("identify", ["short.log", "--write", "cal.toml"], "file", ERROR,
      "short.log: thermal fit: no plate temperature record"),  # no usable data
+    # issue 35, items 3 and 5-8: each a pass with nothing run, a raw exit 1 or a file left behind before
+    ("dsg-hil", ["sweep", "space.toml", "--n", "0", "--out", "o"], "option", USAGE,
+     "argument --n: must be >= 1, got 0"),
+    ("dsg-hil", ["sweep", "space.toml", "--workers", "0", "--out", "o"], "option", USAGE,
+     "argument --workers: must be >= 1, got 0"),
+    ("dsg-hil", ["sweep", "badkey.toml", "--out", "o"], "file", ERROR,  # the key itself, not the first input
+     "badkey.toml: inputs.params.vehicle.mass: no parameter 'vehicle.mass'"),
+    ("dsg-hil", ["sweep", "noctl.toml", "--out", "o"], "file", ERROR,
+     "noctl.toml: controller.target 'nosuch_module:make': cannot import"),
+    ("dsg-hil", ["run", *BUS, "--dbc", "small.dbc", *OUT], "file", ERROR,
+     "small.dbc: message PLANT_ENGINE is not in the DBC"),
+    ("dsg-hil", ["plant", *BUS, "--dbc", "small.dbc", *OUT], "file", ERROR,
+     "small.dbc: message PLANT_ENGINE is not in the DBC"),
+    ("dsg-hil", ["run", "-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=abc", *OUT], "option",
+     ERROR, "--bus-kwargs port=abc: Port config must be a number!"),
+    ("dsg-hil", ["plant", "-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=99999999", *OUT],
+     "option", ERROR, "--bus-kwargs port=99999999: Port config must be inside 0-65535 range!"),
+    ("ecu-stub", ["-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=-1", "--log", "t.log"],
+     "option", ERROR, "--bus-kwargs port=-1: Port config must be inside 0-65535 range!"),
+    ("dsg-hil", ["bridge", "--from-interface", "udp_multicast", "--from-channel", "239.255.1.2", "--from-bus-kwargs",
+                 "port=abc", "--to-interface", "virtual", "--to-channel", "b"], "option", ERROR,
+     "--bus-kwargs port=abc: Port config must be a number!"),
+    ("dsg-hil", ["plot", "short.log", "-o", "p.xyz"], "option", ERROR,
+     "--output p.xyz: the image's extension is one of"),
 ]
 
 
@@ -228,6 +253,14 @@ def write_inputs(where: Path) -> None:
     (where / "notblf.blf").write_text("not a BLF file\n", encoding="utf-8")
     (where / "afile").write_text("a file, not a directory\n", encoding="utf-8")
     (where / "outdir").mkdir()
+    (where / "small.dbc").write_text('VERSION ""\n\nBU_: A\n\nBO_ 100 X: 8 A\n SG_ S : 0|8@1+ (1,0) [0|255] "" A\n',
+                                     encoding="utf-8")  # a DBC, without the plant's messages
+    space = 'name = "t"\nn = 2\nduration_s = 1.0\n[inputs]\ngrade_rad = {uniform = [-0.15, 0.1]}\n'
+    (where / "space.toml").write_text(space, encoding="utf-8")  # a good sweep space
+    (where / "badkey.toml").write_text(space + '"params.vehicle.mass" = {uniform = [1000.0, 2000.0]}\n',
+                                       encoding="utf-8")  # a sweep space drawing a parameter that is none
+    (where / "noctl.toml").write_text(space + '[controller]\nkind = "python"\ntarget = "nosuch_module:make"\n',
+                                      encoding="utf-8")  # a controller that cannot be imported
     codec = Codec(load_dbc(), {"PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed")})
     with can.Logger(str(where / "short.log")) as log:  # 2 s of speeds, nothing else
         for k in range(200):

@@ -13,11 +13,12 @@ from dsg_hil.cli import main
 
 
 def test_validate_writes_json_and_plots(tmp_path, capsys):
-    rc = main(["validate", "--json", str(tmp_path / "v.json"), "--plots", str(tmp_path / "plots")])
+    """--json into a directory not made yet: made, as for every output (issue 35, 4: a raw Errno 2 after the run)."""
+    rc = main(["validate", "--json", str(tmp_path / "nodir" / "v.json"), "--plots", str(tmp_path / "plots")])
     out = capsys.readouterr().out
     assert rc == 3  # case 4's end torque is outside its band: reported, not hidden (README, 'Validation')
     assert "OUTSIDE BAND" in out and "torque_end_nm" in out
-    data = json.loads((tmp_path / "v.json").read_text())
+    data = json.loads((tmp_path / "nodir" / "v.json").read_text())
     assert len(data["cases"]) == 4 and data["cases"][3]["speed_rpm"] == 300.0
     for name in ("fig3_temperature.png", "fig4_torque.png", "fig5_mu.png", "friction_map.png"):
         assert (tmp_path / "plots" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -46,7 +47,7 @@ def test_debug_before_or_after_the_command_shows_the_traceback(argv):
 
 def test_versions_agree():
     from dsg_hil import __version__
-    for module in ("dsg_hil", "ecu_stub"):
+    for module in ("dsg_hil", "ecu_stub", "ecu_stub.identify"):  # identify's: issue 35, item 8
         proc = subprocess.run([sys.executable, "-m", module, "--version"], capture_output=True, text=True)
         assert proc.returncode == 0 and proc.stdout.split()[-1] == __version__, proc.stdout + proc.stderr
 
@@ -136,7 +137,8 @@ def test_plant_prints_the_tcu_command_for_its_bus():
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", "-i", "udp_multicast", "--duration", "0.2"],
                           capture_output=True, text=True)
     assert proc.returncode == 1, proc.stderr  # (no TCU came: see test_a_real_time_plant_that_never_hears_a_tcu_fails)
-    assert re.search(r"^TCU: ecu-stub -i udp_multicast -c 239\.255\.\d+\.\d+ --bus-kwargs port=\d+$",
+    # --idle-exit: the TCU started so ends once the plant has gone (issue 35, 8: it served on for ever)
+    assert re.search(r"^TCU: ecu-stub -i udp_multicast -c 239\.255\.\d+\.\d+ --bus-kwargs port=\d+ --idle-exit 5$",
                      proc.stderr, re.MULTILINE), proc.stderr
 
 

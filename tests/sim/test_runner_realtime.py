@@ -87,3 +87,19 @@ def test_command_timeout_falls_back_and_recovers(caplog):
     assert names <= {m.arbitration_id for m in bus.sent}
     engine = [m.timestamp for m in bus.sent if m.arbitration_id == codec.frame_id("PLANT_ENGINE")]
     assert len(engine) == pytest.approx(300, abs=2)  # 10 ms cycle over 3 s
+
+
+def test_a_plant_that_never_hears_a_tcu_counts_that_fallback_and_reports_every_10_s():
+    """Issue 35, item 10: 'events: 0' with 'time_s' the whole run for a plant that never heard a TCU, and a real-time
+    run printed its line at t = 0 only (its 10-s check one step late, after the run of 10 s had ended). Now one
+    fallback event, at the command's deadline, and the lines of a lock-step run: at t = 10.0 of 10 s."""
+    codec = Codec(load_dbc(), PLANT_USES)
+    bus = ScriptedBus(codec, gap=(0.0, float("inf")))  # no TCU_CMD ever
+    lines: list[str] = []
+    scenario = parse_scenario(SCENARIO.replace("duration_s = 3.0", "duration_s = 10.0"))
+    runner = PlantRunner(Plant(load_params()), scenario, codec, bus, progress=lines.append)
+    summary = runner.run_realtime(clock=bus.clock)
+    bus.shutdown()
+    assert summary.fallback_events == 1
+    assert summary.fallback_time_s == pytest.approx(10.0, abs=0.002)
+    assert [float(re.match(r"t=\s*([0-9.]+)/10 s", line)[1]) for line in lines] == [10.0], lines

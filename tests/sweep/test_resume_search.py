@@ -168,6 +168,35 @@ def test_the_table_reads_as_one_dataset_when_a_batch_has_a_column_without_values
     assert read_table(tmp_path / "out").num_rows == 4
 
 
+def test_every_part_has_one_schema_whether_a_run_s_first_ch_slip_is_null_or_not(tmp_path):
+    """Issue 35, item 9: a run with no first CH slip (mu_CH_first_slip null) wrote one column where the others wrote
+    .start/.end; pyarrow.parquet.read_table(OUT/table) took the first part's schema and dropped columns, and
+    pyarrow.concat_tables of the parts failed. Now: null runs first, then one with the values, then a failed one."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from dsg_hil.sweep.results import ResultStore
+    from dsg_hil.sweep.verdict import summary_row
+
+    store = ResultStore(tmp_path / "out", batch_s=0.0)
+    slipped = {"mu_CH_first_slip": {"start": 0.11, "end": 0.12}, "P_CH_first_slip_mpa": {"start": 0.3, "end": 0.4},
+               "stop_reason": "STOPPED_OVERHEAT"}
+    never = {"mu_CH_first_slip": None, "P_CH_first_slip_mpa": None, "stop_reason": "COMPLETED"}
+    rows = [{"verdict": "ok", "error": None, **summary_row(s)} for s in (never, slipped)]
+    rows.append({"verdict": "error", "error": "RunError: boom"})  # a failed run: no summary at all
+    for i, row in enumerate(rows):
+        store.add({"run_id": f"r{i}", "row": {"run_id": f"r{i}", **row}, "summary": None, "log": None,
+                   "traceback": None, "task": {}})
+        store.flush()
+    parts = [pq.read_table(p) for p in sorted((tmp_path / "out" / "table").glob("part-*.parquet"))]
+    assert len(parts) == 3 and all(part.schema == parts[0].schema for part in parts), [p.schema for p in parts]
+    table = pq.read_table(tmp_path / "out" / "table")
+    assert table.column("mu_CH_first_slip.start").to_pylist() == [None, 0.11, None]
+    assert table.column("P_CH_first_slip_mpa.end").to_pylist() == [None, 0.4, None]
+    assert table.column("error").to_pylist() == [None, None, "RunError: boom"]
+    assert pa.concat_tables(parts).num_rows == 3
+
+
 def test_a_sweep_whose_runs_all_fail_is_not_a_pass(tmp_path):
     """Runs that fail (here the controller under test raises) are not judged: no violation, but no pass either.
     Exit 1, the verdict line counts them and names the first error; each row keeps its error."""
