@@ -32,7 +32,7 @@ def findings(out: Path) -> dict:
         raise ValueError(f"{out}/table: not a sweep's table ({str(exc).splitlines()[0]})") from exc
     if not rows:
         raise ValueError(f"{out}/table: no rows")
-    judged = [r for r in rows if r["verdict"] in ("ok", "violation")]
+    judged = [r for r in rows if r["verdict"] in ("ok", "violation", "outside_range")]  # all but the failed
     hottest = max(judged, key=lambda r: r["max_plate_temp_c"])
     stops = [r for r in judged if r["stop_reason"] == "STOPPED_OVERHEAT"]
     hotter = [(max(r["max_plate_temp_c.CL"], r["max_plate_temp_c.CH"]), r["run_id"]) for r in stops]
@@ -47,6 +47,7 @@ def findings(out: Path) -> dict:
         "runs": len(rows), "judged": len(judged), "codes": sorted({r.get("code") for r in rows} - {None}),
         "violating": [(r["run_id"], r["violations"]) for r in rows if r["verdict"] == "violation"],
         "failed": [(r["run_id"], r["error"]) for r in rows if r["verdict"] == "error"],
+        "outside_range": sum(r["verdict"] == "outside_range" for r in rows),  # judged, beyond the documented range
         "hottest_plate_c": round(hottest["max_plate_temp_c"], 2), "hottest_run": hottest["run_id"],
         f"above_{SAFETY_TEMPERATURE_C:g}_c_runs": sum(r["max_plate_temp_c"] > SAFETY_TEMPERATURE_C for r in judged),
         "min_margin_predicted_c": min(predicted) if predicted else None,

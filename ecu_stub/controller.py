@@ -5,7 +5,9 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
 * IDLE: both clutches open. Hold: the TCU requests the brake while the vehicle stands, and while it moves with
   nobody braking it (a creep request withdrawn without the brake stops and holds the vehicle: the clutches ramp out
   over ``stop_release_s`` while the request reaches the brakes); it leaves a moving vehicle to the driver's brake
-  only. The hold ends when a launch's pre-fill carries the vehicle.
+  only, unless his pedal, pressed, does not hold it (over its target by the drivability band and speeding up: a
+  light pedal downhill), which the TCU overrules with its brake request until the vehicle stands. Creep requested
+  at a desired speed of 0 is a stand: held, no launch. The hold ends when a launch's pre-fill carries the vehicle.
 * ENGAGE: on the creep request, the on-coming clutch (CL first) is filled at once to the pressure that carries the
   pre-fill's wheel force (:meth:`CreepController.prefill_force`: for the grade the accelerometer read at the
   standstill, the heaviest vehicle until a settled creep has shown this one's weight); the brake request is dropped
@@ -193,6 +195,7 @@ class CreepController:
         self.sin_grade: float | None = None  # the grade's sine, read at the last held standstill (prefill_force)
         self.slip_mean: dict[str, float] | None = None  # the clutches' slips low-passed [r/min] (mean_slip_rpm)
         self.stalled_since: float | None = None  # CREEP at the clutch's capacity under half the target (_stalled)
+        self.pedal_overrun = False  # the driver's pedal pressed but not holding the vehicle (_idle)
 
     # ---- the clutch model ------------------------------------------------------------------------------------
     def observed_plate_c(self, clutch: str, inp: TcuInputs) -> float:
@@ -413,19 +416,23 @@ class CreepController:
         if self.state == "STOPPED_OVERHEAT":
             if not inp.creep_request:  # IDLE, still held (_idle): the next TCU_STATUS may be the plant's for 100 ms
                 self.releasing = True  # (the stop's ramp goes on)
-                self._idle(inp, inp.brake_pct >= BRAKE_PRESSED_PCT, now)
+                self._idle(inp, last, inp.brake_pct >= BRAKE_PRESSED_PCT, now)
             else:
                 self._release_ramp(now)
             return self._supervised(inp, now, faults)
 
         pedal = inp.brake_pct >= BRAKE_PRESSED_PCT
-        if not (inp.creep_request and not pedal) or self.starting(now):
+        # desired speed 0 with creep requested: stand, held by the brake request (_idle), not a creep at 0 (the
+        # clutch alone let 11.76 t on 0.25 rad roll back at 17 mm/s); a creep asked to 0 first slows to a standstill
+        stand = inp.desired_speed_mps <= 0.0 and (self.state == "IDLE" or (
+            self.v_ref <= 0.0 and abs(inp.v_mps) < self.cal.launch.standstill_mps))
+        if not (inp.creep_request and not pedal) or self.starting(now) or stand:
             if self.state in ("ENGAGE", "CREEP", "HANDOVER") and not pedal:
                 # the creep request withdrawn without the brake: the brake request reaches the brakes with the next
                 # TCU_STATUS (up to 100 ms); the clutches ramp out meanwhile, as at a stop, instead of dropping the
                 # vehicle (the 5,000-run sample: up to 15 mm/s of roll-back on 0.2-0.24 rad)
                 self.releasing, self.stop_t0, self.stop_P0 = True, now, dict(self.P_cmd)
-            self._idle(inp, pedal, now)
+            self._idle(inp, last, pedal, now)
             return self._supervised(inp, now, faults) if self.releasing else self._outputs(faults)
 
         if self.state == "IDLE":
@@ -632,16 +639,27 @@ class CreepController:
             return self.cal.vehicle.m_kg * G_MPS2 * load
         return self.F_cmd
 
-    def _idle(self, inp: TcuInputs, pedal: bool, now: float) -> None:
+    def _idle(self, inp: TcuInputs, last: TcuInputs, pedal: bool, now: float) -> None:
         """No creep wanted (or not yet allowed): clutches open (ramping out over ``stop_release_s`` if
         :attr:`releasing`), and the vehicle held by the brake request unless the driver brakes a moving vehicle
-        himself (a standing one stays held when his foot comes off)."""
+        himself (a standing one stays held when his foot comes off), and his pedal does hold it: a pedal counted
+        as pressed (``BRAKE_PRESSED_PCT``) but too light for the slope, the vehicle over its target by more than
+        the drivability band (:data:`RUNAWAY_FRACTION`; over a standstill if none is asked) and speeding up, is
+        overruled: the brake is requested until the vehicle stands (:attr:`pedal_overrun`; issue 37: 6 % on
+        -0.30 rad ran away to 8.5 m/s)."""
         self.state, self.active = "IDLE", "NONE"
         self._open_both()
         if self.releasing:
             self.releasing = self._release_ramp(now)
         self.held_untrusted = False
-        self.brake_request = abs(inp.v_mps) < self.cal.launch.standstill_mps or not pedal
+        standstill = self.cal.launch.standstill_mps
+        standing = abs(inp.v_mps) < standstill
+        target = max(inp.desired_speed_mps, 0.0) * (1.0 + RUNAWAY_FRACTION) if inp.creep_request else 0.0
+        if standing or not pedal:
+            self.pedal_overrun = False
+        elif inp.v_mps > target + standstill and inp.v_mps > last.v_mps:
+            self.pedal_overrun = True
+        self.brake_request = standing or not pedal or self.pedal_overrun
 
     def _open_both(self) -> None:
         self.P_cmd = {"CL": 0.0, "CH": 0.0}

@@ -22,7 +22,9 @@ RUN_SPECIFIC = ("interface", "wall_time_s", "realtime_factor", "command_latency_
 class Summary:
     """A run's summary. ``metrics``: the creep metrics of :class:`dsg_hil.results.summary.CreepMetrics`
     (creep and slip times, phases, peak plate temperatures, handovers, ``stop_reason`` ...), flat in the JSON;
-    the other fields are the run's bookkeeping. ``stop_reason`` is the creep's (``vehicle_stopped``,
+    ``outside_range``: each input of the run outside the documented operating range
+    (:mod:`dsg_hil.sim.operating_range`; in the JSON only when there is one); the other fields are the run's
+    bookkeeping. ``stop_reason`` is the creep's (``vehicle_stopped``,
     ``STOPPED_OVERHEAT``, ``end_of_record``) or why the run ended early (``interrupted``, ``terminated``,
     ``peer_lost``, ``no_peer``); ``sim_time_s`` where it ended (below ``duration_s`` if cut short)."""
 
@@ -39,6 +41,8 @@ class Summary:
     sim_time_s: float
     faults: Mapping[str, Any]
     extra: Mapping[str, Any] = field(default_factory=dict)  # what a caller adds (e.g. a TCU's own counts)
+    # each input outside the documented operating range (dsg_hil.sim.operating_range), "name=value (range ...)"
+    outside_range: tuple[str, ...] = ()
 
     @property
     def stop_reason(self) -> str:
@@ -71,18 +75,20 @@ class Summary:
                 "duration_s": self.duration_s, **self.metrics, "command_fallback": dict(self.command_fallback),
                 "frames": dict(self.frames), "realtime_factor": self.realtime_factor,
                 "wall_time_s": self.wall_time_s, "command_latency_ms": self.command_latency_ms,
-                "sim_time_s": self.sim_time_s, "faults": dict(self.faults), **self.extra}
+                "sim_time_s": self.sim_time_s, "faults": dict(self.faults),
+                **({"outside_range": list(self.outside_range)} if self.outside_range else {}), **self.extra}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Summary:
         """A summary from its JSON document (the inverse of :meth:`as_json`)."""
-        named = {f.name for f in fields(cls)} - {"metrics", "extra"}
+        named = {f.name for f in fields(cls)} - {"metrics", "extra", "outside_range"}
         missing = sorted(named - set(data))
         if missing:
             raise InputError(f"not a dsg-hil summary: no {', '.join(missing)}")
-        extra_keys = [k for k in data if k not in named and k not in _METRIC_KEYS]
+        extra_keys = [k for k in data if k not in named | {"outside_range"} and k not in _METRIC_KEYS]
         return cls(**{k: data[k] for k in named}, metrics={k: v for k, v in data.items() if k in _METRIC_KEYS},
-                   extra={k: data[k] for k in extra_keys})
+                   extra={k: data[k] for k in extra_keys},
+                   outside_range=tuple(data.get("outside_range") or ()))  # (none in an older summary)
 
     def __getitem__(self, key: str) -> Any:
         """``summary["stop_reason"]``: a key of the JSON document."""

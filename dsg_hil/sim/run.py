@@ -53,6 +53,7 @@ from ..results.outcome import Summary
 from ..results.summary import RunSummary
 from ..physics.thermal import NODES
 from ..physics.plant import Plant
+from .operating_range import outside_range
 from .plant_io import PLANT_RX, PLANT_USES
 from .runner import PeerLost, PeerTimeout, PlantRunner
 from .scenario import Scenario, load_scenario
@@ -430,7 +431,7 @@ class Run:
         data = runner.summary.as_json(runner.frames(), self.scenario.name, self.config.mode, self.interface,
                                       self.scenario.duration_s)
         return _finish_summary(data, round(runner.plant.state.t, 3), runner.fault_summary(), extra,
-                               self.config.summary)
+                               self.config.summary, tuple(outside_range(self.scenario, self.params)))
 
     def truth(self) -> dict[str, np.ndarray]:
         """The plant each control period at the tick's time (``RunConfig.truth``): ``t`` [s] and each field of
@@ -456,14 +457,14 @@ class Run:
 
 
 def _finish_summary(data: dict[str, Any], sim_time_s: float, faults: Mapping[str, Any], extra: Mapping[str, Any],
-                    path: str | Path | None) -> Summary:
+                    path: str | Path | None, outside: tuple[str, ...] = ()) -> Summary:
     """The :class:`Summary` of the bookkeeping's JSON ``data``, written to ``path`` if given."""
     summary = Summary(
         scenario=data.pop("scenario"), mode=data.pop("mode"), interface=data.pop("interface"),
         duration_s=data.pop("duration_s"), command_fallback=data.pop("command_fallback"),
         frames=data.pop("frames"), realtime_factor=data.pop("realtime_factor"),
         wall_time_s=data.pop("wall_time_s"), command_latency_ms=data.pop("command_latency_ms"),
-        sim_time_s=sim_time_s, faults=faults, metrics=data, extra=extra)
+        sim_time_s=sim_time_s, faults=faults, metrics=data, extra=extra, outside_range=outside)
     if path is not None:
         out = Path(path)
         out.parent.mkdir(parents=True, exist_ok=True)

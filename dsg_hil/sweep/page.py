@@ -91,7 +91,9 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
               f"dsg_hil.sweep.code).", ""]
     violating = result.violations
     errors = [r for r in rows if r.get("verdict") == "error"]
-    lines += [f"**Verdict: {len(violating)} violating run(s)**, {len(errors)} failed run(s).", ""]
+    outside = [r for r in rows if r.get("verdict") == "outside_range"]
+    lines += [f"**Verdict: {len(violating)} violating run(s)**, {len(errors)} failed run(s), {len(outside)} run(s) "
+              "outside the operating range without a violation (not covered by the claim).", ""]
     if result.search:
         lines += ["## Search", "", *(f"- {k}: {_fmt(v)}" for k, v in result.search.items()), ""]
     if violating:

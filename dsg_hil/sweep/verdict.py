@@ -1,5 +1,8 @@
 """How a sweep judges a run, on the plant's truth: its summary flattened to one table row, and the violations.
 
+A run's verdict (:func:`verdict`) is ``violation``, ``outside_range`` (none violated, but an input lies outside the
+documented operating range, :mod:`dsg_hil.sim.operating_range`: the claim does not cover it) or ``ok``.
+
 A run violates when (limits: :data:`LIMITS`, overridable in the space's ``[limits]``)
 
 * ``plate``: a true plate temperature above ``plate_temp_c`` (the creep strategy's 250 degC, Section IV);
@@ -34,7 +37,7 @@ from ..protocol.validity import TIMEOUT_CYCLES
 from ..results.thresholds import SAFETY_TEMPERATURE_C
 
 __all__ = ["LIMITS", "OBJECTIVES", "OPTIONAL", "VIOLATIONS", "UnexplainedFault", "fault_windows", "in_windows",
-           "objective_value", "summary_row", "violations"]
+           "objective_value", "summary_row", "verdict", "violations"]
 
 LIMITS: dict[str, float] = {"plate_temp_c": SAFETY_TEMPERATURE_C, "rollback_m": 0.05, "overspeed_mps": 0.5,
                             "fault_s": 0.0, "standstill_brake": 0.0}
@@ -98,7 +101,9 @@ def summary_row(summary: Mapping[str, Any]) -> dict[str, Any]:
     ``key.CL``/``key.CH``; a list as its length (``n_handovers``, ``n_phases``)."""
     row: dict[str, Any] = {}
     for key, value in summary.items():
-        if key in ("command_fallback", "frames", "faults", "command_latency_ms"):
+        if key == "outside_range":  # the offending inputs (dsg_hil.sim.operating_range), "" inside the range
+            row[key] = "; ".join(value or ())
+        elif key in ("command_fallback", "frames", "faults", "command_latency_ms"):
             row[key] = json.dumps(value, sort_keys=True, default=str)
         elif isinstance(value, Mapping):
             row.update({f"{key}.{k}": _number(v) if not isinstance(v, str) else v for k, v in value.items()
@@ -109,6 +114,7 @@ def summary_row(summary: Mapping[str, Any]) -> dict[str, Any]:
             row.update({f"{key}.{part}": None for part in SPLIT[key]})
         elif isinstance(value, (int, float, str)) or value is None:
             row[key] = value
+    row.setdefault("outside_range", "")  # (the summary has the key only where an input is outside)
     peaks = [v for v in (summary.get("max_plate_temp_c") or {}).values() if isinstance(v, (int, float))]
     row["max_plate_temp_c"] = max(peaks) if peaks else None
     for column, key in OPTIONAL.items():
@@ -134,6 +140,15 @@ def violations(row: Mapping[str, Any], limits: Mapping[str, float]) -> list[str]
             and not row.get("stop_in_fault_window")):
         found.append("standstill")
     return found
+
+
+def verdict(row: Mapping[str, Any], found: list[str]) -> str:
+    """A judged run's verdict: ``violation`` if it violates (``found``: :func:`violations`), else
+    ``outside_range`` if an input lies outside the documented operating range (row column ``outside_range``:
+    the offending inputs; no silent pass of a run the safety claim does not cover), else ``ok``."""
+    if found:
+        return "violation"
+    return "outside_range" if row.get("outside_range") else "ok"
 
 
 def objective_value(row: Mapping[str, Any], objective: str) -> float:

@@ -25,7 +25,7 @@ from ..results.thresholds import STOP_MIN_S
 from ..sim.scenario import Scenario, parse_scenario
 from .code import code_digest
 from .controllers import config_for
-from .verdict import UnexplainedFault, fault_windows, in_windows, summary_row, violations
+from .verdict import UnexplainedFault, fault_windows, in_windows, summary_row, verdict, violations
 
 __all__ = ["RUN_LOGGERS", "WARM_LOCK", "pedal_while_stopping", "run_task", "runs_quiet", "warm"]
 
@@ -139,7 +139,7 @@ def run_task(task: dict[str, Any], keep_log: bool = False) -> dict[str, Any]:
         peak_T = row.get("max_plate_temp_c")
         row["margin_c"] = None if peak_T is None else task["limits"]["plate_temp_c"] - peak_T
         found = violations(row, task["limits"])
-        row |= {"verdict": "violation" if found else "ok", "violations": ",".join(found), "error": None,
+        row |= {"verdict": verdict(row, found), "violations": ",".join(found), "error": None,
                 "wall_s": time.perf_counter() - t0}
         if found and not keep_log:
             _run(task, log)

@@ -66,9 +66,15 @@ def test_idle_holds_the_vehicle_unless_the_driver_brakes_it_himself():
     released = replace(BRAKED, brake_pct=0.0)  # foot off, no creep request: held, however long
     out = run(ctrl, clock, released, 30.0)
     assert out.state == "IDLE" and out.brake_request
-    out = run(ctrl, clock, replace(BRAKED, v_mps=1.0), 0.1)  # moving on the driver's brake: his to control
-    assert not out.brake_request
     out = run(ctrl, clock, replace(released, v_mps=1.0), 0.1)  # moving, nobody braking: stopped and held
+    assert out.brake_request
+    out = run(ctrl, clock, replace(BRAKED, v_mps=0.9), 0.1)  # moving, slowed by the driver's brake: his to control
+    assert not out.brake_request
+    # speeding up under his pressed pedal (issue 37: a light pedal downhill): it does not hold the vehicle, so the
+    # TCU requests the brake until it stands (before: left to the pedal, 8.5 m/s on -0.30 rad)
+    out = ctrl.update(replace(BRAKED, v_mps=0.95), clock.tick())
+    assert out.brake_request
+    out = run(ctrl, clock, replace(BRAKED, v_mps=0.9), 0.1)  # latched while it moves
     assert out.brake_request
     out = ctrl.update(TcuInputs(plant_valid=False), clock.tick())  # FAULT: held too
     assert out.state == "FAULT" and out.brake_request

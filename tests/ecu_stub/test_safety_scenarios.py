@@ -419,3 +419,43 @@ def test_downhill_creep_holds_its_target_speed_with_the_brakes_deceleration():
     settled = truth["v"][truth["t"] >= 10.0]
     assert abs(settled - V_CREEP).max() <= 0.05 * V_CREEP  # within 5 % of its target from 9 s after the launch
     assert summary["max_speed_creep_mps"] <= 1.2 * V_CREEP and summary["rollback_guarded_m"] <= 0.005
+
+
+@pytest.mark.parametrize(("grade", "pedal", "mass"), [(-0.27, 0.05, 1.0), (-0.30, 0.06, 1.0), (-0.33, 0.08, 1.0),
+                                                      (-0.15, 0.05, 1.5), (-0.30, 0.04, 1.0)])
+def test_a_light_pedal_downhill_does_not_end_the_tcus_hold(grade, pedal, mass):
+    """Issue 37, finding 2: creeping downhill at 0.206 m/s, the driver's pedal at 5-8 % (counted as pressed, so the
+    creep ends and with it the TCU's DecelRequest) cannot hold the vehicle on -0.27 to -0.33 rad: it ran away
+    (8.51 m/s; here 0.78 m/s 3 s into the pedal on -0.30 rad). The TCU now overrules a pressed pedal that does not
+    hold the vehicle (over its target by the drivability band and speeding up) with its brake request until the
+    vehicle stands. Also at the range's steepest downhill with the heaviest vehicle and at 4 % (not pressed: the
+    creep's DecelRequest holds the target)."""
+    s = creep(6.0, [(1.0, True, 0.0, V_CREEP), (3.0, True, pedal, V_CREEP)], grade=grade, mass=mass)
+    assert s["max_speed_creep_mps"] <= 1.5 * V_CREEP and s["overspeed_mps"] <= 0.5 * V_CREEP
+    assert s["rollback_guarded_m"] <= 0.005
+
+
+@pytest.mark.parametrize("mass", [1.0, 1.5])
+def test_desired_speed_zero_with_creep_requested_holds_the_vehicle(mass):
+    """Issue 37, finding 3: creep requested at 0 m/s is a stand, held by the TCU's brake request, and a creep asked
+    to 0 afterwards launches as from rest. Before: the launch's pre-fill released the brake and the speed controller
+    held 0 m/s on the clutch alone: on 0.25 rad Table I's vehicle rolled back 13.9 mm at 5.8 mm/s, 11.76 t at
+    17.4 mm/s."""
+    s = creep(7.0, [(1.0, True, 0.0, 0.0), (4.5, True, 0.0, V_CREEP)], grade=0.25, mass=mass)
+    assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS and s["rollback_m"] <= 0.005
+    assert s["max_speed_creep_mps"] >= 0.5 * V_CREEP  # and it launched once asked to creep
+
+
+@pytest.mark.parametrize(("grade", "mass", "pedal"), [(0.25, 1.5, 0.063), (0.25, 0.5, 0.063), (-0.15, 1.5, 1.0)])
+def test_launches_at_the_ranges_ends_roll_back_at_most_10_mm_s(grade, mass, pedal):
+    """Issue 37, item 4: a launch at an end of the operating range (the steepest grades, the heaviest and lightest
+    vehicle), from a light pedal (6.3 %: pressed, but not holding 0.25 rad: the TCU's brake request holds) or the
+    full brake, rolls back at most 10 mm/s and 50 mm."""
+    text = (f'name = "launch"\nduration_s = 5.0\ngrade_rad = {grade}\nengine_speed_rpm = 800.0\n'
+            "[initial]\nT_clutch_c = 100.0\nT_oil_c = 100.0\n"
+            f"[[driver]]\nt_s = 0.0\nbrake = {pedal}\n"
+            f"[[driver]]\nt_s = 1.5\ncreep_request = true\ndesired_speed_mps = {V_CREEP}\n")
+    params = with_overrides(load_params(), {"vehicle.m": load_params().vehicle.m * mass})
+    s = run_closed_loop(parse_scenario(text, "launch"), params).summary
+    assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS and s["rollback_m"] <= 0.05
+    assert s["max_speed_creep_mps"] >= 0.5 * V_CREEP

@@ -12,6 +12,7 @@ from dsg_hil.sim.scenario import parse_scenario
 from dsg_hil.sweep.drivers import BEHAVIOURS, driver_events
 from dsg_hil.physics.params import load_params
 from dsg_hil.protocol.faults import parse_fault
+from dsg_hil.sim.operating_range import OPERATING_RANGE
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space, parse_space
 
 from .conftest import SMALL
@@ -150,18 +151,22 @@ def test_a_fault_without_a_window_gets_the_drawn_one_in_the_fault_syntax():
 
 
 def test_the_shipped_safety_space_covers_the_range_and_behaviours_of_issue_18():
-    """Grades -0.15...0.25 rad, mass +-50 %, oil to 150 degC, idle 700-2000 r/min, brake drag 0-10 % with any onset
-    and duration, every driver behaviour, frame faults (some runs with none)."""
+    """The operating range (grades -0.15...0.25 rad, mass +-50 %, plates and oil 40-150 degC, idle 700-2000 r/min,
+    desired speed 0.05-0.4 m/s: dsg_hil.sim.operating_range) and its margin beyond each end (issue 37), brake drag
+    0-10 % with any onset and duration, every driver behaviour, frame faults (some runs with none)."""
     space = load_space(SAFETY_SPACE)
     duration = float(space.base["duration_s"])
     m = load_params().vehicle.m
 
     def covers(key: str, lo: float, hi: float) -> bool:
         dist = space.inputs[key]
-        return dist.kind == "uniform" and dist.args[0] <= lo and dist.args[1] >= hi
+        return dist.kind == "uniform" and dist.args[0] <= lo + 1e-9 and dist.args[1] >= hi - 1e-9  # (0.4 + 0.025)
 
-    assert covers("grade_rad", -0.15, 0.25) and covers("params.vehicle.m", 0.5 * m, 1.5 * m)
-    assert covers("initial.T_oil_c", 40.0, 150.0) and covers("engine_speed_rpm", 700.0, 2000.0)
+    drawn_as = {"initial.T_CL_c": "initial.T_clutch_c", "initial.T_CH_c": "initial.T_clutch_c"}
+    for name, bound in OPERATING_RANGE.items():
+        assert covers(drawn_as.get(name, name), bound.lo - bound.margin, bound.hi + bound.margin), name
+    assert covers("driver.speed_2_mps", *space.inputs["driver.desired_speed_mps"].args)
+    assert covers("params.vehicle.m", 0.5 * m, 1.5 * m)
     assert covers("driver.drag_level", 0.0, 0.1) and covers("driver.drag_onset_s", 0.0, duration - 10.0)
     assert space.inputs["driver.drag_duration_s"].args[1] >= duration
     assert set(space.inputs["driver.behaviour"].args) == set(BEHAVIOURS)

@@ -6,11 +6,11 @@ import pytest
 
 from dsg_hil.protocol.codec import load_dbc
 from dsg_hil.protocol.faults import parse_fault
-from dsg_hil.sweep.space import load_space
+from dsg_hil.sweep.space import SAFETY_SPACE, load_space
 from dsg_hil.sim.scenario import parse_scenario
 from dsg_hil.sweep.worker import pedal_while_stopping, run_task
 from dsg_hil.sweep.verdict import (LIMITS, UnexplainedFault, fault_windows, in_windows, objective_value, summary_row,
-                                   violations)
+                                   verdict, violations)
 
 SUMMARY = {"scenario": "s", "max_plate_temp_c": {"CL": 251.2, "CH": 180.0}, "time_above_limit_s": {"CL": 0.4,
            "CH": 0.0}, "handovers": [{"t_s": 3.0}], "phases": [], "rollback_m": 0.0, "stop_reason": "end_of_record",
@@ -99,3 +99,25 @@ def test_a_pedal_pressed_while_the_vehicle_comes_to_rest_excuses_the_stop():
     scenario = parse_scenario(text, "s")
     assert pedal_while_stopping(scenario, 125.321) == 0.0606
     assert pedal_while_stopping(scenario, 123.0) == 0.0 and pedal_while_stopping(scenario, 126.0) == 0.0606
+
+
+def test_a_run_outside_the_operating_range_is_never_a_silent_pass():
+    """Issue 37, item 3: the summary's offending inputs become the row's ``outside_range`` and the verdict says so
+    unless the run violates (then ``violation``, the column still naming them)."""
+    inside = summary_row(SUMMARY)  # (the key only where there is an offending input)
+    outside = summary_row({**SUMMARY, "outside_range": ["grade_rad=-0.3 (range -0.15..0.25 rad)",
+                                                        "engine_speed_rpm=2100 (range 700..2000 r/min)"]})
+    assert not inside.get("outside_range") and "n_outside_range" not in outside
+    assert outside["outside_range"].startswith("grade_rad=-0.3") and "engine_speed_rpm=2100" in outside["outside_range"]
+    assert verdict(inside, []) == "ok" and verdict(outside, []) == "outside_range"
+    assert verdict(outside, ["plate"]) == verdict(inside, ["plate"]) == "violation"
+
+
+def test_a_sweep_run_beyond_the_range_has_the_verdict_outside_range():
+    task = load_space(SAFETY_SPACE).task(0, {
+        "grade_rad": 0.29, "engine_speed_rpm": 800.0, "initial.T_clutch_c": 100.0, "initial.T_oil_c": 100.0,
+        "params.vehicle.m": 7840.0, "driver.behaviour": "creep", "driver.desired_speed_mps": 0.2, "duration_s": 2.0,
+        "fault": ""})
+    row = run_task(task)["row"]
+    assert row["verdict"] == "outside_range", row["violations"]
+    assert row["outside_range"] == "grade_rad=0.29 (range -0.15..0.25 rad)"
