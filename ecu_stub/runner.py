@@ -47,6 +47,7 @@ from dsg_hil.protocol.validity import RxState, all_valid
 from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
 from .diag import DiagServer
+from .diag.server import response_frame
 from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, SensorChecks
 
@@ -252,8 +253,8 @@ class TcuRunner:
         out = self.controller.update(inp, now)
         self.last = out
         if self.diag is not None:
-            self.diag.period(self.now, self.rx, self.implausible, inp, out, getattr(self.controller, "held_untrusted",
-                                                                                    False) is True)
+            self.diag.period(self.now, now, self.rx, self.implausible, inp, out,
+                             getattr(self.controller, "held_untrusted", False) is True)
         if out.brake_request:  # (the speed vote's step check: any deceleration, _brake_mps2)
             self._braked_at = now
         self._decel_mps2.add(now, out.decel_request_mps2)
@@ -346,8 +347,7 @@ class TcuRunner:
         if len(data) <= 8:
             self._send_frame(frame_id, data)
         else:
-            self.bus.send(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False, is_fd=True,
-                                      bitrate_switch=True))
+            self.bus.send(response_frame(frame_id, data))
 
     def frame_counts(self) -> dict:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost

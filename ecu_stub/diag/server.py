@@ -17,9 +17,12 @@ lock-step run sets the same DTCs with the same freeze frames whatever the tester
 from __future__ import annotations
 
 import hashlib
+import threading
 import time
 from collections.abc import Callable, Mapping
 from importlib import metadata
+
+import can
 
 from dsg_hil.protocol.diag import DiagDescription, DiagError
 from dsg_hil.protocol.validity import RxMonitor
@@ -29,9 +32,15 @@ from .dtc import DtcMemory
 from .isotp import IsoTpServer
 from .uds import UdsServer
 
-__all__ = ["DiagServer", "software_version"]
+__all__ = ["DiagServer", "response_frame", "software_version"]
 
 KINDS = ("state", "hold", "implausible", "timeout", "e2e")
+
+
+def response_frame(frame_id: int, data: bytes) -> can.Message:
+    """A response frame: classic up to 8 bytes, else CAN FD (with bit rate switch)."""
+    fd = len(data) > 8
+    return can.Message(arbitration_id=frame_id, data=data, is_extended_id=False, is_fd=fd, bitrate_switch=fd)
 
 
 def software_version() -> str:
@@ -91,6 +100,19 @@ class DiagServer:
         if self.link.busy:
             self._transmit(self.link.poll(self.clock()))
 
+    def serve(self, bus: can.BusABC, stop: threading.Event) -> None:
+        """Answer requests on ``bus`` until ``stop`` is set: the TCU's diagnostics after its run (no control
+        periods: the DTCs as the run left them), e.g. in a thread."""
+        send, self._send = self._send, lambda frame_id, data: bus.send(response_frame(frame_id, data))
+        try:
+            while not stop.is_set():
+                msg = bus.recv(timeout=0.01)
+                if msg is not None and msg.arbitration_id == self.request_id and not msg.is_extended_id:
+                    self.take(bytes(msg.data))
+                self.poll()
+        finally:
+            self._send = send
+
     # -- the DIDs
     def read_did(self, did: int) -> bytes | None:
         entry = self.description.dids[did]
@@ -99,9 +121,10 @@ class DiagServer:
         return entry.encode(self.values) if self.values else None
 
     # -- the monitors, once per control period
-    def period(self, now: float, rx: RxMonitor, implausible: Mapping[str, int], inp: TcuInputs, out: TcuOutputs,
-               hold: bool) -> None:
-        """Judge every monitor on this period's inputs ``inp`` and outputs ``out`` at TCU time ``now`` [s]."""
+    def period(self, now: float, rx_now: float, rx: RxMonitor, implausible: Mapping[str, int], inp: TcuInputs,
+               out: TcuOutputs, hold: bool) -> None:
+        """Judge every monitor on this period's inputs ``inp`` and outputs ``out`` at TCU time ``now`` [s] (the
+        freeze frames' time); ``rx_now``: the time the receive checks judge freshness at (the runner's)."""
         self._values(now, inp, out)
         memory, seen = self.memory, self._seen
         for name, kind, argument in self.monitors:
@@ -118,7 +141,7 @@ class DiagServer:
             else:
                 state = rx.states[argument]
                 if kind == "timeout":
-                    failed = None if state.last_time is None else not state.valid(now)
+                    failed = None if state.last_time is None else not state.valid(rx_now)
                 else:
                     received, rejected = state.received, sum(state.rejected.values())
                     last_received, last_rejected, _ = seen.get(name, (received, rejected, 0))
@@ -138,13 +161,19 @@ class DiagServer:
         return tuple((did, dids[did].encode(self.values)) for did in self.description.snapshot)
 
     def _values(self, now: float, inp: TcuInputs, out: TcuOutputs) -> None:
+        """The DIDs' values this period: the inputs the controller used (while the plant's frames are missing
+        or untrusted, the last it had), its outputs, the thermal margin and the TCU's time."""
         T_safe = self.T_safe_c
+        values = self.values
+        if inp.plant_valid or not values:
+            values = {
+                "EngineSpeed": inp.engine_speed_rpm, "ClutchInputSpeed": inp.clutch_in_rpm,
+                "CLOutputSpeed": inp.cl_out_rpm, "CHOutputSpeed": inp.ch_out_rpm, "VehicleSpeed": inp.v_mps,
+                "T_OilCL": inp.T_oil_CL_c, "T_OilCH": inp.T_oil_CH_c, "T_Sump": inp.T_sump_c,
+                "P_CL": inp.P_CL_mpa, "P_CH": inp.P_CH_mpa}
         self.values = {
-            "t": now, "EngineSpeed": inp.engine_speed_rpm, "ClutchInputSpeed": inp.clutch_in_rpm,
-            "CLOutputSpeed": inp.cl_out_rpm, "CHOutputSpeed": inp.ch_out_rpm, "VehicleSpeed": inp.v_mps,
-            "T_OilCL": inp.T_oil_CL_c, "T_OilCH": inp.T_oil_CH_c, "T_Sump": inp.T_sump_c,
-            "T_CL_Pred": out.T_CL_pred_c, "T_CH_Pred": out.T_CH_pred_c,
-            "P_CL": inp.P_CL_mpa, "P_CH": inp.P_CH_mpa, "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa,
+            **values, "t": now, "T_CL_Pred": out.T_CL_pred_c, "T_CH_Pred": out.T_CH_pred_c,
+            "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa,
             "State": float(self.states.get(out.state, 0xFF)),
             "ActiveClutch": float(self.clutches.get(out.active_clutch, 0xFF)),
             "margin_CL": T_safe - out.T_CL_pred_c, "margin_CH": T_safe - out.T_CH_pred_c,

@@ -78,7 +78,8 @@ def test_debounce_confirms_with_freeze_frame_and_clear_clears(uds):
     listed = uds.handle(b"\x19\x02\x08", 0.0)
     assert listed[3:6] == dtc_number("P1710").to_bytes(3, "big") and listed[6] & CONFIRMED
     snapshot = uds.handle(b"\x19\x04\x17\x10\x00\x01", 0.0)
-    assert snapshot[2:5] == b"\x17\x10\x00" and snapshot[6:9] == b"\x01\x01\x01" and snapshot[9:] == b"\x13\x00\x00\x03\xe8"
+    assert snapshot[2:5] == b"\x17\x10\x00" and snapshot[6:9] == b"\x01\x01\x01"  # record 1, one DID: 0x0113
+    assert snapshot[9:] == b"\x13\x00\x00\x03\xe8"
     assert uds.handle(b"\x19\x03", 0.0) == b"\x59\x03\x17\x10\x00\x01"
 
     assert uds.handle(b"\x14\xff\xff\xff", 0.0) == b"\x54"
