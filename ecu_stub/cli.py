@@ -98,7 +98,8 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
     """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
     serving ends); returns it and the bus configuration."""
     from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
-    from dsg_hil.protocol.bus import FrameLog, bus_config, log_channel, open_bus  # noqa: PLC0415
+    from dsg_hil.protocol.bus import FrameLog, bus_config, log_channel, open_bus, receive_filters  # noqa: PLC0415
+    from dsg_hil.protocol.diag import diag_ids  # noqa: PLC0415
     from dsg_hil.protocol.faults import FaultError, check_faults, faults_from_args, with_faults  # noqa: PLC0415
 
     from .calibration import load_calibration  # noqa: PLC0415
@@ -121,6 +122,9 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                          f"side=tcu")
     inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
+    if db.dbc is not None and "DiagRequestId" in db.dbc.attributes:  # and UDS requests (ecu_stub.diag)
+        inner.set_filters([*receive_filters(db.get_message_by_name(name) for name in TCU_RX),
+                           {"can_id": diag_ids(db)[0], "can_mask": 0x7FF, "extended": False}])
     tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
     bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
     stack.callback(bus.shutdown)

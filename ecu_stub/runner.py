@@ -40,12 +40,15 @@ import can
 
 from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec, ProtocolError, RxMonitor, TxScheduler
+from dsg_hil.protocol.diag import diag_ids, load_description
 from dsg_hil.protocol.frame import FrameListener, data_frame
-from dsg_hil.protocol.lockstep import Frames, LockstepResponder, choices, frame_io
+from dsg_hil.protocol.lockstep import Frames, LockstepResponder, Received, choices, frame_io
 from dsg_hil.protocol.validity import RxState, all_valid
 
 from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
+from .diag import DiagServer
+from .diag.server import response_frame
 from .interface import TcuController
 from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, SensorChecks
@@ -147,8 +150,16 @@ class TcuRunner:
                 {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))})
         # cycles whose thermal input a check replaced, by signal (ecu_stub.sensor_checks)
         self.implausible = {"VehicleSpeed": 0, "speeds": 0, **dict.fromkeys(CHECKED, 0)}
+        # UDS on the DBC's diagnostic IDs (ecu_stub.diag): requests taken before the lock-step end sees a frame
+        self.diag: DiagServer | None = None
+        if codec.db.dbc is not None and "DiagRequestId" in codec.db.dbc.attributes:
+            request_id, response_id = diag_ids(codec.db)
+            self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, self.states,
+                                   self.clutches, cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
+                                   else math.nan, repr(cal))
         self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
-                                      send=self._send_one, recv=recv, on_taken=self._taken if listeners else None)
+                                      send=self._send_one, recv=self._diag_recv(recv),
+                                      on_taken=self._taken if listeners else None)
 
     # the bus side, kept by the lock-step end
     @property
@@ -240,8 +251,12 @@ class TcuRunner:
         link = self.link
         lockstep, tick_ms = link.lockstep, link.tick * self.cycle_ms
         self.now = tick_ms / CV.S_TO_MS if lockstep else now
-        out = self.controller.update(self.inputs(now), now)
+        inp = self.inputs(now)
+        out = self.controller.update(inp, now)
         self.last = out
+        if self.diag is not None:
+            self.diag.period(self.now, now, self.rx, self.implausible, inp, out,
+                             getattr(self.controller, "held_untrusted", False) is True)
         if out.brake_request:  # (the speed vote's step check: any deceleration, _brake_mps2)
             self._braked_at = now
         self._decel_mps2.add(now, out.decel_request_mps2)
@@ -269,6 +284,8 @@ class TcuRunner:
         if self.sensor_checks is not None:
             self.sensor_checks.reset()
         self.now = now
+        if self.diag is not None:
+            self.diag.new_operation_cycle()
 
     def _taken(self, frame_id: int, data: bytes, stamp: float) -> None:
         self._record(frame_id, data, stamp, is_rx=True)
@@ -289,12 +306,51 @@ class TcuRunner:
 
     def handle(self, msg: can.Message, now: float) -> bool:
         """Take one frame (:meth:`LockstepResponder.handle`): a SIM_SYNC tick is answered at once. True if the
-        frame was the plant's (even a duplicate or a rejected one: the plant is alive)."""
+        frame was the plant's (even a duplicate or a rejected one: the plant is alive). A diagnostic request goes to
+        :attr:`diag`."""
+        if self._is_diag(msg):
+            return False
         return self.link.handle(msg, now)
 
     def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
         """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data."""
+        if self.diag is not None and frame_id == self.diag.request_id:
+            self.diag.take(data)
+            return False
         return self.link.handle_data(frame_id, data, now)
+
+    def _is_diag(self, item: object) -> bool:
+        """Whether ``item`` (a can.Message, or (ID, data) from the in-process bus) is a diagnostic request; it is
+        handed to :attr:`diag` then."""
+        diag = self.diag
+        if diag is None:
+            return False
+        if isinstance(item, can.Message):
+            if item.arbitration_id != diag.request_id or item.is_extended_id or item.is_remote_frame \
+                    or item.is_error_frame:
+                return False
+            diag.take(bytes(item.data))
+            return True
+        if isinstance(item, tuple) and item[0] == diag.request_id:
+            diag.take(bytes(item[1]))
+            return True
+        return False
+
+    def _diag_recv(self, recv: Callable[[float], Received | None]) -> Callable[[float], Received | None]:
+        """``recv`` that hands diagnostic requests to :attr:`diag` and gives the other frames."""
+        def take(timeout: float) -> Received | None:
+            while True:
+                item = recv(timeout)
+                if item is None or not self._is_diag(item):
+                    return item
+        return take if self.diag is not None else recv
+
+    def _send_diag(self, frame_id: int, data: bytes) -> None:
+        """A diagnostic response frame: classic, or CAN FD beyond 8 bytes (not counted in :attr:`sent`)."""
+        if len(data) <= 8:
+            self._send_frame(frame_id, data)
+        else:
+            self.bus.send(response_frame(frame_id, data))
 
     def frame_counts(self) -> dict:
         """What the TCU heard and sent: totals and, per message it reads, received, rejected by cause, lost

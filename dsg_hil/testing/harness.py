@@ -16,8 +16,10 @@ The pytest plugin (:mod:`dsg_hil.testing.plugin`, fixture ``dsg_hil_run``) calls
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
-from contextlib import ExitStack
+import itertools
+import threading
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeGuard
@@ -29,6 +31,8 @@ from ..common.errors import InputError
 from ..physics.params import Params
 from ..protocol import Codec
 from ..protocol.bus import UDP_MULTICAST, fresh_udp_group
+from ..protocol.diag import load_description
+from ..protocol.diag_client import uds_client
 from ..protocol.faults import FaultSpec
 from ..sim.run import ECU_STUB, RunConfig, TcuFactory, open_run
 from ..sim.scenario import Scenario
@@ -37,6 +41,7 @@ from .signals import Signals, decode_frames
 
 __all__ = ["PlantRun", "run_plant"]
 
+_UDS_CHANNELS = itertools.count()
 ControllerLike = Controller | ControllerProcess | Sequence[str] | Any  # or None: the bundled ecu-stub
 
 
@@ -58,6 +63,31 @@ class PlantRun:
     frames: list[can.Message]
     log: Path | None
     controller_output: Path | None = None
+    tcu: Any = None  # the TCU object of an in-process run (ecu-stub's TcuRunner), else None
+
+    @contextmanager
+    def uds(self, description: str | Path | None = None, timeout: float = 2.0) -> Iterator[Any]:
+        """A UDS client (``udsoncan.client.Client`` over ``can-isotp``, extra ``diag``) of the run's ecu-stub, its
+        DIDs decoding by ``description`` (None: ecu-stub's, ``dsg_hil/data/diag.toml``): after the run the TCU's
+        diagnostic server answers on a python-can ``virtual`` channel of its own, the DTCs as the run left them.
+        :func:`dsg_hil.protocol.diag_client.read_dtcs` / ``read_dids`` / ``clear_dtcs`` take the client. A TCU
+        that ran as a process (or without diagnostics) has none here: talk to it during its run on the run's bus
+        (:func:`~dsg_hil.protocol.diag_client.uds_client`)."""
+        diag = getattr(self.tcu, "diag", None)
+        if diag is None:
+            raise InputError("PlantRun.uds: the run's TCU did not run in this process with diagnostics (ecu-stub); "
+                             "talk to a TCU process on the run's bus during the run (uds_client)")
+        channel = f"dsg-hil-uds-{id(self):x}-{next(_UDS_CHANNELS)}"
+        stop = threading.Event()
+        with ExitStack() as stack:
+            server_bus = stack.enter_context(can.Bus(interface="virtual", channel=channel))
+            client_bus = stack.enter_context(can.Bus(interface="virtual", channel=channel))
+            thread = threading.Thread(target=diag.serve, args=(server_bus, stop), daemon=True)
+            thread.start()
+            stack.callback(thread.join)
+            stack.callback(stop.set)
+            yield stack.enter_context(uds_client(client_bus, load_description(description), diag.request_id,
+                                                 diag.response_id, timeout=timeout))
 
 
 def run_plant(controller: ControllerLike = None, *, scenario: Scenario | str | Path | None = None,
@@ -98,7 +128,8 @@ def run_plant(controller: ControllerLike = None, *, scenario: Scenario | str | P
         run = stack.enter_context(open_run(config))
         summary = run.run()
     return PlantRun(summary.as_json(), decode_frames(run.db, run.frames), run.truth(), run.frames,
-                    config.log if isinstance(config.log, Path) else None, output)
+                    config.log if isinstance(config.log, Path) else None, output,
+                    run.tcu if process is None else None)
 
 
 def _is_fmu(controller: Any) -> TypeGuard[str | Path]:
