@@ -23,12 +23,15 @@ __all__ = ["BUS_INPUTS", "PLANT_INPUTS", "PLANT_OUTPUTS", "TCU_INPUTS", "TCU_OUT
 
 @dataclass(frozen=True)
 class Signal:
-    """One FMU variable that is a DBC signal: the message and signal, the FMU name, the DBC's unit."""
+    """One FMU variable that is a DBC signal: the message and signal, the FMU name, the DBC's unit and range
+    (None where the DBC gives none)."""
 
     message: str
     signal: str
     name: str
     unit: str
+    minimum: float | None = None
+    maximum: float | None = None
 
 
 def variable_names(pairs: list[tuple[str, str]]) -> list[str]:
@@ -41,9 +44,17 @@ def signals(table: dict[str, tuple[str, ...]], skip: frozenset[str] = frozenset(
     """The signals of ``{message: (signal, ...)}`` (without the signals named in ``skip``), with their DBC units."""
     db = load_dbc()
     pairs = [(message, signal) for message, names in table.items() for signal in names if signal not in skip]
-    units = [db.get_message_by_name(message).get_signal_by_name(signal).unit or "1" for message, signal in pairs]
-    return tuple(Signal(m, s, name, "1" if unit == "-" else unit)
-                 for (m, s), name, unit in zip(pairs, variable_names(pairs), units))
+    found = [db.get_message_by_name(message).get_signal_by_name(signal) for message, signal in pairs]
+    return tuple(Signal(m, s, name, _unit(f.unit), _bound(f.minimum), _bound(f.maximum))
+                 for (m, s), name, f in zip(pairs, variable_names(pairs), found))
+
+
+def _unit(unit: str | None) -> str:
+    return "1" if unit is None or unit in ("", "-") else unit
+
+
+def _bound(value: float | None) -> float | None:
+    return None if value is None else float(value)
 
 
 _TRUTH_AND_SENSORS = {message: names for message, names in PLANT_TX.items() if message != "DRIVER"}
