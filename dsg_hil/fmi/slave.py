@@ -225,29 +225,32 @@ class SignalSlave(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         call = f"fmi2DoStep(t={current_time!r}, h={step_size!r})"
-        if self.refused is not None:
-            self.log(f"{call} discarded: a call before it was refused ({self.refused})", Fmi2Status.discard)
+        why = self._cannot_step(current_time, step_size)
+        if why is None:
+            try:
+                self.step(current_time, step_size)
+            except Exception as exc:  # noqa: BLE001 - never into PythonFMU's binary
+                why = str(exc)
+        if why is not None:  # this step is discarded: the refusal ends here
+            self.log(f"{call}: {why}", Fmi2Status.error)
             self.refused = None
-            return False
-        if self.phase != "initialised":
-            self.refuse(call, f"the FMU is {self.phase}" + (": call fmi2ExitInitializationMode first"
-                                                            if self.phase != "terminated" else ""))
-            return False
-        if not (math.isfinite(current_time) and math.isfinite(step_size)) or step_size < 0.0:
-            self.refuse(call, "the time and the step must be finite, the step not negative")
-            return False
-        if self.time is not None and abs(current_time - self.time) > 1e-9 * max(1.0, abs(self.time)):
-            self.refuse(call, f"the last step ended at t={self.time!r}: a step starts there (or after an "
-                              f"fmi2SetFMUstate, at the state's time)")
-            return False
-        try:
-            self.step(current_time, step_size)
-        except Exception as exc:  # noqa: BLE001 - never into PythonFMU's binary
-            self.refuse(call, exc)
-            self.refused = None  # this step is the one discarded
             return False
         self.time = current_time + step_size
         return True
+
+    def _cannot_step(self, current_time: float, step_size: float) -> str | None:
+        """Why a step cannot be taken (None: it can)."""
+        if self.refused is not None:
+            return f"discarded: a call before it was refused ({self.refused})"
+        if self.phase != "initialised":
+            return f"the FMU is {self.phase}" + (": call fmi2ExitInitializationMode first"
+                                                 if self.phase != "terminated" else "")
+        if not (math.isfinite(current_time) and math.isfinite(step_size)) or step_size < 0.0:
+            return "the time and the step must be finite, the step not negative"
+        if self.time is not None and abs(current_time - self.time) > 1e-9 * max(1.0, abs(self.time)):
+            return (f"the last step ended at t={self.time!r}: a step starts there (or, after fmi2SetFMUstate, at "
+                    f"the state's time)")
+        return None
 
     def terminate(self) -> None:
         self.phase = "terminated"
