@@ -21,16 +21,18 @@ from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 
 from .. import __version__
 from ..common.errors import InputError
 from .signals import Signal
+from .units import BASE_UNITS, fmi_unit
 
 __all__ = ["FmuCallError", "SignalSlave", "balance_namespace", "complete_description", "described", "guid_of",
            "variables_digest"]
 
+_TYPES: dict[str, tuple[Any, Any]] = {"Real": (Real, float), "Integer": (Integer, int), "Boolean": (Boolean, bool)}
 _ROUNDING = 1e-9  # of an input's range: a value beyond a bound by this much is taken as the bound
 _GUID_NAMESPACE = uuid.UUID("5b0f6c1e-3f1d-4f35-9d0e-7a1c2f4b8e61")  # dsg-hil's FMUs (uuid5 of model and digest)
 
@@ -57,16 +59,22 @@ def complete_description(xml: Any, units: dict[str, str],
             unknown.set("dependencies", "")
             SubElement(initial, "Unknown", {"index": unknown.get("index")})
     for variable in xml.iter("ScalarVariable"):
+        typed = variable[0]  # the Real, Integer or Boolean element
         unit = units.get(variable.get("name"))
         if unit is not None:
-            variable.find("Real").set("unit", unit)
+            typed.set("unit", unit)
         low_high = (limits or {}).get(variable.get("name"))
         if low_high is not None:
-            variable.find("Real").set("min", repr(low_high[0]))
-            variable.find("Real").set("max", repr(low_high[1]))
+            low, high = low_high
+            typed.set("min", repr(low) if typed.tag == "Real" else str(int(low)))
+            typed.set("max", repr(high) if typed.tag == "Real" else str(int(high)))
     definitions = Element("UnitDefinitions")
     for unit in sorted(set(units.values())):
-        SubElement(definitions, "Unit", {"name": unit})
+        element = SubElement(definitions, "Unit", {"name": unit})
+        if unit in BASE_UNITS:
+            exponents, factor, offset = BASE_UNITS[unit]
+            SubElement(element, "BaseUnit", {**{name: str(power) for name, power in exponents.items()},
+                                             "factor": repr(factor), "offset": repr(offset)})
     xml.insert(list(xml).index(xml.find("CoSimulation")) + 1, definitions)
     return xml
 
@@ -124,6 +132,7 @@ class SignalSlave(Fmi2Slave):
         self.version = __version__
         self.values: dict[str, float] = {}
         self.units: dict[str, str] = {}
+        self.kinds: dict[str, str] = {}
         self.limits: dict[str, tuple[float, float]] = {}
         self.causalities: dict[str, Any] = {}
         self.phase = "instantiated"  # -> initialising -> initialised -> terminated
@@ -132,22 +141,27 @@ class SignalSlave(Fmi2Slave):
         self.digest = ""
 
     def real(self, name: str, start: float, unit: str, causality: Any, description: str,
-             limits: tuple[float, float] | None = None) -> None:
-        """Register a Real variable (a parameter: fixed, set before initialisation; else continuous)."""
+             limits: tuple[float, float] | None = None, kind: str = "Real") -> None:
+        """Register a variable (a Real, or an Integer or Boolean ``kind``; a parameter: fixed, set before
+        initialisation; else continuous, or discrete where not a Real), its value in ``self.values``."""
         self.values[name] = start
-        self.units[name] = unit
+        self.kinds[name] = kind
+        if kind == "Real":
+            self.units[name] = fmi_unit(unit)
         self.causalities[name] = causality
-        if limits is not None:
+        if limits is not None and kind != "Boolean":
             self.limits[name] = limits
-        variability = Fmi2Variability.fixed if causality == Fmi2Causality.parameter else Fmi2Variability.continuous
-        self.register_variable(Real(name, causality=causality, variability=variability, description=description,
-                                    getter=lambda: self.values[name],
-                                    setter=lambda value: self.values.__setitem__(name, float(value))))
+        variability = (Fmi2Variability.fixed if causality == Fmi2Causality.parameter else
+                       Fmi2Variability.continuous if kind == "Real" else Fmi2Variability.discrete)
+        cls, read = _TYPES[kind]
+        self.register_variable(cls(name, causality=causality, variability=variability, description=description,
+                                   getter=lambda: read(self.values[name]),
+                                   setter=lambda value: self.values.__setitem__(name, float(value))))
 
-    def signal(self, signal: Signal, causality: Any, start: float = 0.0) -> None:
+    def signal(self, signal: Signal, causality: Any, start: float = 0.0, description: str | None = None) -> None:
         """Register a DBC signal's variable (an input's range: the DBC's)."""
-        self.real(signal.name, start, signal.unit, causality, described(signal),
-                  _limits(signal) if causality == Fmi2Causality.input else None)
+        self.real(signal.name, start, signal.unit, causality, description or described(signal),
+                  _limits(signal) if causality == Fmi2Causality.input else None, signal.kind)
 
     def seal(self) -> None:
         """After the variables are registered: the digest and the GUID of them; on a host whose dsg-hil registers
@@ -299,32 +313,53 @@ class SignalSlave(Fmi2Slave):
                 got.append(math.nan)
         return got
 
-    def _no_such(self, call: str, kind: str, vrs: list[int]) -> None:
-        for vr in vrs:
-            try:
-                self._variable(vr, kind)
-            except FmuCallError as exc:
-                self.refuse(call, exc)
-
     def set_integer(self, vrs: list[int], values: list[int]) -> None:
-        self._no_such("fmi2SetInteger", "Integer", vrs)
+        for vr, value in zip(vrs, values):
+            try:
+                self._set(self._variable(vr, "Integer").name, float(value))
+            except Exception as exc:  # noqa: BLE001 - never into PythonFMU's binary
+                self.refuse("fmi2SetInteger", f"{exc}; not set")
 
     def get_integer(self, vrs: list[int]) -> list[int]:
-        self._no_such("fmi2GetInteger", "Integer", vrs)
-        return [0] * len(vrs)
+        got = []
+        for vr in vrs:
+            try:
+                got.append(int(self._variable(vr, "Integer").getter()))
+            except Exception as exc:  # noqa: BLE001
+                self.refuse("fmi2GetInteger", f"{exc}; 0 returned")
+                got.append(0)
+        return got
 
     def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
-        self._no_such("fmi2SetBoolean", "Boolean", vrs)
+        for vr, value in zip(vrs, values):
+            try:
+                self._set(self._variable(vr, "Boolean").name, 1.0 if value else 0.0)
+            except Exception as exc:  # noqa: BLE001
+                self.refuse("fmi2SetBoolean", f"{exc}; not set")
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
-        self._no_such("fmi2GetBoolean", "Boolean", vrs)
-        return [False] * len(vrs)
+        got = []
+        for vr in vrs:
+            try:
+                got.append(bool(self._variable(vr, "Boolean").getter()))
+            except Exception as exc:  # noqa: BLE001
+                self.refuse("fmi2GetBoolean", f"{exc}; false returned")
+                got.append(False)
+        return got
 
     def set_string(self, vrs: list[int], values: list[str]) -> None:
-        self._no_such("fmi2SetString", "String", vrs)
+        for vr in vrs:
+            try:
+                self._variable(vr, "String")
+            except FmuCallError as exc:
+                self.refuse("fmi2SetString", f"{exc}; not set")
 
     def get_string(self, vrs: list[int]) -> list[str]:
-        self._no_such("fmi2GetString", "String", vrs)
+        for vr in vrs:
+            try:
+                self._variable(vr, "String")
+            except FmuCallError as exc:
+                self.refuse("fmi2GetString", f"{exc}; an empty string returned")
         return [""] * len(vrs)
 
     # ---- FMU state: the variables, the phase, the time and the subclass's snapshot ----------------------------

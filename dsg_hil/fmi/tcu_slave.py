@@ -10,7 +10,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality
 
 from ecu_stub.controller import CreepController
 
-from .signals import TCU_INPUTS, TCU_OUTPUTS
+from .signals import BUS_SIGNALS, TCU_INPUTS, TCU_OUTPUTS
 from .slave import FmuCallError, SignalSlave
 from .tcu import ValueTables, output_values, tcu_inputs
 
@@ -30,10 +30,11 @@ class TcuSlave(SignalSlave):
         self._tables = ValueTables()
         for signal in TCU_INPUTS:
             self.signal(signal, Fmi2Causality.input)
-        self.real("PlantValid", 1.0, "1", Fmi2Causality.input,
-                  "[1] 1: the plant's frames are present and valid (the bus side's receive checks)", (0.0, 1.0))
-        self.real("RxFaultBits", 0.0, "1", Fmi2Causality.input,
-                  "[1] protocol faults seen by the bus side (crc 0x02, counter 0x04, range 0x08)", (0.0, 255.0))
+        valid, faults = BUS_SIGNALS
+        self.signal(valid, Fmi2Causality.input, 1.0,
+                    "true: the plant's frames are present and valid (the bus side's receive checks)")
+        self.signal(faults, Fmi2Causality.input, 0.0,
+                    "protocol faults seen by the bus side (crc 0x02, counter 0x04, range 0x08)")
         for signal in TCU_OUTPUTS:
             self.signal(signal, Fmi2Causality.output)
         self.controller = CreepController()

@@ -82,31 +82,32 @@ def test_the_refusal_names_both_versions(fmus, tmp_path):
 
 
 FEEDTHROUGH = OPEN_INSTANCE + """
+from dsg_hil.fmi.host import get_values, set_values
 md = read_model_description(sys.argv[1])
-fmu, vr, log = open_instance(sys.argv[1], "x")
+fmu, _, log = open_instance(sys.argv[1], "x")
 fmu.setupExperiment(startTime=0.0); fmu.enterInitializationMode(); fmu.exitInitializationMode()
 inputs = [v for v in md.modelVariables if v.causality == "input"]
-outputs = [v for v in md.modelVariables if v.causality == "output"]
-drive = [v.valueReference for v in inputs if v.name == "P_CL_Cmd"]  # the plant's (the controller's is an output)
-fmu.setReal(drive, [0.6] * len(drive))
+outputs = [(v.type, v.valueReference) for v in md.modelVariables if v.causality == "output"]
+names = [v.name for v in md.modelVariables if v.causality == "output"]
+drive = [(v.type, v.valueReference) for v in inputs if v.name == "P_CL_Cmd"]  # the plant's (the TCU's: an output)
+set_values(fmu, drive, [0.6] * len(drive))
 for k in range(20):  # under way: the plant creeping on CL, the controller past its start
     fmu.doStep(k / 100, 0.01)
-measured = {}
+measured = {name: [] for name in names}
 for variable in inputs:  # each input to a value inside its range, away from the present one: which outputs move?
-    before = fmu.getReal([v.valueReference for v in outputs])
+    ref = [(variable.type, variable.valueReference)]
+    before = get_values(fmu, outputs)
     low = float(variable.min) if variable.min is not None else 0.0
     high = float(variable.max) if variable.max is not None else 1.0
-    now = fmu.getReal([variable.valueReference])[0]
-    fmu.setReal([variable.valueReference], [high if now - low < (high - low) / 2 else low])
-    after = fmu.getReal([v.valueReference for v in outputs])
-    for output, b, a in zip(outputs, before, after):
-        measured.setdefault(output.name, [])
+    now = get_values(fmu, ref)[0]
+    set_values(fmu, ref, [high if now - low < (high - low) / 2 else low])
+    for name, b, a in zip(names, before, get_values(fmu, outputs)):
         if a != b:
-            measured[output.name].append(variable.name)
+            measured[name].append(variable.name)
 declared = {u.variable.name: [d.name for d in (u.dependencies or [])] for u in md.outputs}
-stepped = fmu.getReal([v.valueReference for v in outputs])
+stepped = get_values(fmu, outputs)
 fmu.doStep(0.2, 0.01)
-moved = sum(a != b for a, b in zip(stepped, fmu.getReal([v.valueReference for v in outputs])))
+moved = sum(a != b for a, b in zip(stepped, get_values(fmu, outputs)))
 print(json.dumps({"measured": measured, "declared": declared, "moved": moved, "log": log}))
 """
 

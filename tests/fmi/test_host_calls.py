@@ -6,7 +6,10 @@ from __future__ import annotations
 from .conftest import OPEN_INSTANCE, run_python
 
 MISUSE = OPEN_INSTANCE + """
+from dsg_hil.fmi.host import get_values
 a, vr, log = open_instance(sys.argv[1], "a")
+outputs = [(v.type, v.valueReference) for v in read_model_description(sys.argv[1]).modelVariables
+           if v.causality == "output"]
 P_CL, speed = vr["P_CL_Cmd"], vr["VehicleSpeed"]
 a.setReal([vr["vehicle.m"]], [-5.0])  # a bad parameter: refused at exitInitializationMode
 a.setupExperiment(startTime=0.0)
@@ -37,7 +40,7 @@ def recover(fmu, vr):  # a valid run: the default mass, 0.7 MPa on CL, 0.5 s
     fmu.exitInitializationMode()
     for k in range(50):
         fmu.doStep(k / 100, 0.01)
-    return fmu.getReal([vr[n] for n in vr if n[0].isupper() and "." not in n or n.startswith("SIM_")])
+    return get_values(fmu, outputs)
 
 a.setReal([vr["vehicle.m"]], [float(read_model_description(sys.argv[1]).modelVariables[vr["vehicle.m"]].start)])
 n_log = len(log)
