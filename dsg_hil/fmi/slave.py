@@ -296,56 +296,42 @@ class SignalSlave(Fmi2Slave):
             value = min(max(value, low), high)
         self.values[name] = float(value)
 
-    def set_real(self, vrs: list[int], values: list[float]) -> None:
+    def _set_all(self, call: str, kind: str, vrs: list[int], values: list[float]) -> None:
+        """Set each variable (of FMI type ``kind``) a host's call names; a refused one logged, the rest set."""
         for vr, value in zip(vrs, values):
             try:
-                self._set(self._variable(vr, "Real").name, value)
+                self._set(self._variable(vr, kind).name, value)
             except Exception as exc:  # noqa: BLE001 - never into PythonFMU's binary
-                self.refuse("fmi2SetReal", f"{exc}; not set")
+                self.refuse(call, f"{exc}; not set")
+
+    def _get_all(self, call: str, kind: str, vrs: list[int], instead: Any) -> list[Any]:
+        """The values of the variables a host's call names (``instead`` for one that cannot be read, logged)."""
+        got = []
+        for vr in vrs:
+            try:
+                got.append(self._variable(vr, kind).getter())
+            except Exception as exc:  # noqa: BLE001 - never into PythonFMU's binary
+                self.refuse(call, f"{exc}; {instead!r} returned")
+                got.append(instead)
+        return got
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        self._set_all("fmi2SetReal", "Real", vrs, [float(v) for v in values])
 
     def get_real(self, vrs: list[int]) -> list[float]:
-        got = []
-        for vr in vrs:
-            try:
-                got.append(float(self._variable(vr, "Real").getter()))
-            except Exception as exc:  # noqa: BLE001
-                self.refuse("fmi2GetReal", f"{exc}; NaN returned")
-                got.append(math.nan)
-        return got
+        return [float(v) for v in self._get_all("fmi2GetReal", "Real", vrs, math.nan)]
 
     def set_integer(self, vrs: list[int], values: list[int]) -> None:
-        for vr, value in zip(vrs, values):
-            try:
-                self._set(self._variable(vr, "Integer").name, float(value))
-            except Exception as exc:  # noqa: BLE001 - never into PythonFMU's binary
-                self.refuse("fmi2SetInteger", f"{exc}; not set")
+        self._set_all("fmi2SetInteger", "Integer", vrs, [float(v) for v in values])
 
     def get_integer(self, vrs: list[int]) -> list[int]:
-        got = []
-        for vr in vrs:
-            try:
-                got.append(int(self._variable(vr, "Integer").getter()))
-            except Exception as exc:  # noqa: BLE001
-                self.refuse("fmi2GetInteger", f"{exc}; 0 returned")
-                got.append(0)
-        return got
+        return [int(v) for v in self._get_all("fmi2GetInteger", "Integer", vrs, 0)]
 
     def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
-        for vr, value in zip(vrs, values):
-            try:
-                self._set(self._variable(vr, "Boolean").name, 1.0 if value else 0.0)
-            except Exception as exc:  # noqa: BLE001
-                self.refuse("fmi2SetBoolean", f"{exc}; not set")
+        self._set_all("fmi2SetBoolean", "Boolean", vrs, [1.0 if v else 0.0 for v in values])
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
-        got = []
-        for vr in vrs:
-            try:
-                got.append(bool(self._variable(vr, "Boolean").getter()))
-            except Exception as exc:  # noqa: BLE001
-                self.refuse("fmi2GetBoolean", f"{exc}; false returned")
-                got.append(False)
-        return got
+        return [bool(v) for v in self._get_all("fmi2GetBoolean", "Boolean", vrs, False)]
 
     def set_string(self, vrs: list[int], values: list[str]) -> None:
         for vr in vrs:

@@ -24,15 +24,17 @@ calls = [("doStep in initialization mode", lambda: a.doStep(0.0, 0.01)),
          ("a NaN initial temperature", lambda: a.setReal([vr["init.T_CL"]], [float("nan")])),
          ("exitInitializationMode with a negative mass", lambda: a.exitInitializationMode()),
          ("doStep of an uninitialised FMU", lambda: a.doStep(0.0, 0.01))]
-results = []
-for what, call in calls:
+
+def attempt(what, call):  # a call: what FMPy raised (its status), what the FMU logged
     before = len(log)
     try:
         call()
         raised = None
     except Exception as exc:
         raised = str(exc)
-    results.append({"what": what, "raised": raised, "log": log[before:]})
+    return {"what": what, "raised": raised, "log": log[before:]}
+
+results = [attempt(what, call) for what, call in calls]
 
 def recover(fmu, vr):  # a valid run: the default mass, 0.7 MPa on CL, 0.5 s
     fmu.setReal([vr["P_CL_Cmd"]], [0.7])
@@ -46,25 +48,13 @@ a.setReal([vr["vehicle.m"]], [float(read_model_description(sys.argv[1]).modelVar
 n_log = len(log)
 after = recover(a, vr)
 clean_recovery = log[n_log:]
-late = []
-for what, call in [("a step of half an internal step", lambda: a.doStep(0.5, 0.0005)),
-                   ("a communication point back in time", lambda: a.doStep(0.2, 0.01)),
-                   ("a NaN step", lambda: a.doStep(0.5, float("nan")))]:
-    before = len(log)
-    try:
-        call()
-        raised = None
-    except Exception as exc:
-        raised = str(exc)
-    late.append({"what": what, "raised": raised, "log": log[before:]})
+late = [attempt(what, call) for what, call in [
+    ("a fixed parameter after initialisation", lambda: a.setReal([vr["vehicle.m"]], [8000.0])),
+    ("a step of half an internal step", lambda: a.doStep(0.5, 0.0005)),
+    ("a communication point back in time", lambda: a.doStep(0.2, 0.01)),
+    ("a NaN step", lambda: a.doStep(0.5, float("nan")))]]
 a.terminate()
-before = len(log)
-try:
-    a.doStep(0.5, 0.01)
-    raised = None
-except Exception as exc:
-    raised = str(exc)
-late.append({"what": "doStep after terminate", "raised": raised, "log": log[before:]})
+late.append(attempt("doStep after terminate", lambda: a.doStep(0.5, 0.01)))
 a.freeInstance()
 
 b, vr_b, log_b = open_instance(sys.argv[1], "b")
@@ -83,12 +73,14 @@ def test_ten_failing_calls_in_a_row_then_a_second_instance_and_the_host_lives(fm
                 "an unknown value reference": "value reference 99999", "setting an output": "VehicleSpeed",
                 "an Integer on a Real": "P_CL_Cmd", "reading an unknown value reference": "value reference 99999",
                 "a NaN initial temperature": "init.T_CL = nan",
+                "a fixed parameter after initialisation": "vehicle.m = 8000.0",
                 "exitInitializationMode with a negative mass": "vehicle.m: -5.0",
                 "doStep in initialization mode": "initialising", "doStep of an uninitialised FMU": "vehicle.m: -5.0"}
     calls = {"doStep": "fmi2DoStep", "setReal": "fmi2SetReal", "getReal": "fmi2GetReal", "setInteger":
              "fmi2SetInteger", "exitInitializationMode": "fmi2ExitInitializationMode"}
     assert len(out["results"]) == 10
-    assert [r["what"] for r in out["late"]] == ["a step of half an internal step", "a communication point back in "
+    assert [r["what"] for r in out["late"]] == ["a fixed parameter after initialisation",
+                                                "a step of half an internal step", "a communication point back in "
                                                 "time", "a NaN step", "doStep after terminate"]
     for result in out["results"] + out["late"]:
         statuses = [status for status, _ in result["log"]]
