@@ -5,7 +5,7 @@ second; no timing is asserted anywhere).
 
 Both take the same inputs (CL commanded to 0.6 MPa, brake released: the vehicle creeps, CL slips and heats) in
 10-ms communication steps of 10 plant steps: ``in_process`` calls :meth:`Plant.advance` and reads the outputs;
-``fmu`` is ``dsg-hil fmu export``'s FMU stepped through FMPy's FMU2Slave (setReal, doStep, getReal of all 23
+``fmu`` is ``dsg-hil fmu export``'s FMU stepped through FMPy's FMU2Slave (setReal, doStep, getReal of all 24
 outputs per step), in this process (its Python runs dsg_hil, as a tool-coupling FMU does). The difference is the
 price of the FMI layer (ctypes, PythonFMU's C++ and its Python facade). ``identical`` says whether the two
 trajectories' final outputs agree bit for bit.
@@ -50,9 +50,9 @@ def in_process(seconds: float) -> tuple[float, list[float]]:
 
 def fmu(path: Path, seconds: float) -> tuple[float, list[float]]:
     """Simulated s per wall s of the plant FMU stepped through FMPy, and its final outputs."""
-    instance, vr = open_fmu(path, "plant")
-    outputs = [vr[s.name] for s in PLANT_OUTPUTS]
-    P_CL = [vr["P_CL_Cmd"]]
+    instance, refs = open_fmu(path, "plant")
+    outputs = [refs[s.name][1] for s in PLANT_OUTPUTS]  # (type, value reference): the outputs are Reals
+    P_CL = [refs["P_CL_Cmd"][1]]
     t0 = time.perf_counter()
     for k in range(round(seconds / PERIOD)):
         instance.setReal(P_CL, [P_CL_MPA])

@@ -14,6 +14,7 @@ share them; each class is defined where it belongs (the module in brackets) and 
          |   +-- LogError             (common.errors)        a recorded log: unreadable, not of the DBC, no data
          |   +-- CalibrationError     (ecu_stub.calibration) the TCU's calibration file
          |   +-- FmuError             (fmi.controller)       a controller FMU: unreadable, or a variable no DBC signal
+         |   +-- FmuCallError         (fmi.slave)            an FMI host's call our FMUs refuse (logged, not raised)
          |   +-- SpaceError           (sweep.space)          a sweep's space file
          |   +-- DriverError          (sweep.drivers)        a sweep's driver setting that makes no behaviour
          +-- RunError (also a RuntimeError)                  exit 1: the run could not go on

@@ -10,7 +10,8 @@ The FMU's variables are matched to the DBC's by name (:data:`~dsg_hil.fmi.signal
 plus ``PlantValid`` and ``RxFaultBits`` from the receive checks), or through a mapping ``{FMU variable: DBC
 signal}`` (a TOML file of ``"FMU name" = "DBC signal"`` lines). Every FMU input must be one of those, every TCU
 output (TCU_CMD's pressures, TCU_STATUS's signals) an FMU output but ``DecelRequest`` (optional: 0, no deceleration
-asked, without one); all are Reals in the DBC's units. Each control
+asked, without one). A port may be a Real (the DBC's physical value and unit), an Integer (a whole number: State,
+ActiveClutch, bit fields) or a Boolean (a flag); a mapping key that names no port of the FMU is an error. Each control
 cycle at ``now`` sets the inputs and calls ``doStep(now, cycle)`` (``cycle``: the DBC's TCU_CMD cycle time); the
 outputs are the cycle's commands (:mod:`dsg_hil.fmi.tcu`).
 
@@ -35,7 +36,7 @@ from ecu_stub.runner import TCU_USES, TcuRunner
 from ..common.errors import InputError, RunError
 from ..common.files import read_input_file
 from ..protocol import Codec
-from .host import instantiate
+from .host import KINDS, Ref, get_values, instantiate, set_values
 from .signals import BUS_INPUTS, TCU_INPUTS, TCU_OUTPUTS
 from .tcu import OPTIONAL_OUTPUTS, ValueTables, input_values, tcu_outputs
 
@@ -86,30 +87,37 @@ class ControllerFmu:
         self._fmu: Any = None
         self.tables = ValueTables()
 
-    def _match(self, description: Any, mapping: dict[str, str]) -> tuple[dict[str, int], dict[str, int]]:
-        """{DBC signal: value reference} of the FMU's inputs and outputs; a mismatch is one FmuError naming it."""
+    def _match(self, description: Any, mapping: dict[str, str]) -> tuple[dict[str, Ref], dict[str, Ref]]:
+        """{DBC signal: (FMI type, value reference)} of the FMU's inputs and outputs; a mismatch is one FmuError
+        naming it (the DBC signal a mapping names, a mapping key that names no input or output)."""
         readable = {s.name for s in TCU_INPUTS} | set(BUS_INPUTS)
         writable = {s.name for s in TCU_OUTPUTS}
-        inputs: dict[str, int] = {}
-        outputs: dict[str, int] = {}
-        for variable in description.modelVariables:
-            if variable.causality not in ("input", "output"):
-                continue
+        inputs: dict[str, Ref] = {}
+        outputs: dict[str, Ref] = {}
+        ports = [v for v in description.modelVariables if v.causality in ("input", "output")]
+        unused = sorted(set(mapping) - {v.name for v in ports})
+        if unused:
+            raise FmuError(f"{self.path}: the mapping's key {unused[0]!r} is no input or output variable of the FMU "
+                           f"(its ports: {', '.join(v.name for v in ports)})")
+        for variable in ports:
             signal = mapping.get(variable.name, variable.name)
-            known = readable if variable.causality == "input" else writable
+            reads = variable.causality == "input"
+            known = readable if reads else writable
             if signal not in known:
-                raise FmuError(f"{self.path}: {variable.causality} variable {variable.name!r} matches no DBC signal "
-                               f"the TCU {'reads' if variable.causality == 'input' else 'sends'} (known: "
-                               f"{', '.join(sorted(known))}; or map it in a mapping file)")
-            if variable.type != "Real":
-                raise FmuError(f"{self.path}: variable {variable.name!r} is {variable.type}: the DBC's signals are "
-                               f"Reals in their physical unit")
-            side = inputs if variable.causality == "input" else outputs
+                named = (f"the mapping's DBC signal {signal!r} (for {variable.causality} variable "
+                         f"{variable.name!r})" if variable.name in mapping else
+                         f"{variable.causality} variable {variable.name!r}")
+                raise FmuError(f"{self.path}: {named} matches no DBC signal the TCU {'reads' if reads else 'sends'} "
+                               f"(known: {', '.join(sorted(known))}; or map it in a mapping file)")
+            if variable.type not in KINDS:
+                raise FmuError(f"{self.path}: variable {variable.name!r} is {variable.type}: a DBC signal's variable "
+                               f"is a Real (the physical value), an Integer or a Boolean")
+            side = inputs if reads else outputs
             if signal in side:
-                other = next(v.name for v in description.modelVariables if v.valueReference == side[signal]
-                             and v.causality == variable.causality)
+                other = next(v.name for v in ports if v.valueReference == side[signal][1]
+                             and v.causality == variable.causality and v.type == side[signal][0])
                 raise FmuError(f"{self.path}: {other!r} and {variable.name!r} both map to the DBC signal {signal!r}")
-            side[signal] = variable.valueReference
+            side[signal] = (variable.type, variable.valueReference)
         missing = [name for name in sorted(writable) if name not in outputs and name not in OPTIONAL_OUTPUTS]
         if missing:
             raise FmuError(f"{self.path}: no output variable for the DBC signal {missing[0]!r} (the TCU sends "
@@ -141,10 +149,9 @@ class ControllerFmu:
         """One control cycle at ``now``: the inputs set, ``doStep(now, cycle)``, the outputs by DBC signal."""
         fmu = self._fmu
         try:
-            if self._in_refs:
-                fmu.setReal(self._in_refs, [values[name] for name in self._in_names])
+            set_values(fmu, self._in_refs, [values[name] for name in self._in_names])
             fmu.doStep(currentCommunicationPoint=now, communicationStepSize=self.cycle)
-            return dict(zip(self.outputs, fmu.getReal(self._out_refs)))
+            return dict(zip(self.outputs, get_values(fmu, self._out_refs)))
         except Exception as exc:  # noqa: BLE001
             raise RunError(f"controller FMU {self.path}: step at t={now:g} s failed ({exc})") from exc
 

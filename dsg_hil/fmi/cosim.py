@@ -18,7 +18,7 @@ from typing import Any
 from ..protocol import load_dbc
 from ..sim.plant_io import SIGNALS
 from ..sim.scenario import Scenario, load_scenario
-from .host import instantiate
+from .host import get_values, instantiate, set_values
 from .signals import PLANT_INPUTS, PLANT_OUTPUTS, TCU_OUTPUTS
 
 __all__ = ["CoSimulation", "cosimulate", "open_fmu"]
@@ -37,8 +37,9 @@ class CoSimulation:
     handovers: list[tuple[float, str, str]] = field(default_factory=list)
 
 
-def open_fmu(path: str | Path, name: str) -> tuple[Any, dict[str, int]]:
-    """An FMI 2.0 co-simulation FMU instantiated and initialised through FMPy; its value references by name."""
+def open_fmu(path: str | Path, name: str) -> tuple[Any, dict[str, tuple[str, int]]]:
+    """An FMI 2.0 co-simulation FMU instantiated and initialised through FMPy; its variables' (type, value
+    reference) by name."""
     from fmpy import extract, read_model_description  # noqa: PLC0415 - the fmi extra
     from fmpy.fmi2 import FMU2Slave  # noqa: PLC0415
 
@@ -50,7 +51,7 @@ def open_fmu(path: str | Path, name: str) -> tuple[Any, dict[str, int]]:
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()
-    return fmu, {v.name: v.valueReference for v in md.modelVariables}
+    return fmu, {v.name: (v.type, v.valueReference) for v in md.modelVariables}
 
 
 class _Link:
@@ -96,24 +97,25 @@ def cosimulate(plant_fmu: str | Path, controller_fmu: str | Path, scenario: Scen
     T_CL, T_CH = p["SIM_TRUTH_CL.T_Plate"], p["SIM_TRUTH_CH.T_Plate"]
     result, active = CoSimulation(), "NONE"
     if "PlantValid" in c:
-        tcu.setReal([c["PlantValid"]], [1.0])
+        set_values(tcu, [c["PlantValid"]], [1.0])
     for k in range(round((duration or scenario.duration_s) / period)):
         t = k * period
         driver = scenario.driver_at(t)
         pedal = {"CreepRequest": float(driver.creep_request), "BrakePedal": driver.brake * _TO_PERCENT,
                  "DesiredCreepSpeed": driver.desired_speed_mps}
-        tcu.setReal([c[n] for n in reads] + [c[n] for n in pedal if n in c],
-                    to_tcu.pass_on(k, plant.getReal([p[n] for n in reads])) + [v for n, v in pedal.items() if n in c])
+        set_values(tcu, [c[n] for n in reads] + [c[n] for n in pedal if n in c],
+                   to_tcu.pass_on(k, get_values(plant, [p[n] for n in reads]))
+                   + [v for n, v in pedal.items() if n in c])
         tcu.doStep(currentCommunicationPoint=t, communicationStepSize=period)
-        values = to_plant.pass_on(k, tcu.getReal([c[n] for n in commands]))
-        plant.setReal([p[n] for n in commands] + [p[n] for n in pedal], values + list(pedal.values()))
+        values = to_plant.pass_on(k, get_values(tcu, [c[n] for n in commands]))
+        set_values(plant, [p[n] for n in commands] + [p[n] for n in pedal], values + list(pedal.values()))
         plant.doStep(currentCommunicationPoint=t, communicationStepSize=period)
-        now = tables.clutch_names[int(status.pass_on(k, tcu.getReal([c["ActiveClutch"]]))[0])]
+        now = tables.clutch_names[int(status.pass_on(k, get_values(tcu, [c["ActiveClutch"]]))[0])]
         if now in ("CL", "CH") and active in ("CL", "CH") and now != active:
             result.handovers.append((t, active, now))
         active = now
         result.t.append((k + 1) * period)
-        T = plant.getReal([T_CL, T_CH])
+        T = get_values(plant, [T_CL, T_CH])
         result.T_CL.append(T[0])
         result.T_CH.append(T[1])
     for fmu in (tcu, plant):

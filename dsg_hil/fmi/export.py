@@ -18,9 +18,10 @@ __all__ = ["MODELS", "PARAMS_RESOURCE", "export_fmu"]
 
 PARAMS_RESOURCE = "params.toml"  # the --params file, in the FMU's resources (PlantSlave reads it)
 
-# model: (module, slave class, model identifier: the FMU's binary and the C name a host sees)
-MODELS = {"plant": ("dsg_hil.fmi.plant", "PlantSlave", "dsg_hil_plant"),
-          "tcu": ("dsg_hil.fmi.tcu_slave", "TcuSlave", "ecu_stub_tcu")}
+# model: (module, slave class, model identifier: the FMU's binary and the C name a host sees, whether the FMU
+# state can be got, set and serialised: the plant's whole, not ecu-stub's controller's)
+MODELS = {"plant": ("dsg_hil.fmi.plant", "PlantSlave", "dsg_hil_plant", True),
+          "tcu": ("dsg_hil.fmi.tcu_slave", "TcuSlave", "ecu_stub_tcu", False)}
 
 _SCRIPT = '''"""{model} of dsg-hil {version} as an FMI 2.0 co-simulation FMU, written by 'dsg-hil fmu export': the class
 is dsg-hil's, so the host's Python needs dsg_hil installed (pip install 'dsg-hil[fmi]')."""
@@ -30,7 +31,7 @@ from {module} import {cls}
 
 
 class {identifier}({cls}):
-    pass
+    exported = ("{version}", "{digest}")  # dsg-hil's version and variables: checked on the host (seal)
 
 
 balance_namespace(globals(), locals())  # PythonFMU's binary releases a reference to globals() it did not take
@@ -54,19 +55,20 @@ def export_fmu(out: str | Path, model: str = "plant", params: str | Path | None 
         from pythonfmu import FmuBuilder  # noqa: PLC0415 - the fmi extra, when an FMU is written
     except ImportError as exc:
         raise InputError(f"writing an FMU needs the fmi extra: pip install 'dsg-hil[fmi]' ({exc})") from exc
-    module, cls, identifier = MODELS[model]
+    module, cls, identifier, state = MODELS[model]
+    digest = _digest(module, cls)
     with tempfile.TemporaryDirectory(prefix="dsg_hil_fmu_") as tmp:
         script = Path(tmp) / "src" / f"{identifier}.py"
         script.parent.mkdir()
         script.write_text(_SCRIPT.format(model=model, version=__version__, module=module, cls=cls,
-                                         identifier=identifier), encoding="utf-8")
+                                         identifier=identifier, digest=digest), encoding="utf-8")
         project_files = []
         if params is not None:
             project_files.append(Path(tmp) / PARAMS_RESOURCE)
             shutil.copyfile(params, project_files[0])
         try:
-            built = FmuBuilder.build_FMU(script, dest=out, project_files=project_files, canGetAndSetFMUstate=True,
-                                         canSerializeFMUstate=True)
+            built = FmuBuilder.build_FMU(script, dest=out, project_files=project_files, canGetAndSetFMUstate=state,
+                                         canSerializeFMUstate=state)
         except (OSError, ValueError, ImportError) as exc:
             raise RunError(f"cannot write the FMU {out}: {exc}") from exc
         finally:  # the builder imports the script as a top-level module, from its folder
@@ -74,3 +76,11 @@ def export_fmu(out: str | Path, model: str = "plant", params: str | Path | None 
             if str(script.parent) in sys.path:
                 sys.path.remove(str(script.parent))
     return Path(built)
+
+
+def _digest(module: str, cls: str) -> str:
+    """The variable digest of a model's slave as this dsg-hil registers its variables."""
+    import importlib  # noqa: PLC0415
+
+    slave = getattr(importlib.import_module(module), cls)(instance_name="export", resources=None)
+    return str(slave.digest)

@@ -17,7 +17,31 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["instantiate"]
+__all__ = ["KINDS", "Ref", "get_values", "instantiate", "set_values"]
+
+KINDS = ("Real", "Integer", "Boolean")  # the FMI 2.0 types a signal's variable may have (signals.kind_of)
+Ref = tuple[str, int]  # a variable's (FMI type, value reference)
+
+
+def get_values(fmu: Any, refs: list[Ref]) -> list[float]:
+    """The values of the variables ``refs`` of an FMPy ``FMU2Slave``, whatever their types, as floats (a Boolean:
+    0.0 or 1.0), in the order of ``refs``."""
+    values = [0.0] * len(refs)
+    for kind, read in (("Real", fmu.getReal), ("Integer", fmu.getInteger), ("Boolean", fmu.getBoolean)):
+        at = [i for i, (k, _) in enumerate(refs) if k == kind]
+        if at:
+            for i, value in zip(at, read([refs[i][1] for i in at])):
+                values[i] = float(value)
+    return values
+
+
+def set_values(fmu: Any, refs: list[Ref], values: list[float]) -> None:
+    """Set the variables ``refs`` to ``values`` (a whole number for an Integer, >= 0.5 true for a Boolean)."""
+    for kind, write, convert in (("Real", fmu.setReal, float), ("Integer", fmu.setInteger, round),
+                                 ("Boolean", fmu.setBoolean, lambda v: v >= 0.5)):
+        at = [i for i, (k, _) in enumerate(refs) if k == kind]
+        if at:
+            write([refs[i][1] for i in at], [convert(values[i]) for i in at])
 
 
 def instantiate(fmu: Any, unzipped: str | Path) -> None:

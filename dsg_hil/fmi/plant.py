@@ -10,16 +10,16 @@
 * Parameters: every value of the parameter file (SI, its unit and source in the description), the initial
   state (``init.*``, default: the shipped creep scenario) and the fixed internal step ``dt``.
 
-A communication step must be a whole number of internal steps (else the step fails with fmi2Error); over it the
+A communication step must be a whole number of internal steps (else it is discarded, fmi2Discard); over it the
 inputs are held, as in :meth:`Plant.advance`: brake = max(BrakePedal, BrakeRequest, the brake for DecelRequest),
 grade and engine speed those of the parameters (``vehicle.beta``, idle). The FMU state (get/set/serialise) is the
-plant's whole state array, its last outputs, the inputs and the parameters, so a host can roll back to the bit.
+plant's whole array (the contacts' modes included), the variables (inputs and parameters: a state of an instance
+with other parameters rebuilds the plant with them) and the time, so a host can roll back to the bit.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +34,7 @@ from ..sim.run import plant_for
 from ..sim.scenario import DriverInput, Scenario, load_scenario
 from .export import PARAMS_RESOURCE
 from .signals import PLANT_INPUTS, PLANT_OUTPUTS
-from .slave import SignalSlave, described
+from .slave import FmuCallError, SignalSlave
 
 __all__ = ["INIT", "PlantSlave", "parameter_table"]
 
@@ -65,6 +65,7 @@ class PlantSlave(SignalSlave):
     description = ("dsg-hil: the DSG dual wet clutch plant (Ma et al.), signals named and scaled as in the DBC. "
                    "Needs dsg_hil installed in the host's Python.")
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
+    model = "plant"
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -80,40 +81,50 @@ class PlantSlave(SignalSlave):
         self.real("dt", 1e-3, "s", Fmi2Causality.parameter,
                    "[s] the plant's fixed internal step; a communication step must be a whole multiple of it")
         for signal in PLANT_INPUTS:
-            self.real(signal.name, 0.0, signal.unit, Fmi2Causality.input, described(signal))
+            self.signal(signal, Fmi2Causality.input)
         for signal in PLANT_OUTPUTS:
-            self.real(signal.name, 0.0, signal.unit, Fmi2Causality.output, described(signal))
+            self.signal(signal, Fmi2Causality.output)
         self.plant: Plant | None = None
         self.out: PlantOutputs | None = None
+        self._parameter_keys = [key for key in self.values if self.causalities[key] == Fmi2Causality.parameter]
+        self._built_with: dict[str, float] = {}
+        self._fresh = np.zeros(0)
+        self.seal()
 
     # ---- the simulation --------------------------------------------------------------------------------------
-    def exit_initialization_mode(self) -> None:
+    def initialise(self) -> None:
         """The plant, built from the parameters as set now (a changed one checked as ``dsg-hil --set`` checks it)."""
+        self._build()
+        assert self.plant is not None
+        self._publish(self.plant.outputs())
+
+    def _build(self) -> None:
         values = self.values
+        parameters = {key: values[key] for key in self._parameter_keys}
+        if self.plant is not None and parameters == self._built_with:
+            self.plant.restore(self._fresh)
+            return
         changed = {key: values[key] for key, value, _, _ in parameter_table(self._params) if values[key] != value}
         params = with_overrides(self._params, changed, origin="FMU parameter") if changed else self._params
         initial: dict[str, Any] = {field: values[key] for key, (field, _, _) in INIT.items()}
         scenario = dataclasses.replace(self._scenario, **initial)
         self.plant = plant_for(scenario, params, dt=values["dt"])
-        self._publish(self.plant.outputs())
+        self._fresh, self._built_with = self.plant.snapshot(), parameters
 
-    def do_step(self, current_time: float, step_size: float) -> bool:
+    def step(self, current_time: float, step_size: float) -> None:
         plant = self.plant
-        if plant is None:
-            raise RuntimeError("do_step before the FMU's initialization")
+        assert plant is not None  # SignalSlave steps an initialised FMU only
         steps = round(step_size * 1e9 / plant.dt_ns)
-        if steps < 0 or abs(step_size * 1e9 - steps * plant.dt_ns) > 1e-3:
-            raise ValueError(f"communication step {step_size} s: not a whole number of internal steps of "
-                             f"{plant.dt} s")
+        if abs(step_size * 1e9 - steps * plant.dt_ns) > 1e-3:
+            raise FmuCallError(f"communication step {step_size!r} s: not a whole number of internal steps of "
+                               f"{plant.dt} s (dt)")
         if steps:
             self._publish(plant.advance(self.inputs(), steps))
-        return True
 
     def inputs(self) -> PlantInputs:
         """The plant's inputs from the input variables, converted to SI as the plant's CAN edge converts them."""
         v, plant = self.values, self.plant
-        if plant is None:
-            raise RuntimeError("inputs before the FMU's initialization")
+        assert plant is not None
         P_CL, P_CH = commanded_pressures(v)
         brake = max(v["BrakePedal"] * _PERCENT, v["BrakeRequest"])
         if (decel := commanded_decel(v)) > 0.0:  # the brakes as a brake controller takes a deceleration
@@ -128,23 +139,16 @@ class PlantSlave(SignalSlave):
         for signal in PLANT_OUTPUTS:
             v[signal.name] = float(values[signal.message][signal.signal])
 
-    # ---- FMU state: the plant's whole state, not only the registered variables (PythonFMU's default) ----------
-    def _get_fmu_state(self) -> dict[str, Any]:
+    # ---- FMU state: the plant's whole array (contact modes included) and, with the variables, its parameters ---
+    def snapshot(self) -> dict[str, Any]:
         plant = self.plant
-        return {"values": dict(self.values),
-                "plant": None if plant is None else plant.state.array.tolist(),
-                "out": None if self.out is None else list(self.out)}
+        return {"plant": None if plant is None or self.phase == "instantiated" else plant.snapshot().tolist()}
 
-    def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        self.values.update(state["values"])
-        if state["plant"] is not None:
-            if self.plant is None:
-                self.exit_initialization_mode()
-            assert self.plant is not None
-            self.plant.state.array[:] = np.asarray(state["plant"], dtype=float)
-            self.out = PlantOutputs(*state["out"])
-
-    @staticmethod
-    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
-        return json.dumps(state).encode("utf-8")  # floats as repr: the same double back
-
+    def restore(self, state: dict[str, Any]) -> None:
+        if state["plant"] is None:  # a state before initialisation: no plant yet
+            self.plant, self.out = None, None
+            return
+        self._build()  # the state's parameters (rebuilt only where they differ)
+        assert self.plant is not None
+        self.plant.restore(np.asarray(state["plant"], dtype=float))
+        self.out = self.plant.outputs()

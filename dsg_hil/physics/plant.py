@@ -317,6 +317,18 @@ class Plant:
         """The outputs at the present time (after the last step; before any, with no torque flowing)."""
         return self._last
 
+    def snapshot(self) -> np.ndarray:
+        """The plant's whole array (a copy): the state, the last outputs, the period's, the contacts' modes and the
+        working arrays, everything a step reads; :meth:`restore` of it replays the steps after it to the bit."""
+        return self._b.copy()
+
+    def restore(self, snapshot: np.ndarray) -> None:
+        """Back to a :meth:`snapshot` of a plant with the same parameters."""
+        if snapshot.shape != self._b.shape:
+            raise ValueError(f"a plant snapshot has {self._b.size} values, not {snapshot.size}")
+        self._b[:] = snapshot
+        self._last = self.sample(self._out)
+
     @staticmethod
     def sample(row: np.ndarray) -> PlantOutputs:
         """The outputs of a row of :meth:`advance`'s ``trace``."""

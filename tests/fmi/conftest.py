@@ -36,3 +36,30 @@ def run_python(code: str, *args: str, timeout: float = 300.0) -> dict:
                           text=True, timeout=timeout)
     assert done.returncode == 0, f"exit status {done.returncode}; stderr: {done.stderr[-3000:]}"
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+# The start of a script that opens FMU instances through FMPy's FMU2Slave, each with its log collected:
+# open_instance(path, name) -> (fmu, {variable name: value reference}, log: [(status label, message), ...])
+OPEN_INSTANCE = """
+import json, math, sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
+
+LABELS = ["OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING"]
+_keep = []
+
+def open_instance(path, name):
+    md = read_model_description(path)
+    log = []
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(
+        lambda c, instance, status, category, message: log.append((LABELS[status], message.decode("utf-8"))))
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    _keep.append(callbacks)
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(path), modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName=name)
+    fmu.instantiate(callbacks=callbacks, loggingOn=True)  # PythonFMU passes messages on with logging on only
+    return fmu, {v.name: v.valueReference for v in md.modelVariables}, log
+"""

@@ -1,6 +1,6 @@
-"""A controller FMU as the TCU: ecu-stub's own controller, exported as an FMU, gives the bundled ecu-stub's frames
-bit for bit in lock-step; variables that match no DBC signal are one error naming them; the plant FMU and the
-controller FMU co-simulated in FMPy give the creep of 'dsg-hil run'."""
+"""A controller FMU as the TCU: ecu-stub's own controller, exported as an FMU (Real, Integer and Boolean ports),
+gives the bundled ecu-stub's frames bit for bit in lock-step; variables that match no DBC signal are one error
+naming them; the plant FMU and the controller FMU co-simulated in FMPy give the creep of 'dsg-hil run'."""
 
 from __future__ import annotations
 
@@ -40,8 +40,10 @@ def test_a_variable_that_matches_no_dbc_signal_is_one_error_naming_it(fmus, caps
 
 
 def test_a_mapping_renames_and_is_checked(fmus, tmp_path):
-    with pytest.raises(FmuError, match="output variable 'State' matches no DBC signal"):
+    with pytest.raises(FmuError, match=r"the mapping's DBC signal 'Mode' \(for output variable 'State'\) matches no"):
         open_controller(fmus["tcu"], {"State": "Mode"})
+    with pytest.raises(FmuError, match="the mapping's key 'Stat' is no input or output variable of the FMU"):
+        open_controller(fmus["tcu"], {"Stat": "State"})  # a misspelt key: an error, not ignored
     mapping = tmp_path / "map.toml"
     mapping.write_text('[signals]\nEngineSpeed = "VehicleSpeed"\n', encoding="utf-8")
     assert load_mapping(mapping) == {"EngineSpeed": "VehicleSpeed"}
@@ -51,6 +53,9 @@ def test_a_mapping_renames_and_is_checked(fmus, tmp_path):
         assert set(fmu.outputs) == {"P_CL_Cmd", "P_CH_Cmd", "DecelRequest", "State", "ActiveClutch", "BrakeRequest",
                                     "T_CL_Pred", "T_CH_Pred", "FaultBits"}
         assert "PlantValid" in fmu.inputs and "EngineSpeed" in fmu.inputs
+        # Integer and Boolean ports (as Simulink exports a state or a flag): ecu-stub's FMU has both
+        assert fmu.outputs["State"][0] == "Integer" and fmu.outputs["BrakeRequest"][0] == "Boolean"
+        assert fmu.inputs["CreepRequest"][0] == "Boolean" and fmu.inputs["RxFaultBits"][0] == "Integer"
 
 
 COSIMULATE = """

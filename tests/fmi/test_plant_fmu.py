@@ -10,7 +10,8 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from dsg_hil.common.units import CV
-from dsg_hil.fmi.signals import PLANT_OUTPUTS
+from dsg_hil.fmi.signals import PLANT_INPUTS, PLANT_OUTPUTS
+from dsg_hil.fmi.units import fmi_unit
 from dsg_hil.physics.params import load_params
 from dsg_hil.physics.plant import PlantInputs
 from dsg_hil.protocol import load_dbc
@@ -42,13 +43,34 @@ def test_the_plant_fmu_has_the_dbc_s_signals_and_every_parameter(fmus):
     for variable, (message, signal) in zip(by["output"], sent):
         assert variable.name.rpartition(".")[2] == signal
         unit = db.get_message_by_name(message).get_signal_by_name(signal).unit
-        assert variable.unit == ("1" if unit == "-" else unit)
+        assert variable.unit == fmi_unit(unit)
     params = load_params()
     assert len(by["parameter"]) == len(params.provenance) + 5  # the file's values, init.* (4), dt
     named = {v.name: v for v in by["parameter"]}
     assert float(named["vehicle.m"].start) == params.vehicle.m
     assert named["vehicle.m"].unit == "kg" and "paper" in named["vehicle.m"].description
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+
+
+def test_units_have_one_spelling_and_a_base_unit_and_inputs_the_dbc_s_range(fmus):
+    db = load_dbc()
+    for path in fmus.values():
+        md = read_model_description(str(path))
+        used = {v.unit for v in md.modelVariables if v.unit is not None}
+        defined = {u.name: u.baseUnit for u in md.unitDefinitions}
+        assert used == set(defined) and all(base is not None for base in defined.values()), path
+        # one spelling: no two names for the same SI base unit with the same factor and offset
+        keys = [(tuple(getattr(b, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")), b.factor, b.offset)
+                for b in defined.values()]
+        assert len(keys) == len(set(keys)), sorted(defined)
+    inputs = {v.name: v for v in read_model_description(str(fmus["plant"])).modelVariables if v.causality == "input"}
+    for signal in PLANT_INPUTS:
+        found = db.get_message_by_name(signal.message).get_signal_by_name(signal.signal)
+        if inputs[signal.name].type == "Boolean":  # a 1-bit flag (FMI gives a Boolean no range)
+            assert (found.length, found.minimum, found.maximum) == (1, 0, 1), signal
+        else:
+            assert (float(inputs[signal.name].min), float(inputs[signal.name].max)) == (found.minimum, found.maximum)
+    assert [inputs[n].type for n in ("CreepRequest", "BrakeRequest", "P_CL_Cmd")] == ["Boolean", "Boolean", "Real"]
 
 
 def _held(t: float) -> tuple[float, float, float]:
