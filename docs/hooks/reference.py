@@ -1,0 +1,252 @@
+"""MkDocs hook: the reference pages made from the code at build time, so they cannot drift from it.
+
+Each page is read from what the program itself uses: the argparse parsers of every command, the DBC the codec
+loads, the shipped ``params.toml`` with each value's source, the exit codes and error tree of
+``dsg_hil.common.errors``, the fault kinds of ``dsg_hil.protocol.faults``, and the JSON the ``bench/`` scripts
+write. ``mkdocs.yml`` lists this module under ``hooks``; nothing here is copied into the site.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import tomllib
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+__all__ = ["PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "on_files", "params_page"]
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _cell(text: object) -> str:
+    """A Markdown table cell: one line, pipes escaped."""
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
+def _table(head: list[str], rows: list[list[object]]) -> list[str]:
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head),
+            *("| " + " | ".join(_cell(c) for c in row) + " |" for row in rows)]
+
+
+# -- command lines ---------------------------------------------------------------------------------------------
+
+class _Parsed(Exception):
+    """Carries the parser a command's ``_parse_args`` built (raised instead of parsing)."""
+
+    def __init__(self, parser: argparse.ArgumentParser) -> None:
+        super().__init__(parser.prog)
+        self.parser = parser
+
+
+@contextmanager
+def _capturing() -> Iterator[None]:
+    original = argparse.ArgumentParser.parse_args
+
+    def capture(self: argparse.ArgumentParser, *args: Any, **kwargs: Any) -> Any:
+        raise _Parsed(self)
+
+    argparse.ArgumentParser.parse_args = capture  # type: ignore[method-assign,assignment]
+    try:
+        yield
+    finally:
+        argparse.ArgumentParser.parse_args = original  # type: ignore[method-assign]
+
+
+def _parser_of(parse_args: Callable[[list[str] | None], Any]) -> argparse.ArgumentParser:
+    """The parser a command line's ``_parse_args`` builds, as its ``main`` uses it."""
+    with _capturing():
+        try:
+            parse_args([])
+        except _Parsed as parsed:
+            return parsed.parser
+    raise RuntimeError(f"{parse_args} parsed nothing")
+
+
+def parsers() -> dict[str, argparse.ArgumentParser]:
+    """Every command line by how a user types it: ``dsg-hil``'s subcommands, ``ecu-stub``, the identification."""
+    from dsg_hil.cli import COMMANDS
+
+    sub = argparse.ArgumentParser(prog="dsg-hil").add_subparsers()
+    for module, _ in COMMANDS.values():
+        importlib.import_module(f"dsg_hil.cli.{module}").add_subparser(sub)
+    found = {f"dsg-hil {name}": parser for name, parser in sub.choices.items()}
+    found["ecu-stub"] = _parser_of(importlib.import_module("ecu_stub.cli")._parse_args)
+    found["python -m ecu_stub.identify"] = _parser_of(importlib.import_module("ecu_stub.identify")._parse_args)
+    return found
+
+
+def _option_rows(parser: argparse.ArgumentParser) -> list[list[object]]:
+    formatter = parser._get_formatter()
+    rows: list[list[object]] = []
+    for action in parser._actions:
+        if action.help == argparse.SUPPRESS:
+            continue
+        names = ", ".join(action.option_strings) or (action.metavar or action.dest)
+        if action.option_strings and action.nargs != 0:
+            names += f" {formatter._format_args(action, action.dest.upper())}"
+        if isinstance(action, argparse._SubParsersAction):
+            continue
+        rows.append([f"`{names}`", formatter._expand_help(action) if action.help else ""])
+    return rows
+
+
+def cli_page() -> str:
+    """Every command and option, from the parsers the commands run."""
+    from dsg_hil.cli import COMMANDS
+
+    lines = ["# Command lines", "",
+             "Generated from the argparse parsers of `dsg-hil`, `ecu-stub` and `python -m ecu_stub.identify`.",
+             "Every command also takes `--help` and `--debug` (a traceback on errors).", "",
+             *_table(["command", "what it does"],
+                     [[f"[`dsg-hil {name}`](#dsg-hil-{name})", help_] for name, (_, help_) in COMMANDS.items()]),
+             ""]
+    for name, parser in parsers().items():
+        lines += [f"## `{name}` {{#{name.replace(' ', '-').replace('.', '-').replace('-m-', '')}}}", "",
+                  _cell(parser.description or ""), "", "```text", parser.format_usage().strip(), "```", "",
+                  *_table(["option", "meaning"], _option_rows(parser)), ""]
+    return "\n".join(lines)
+
+
+# -- the CAN contract ------------------------------------------------------------------------------------------
+
+def dbc_page() -> str:
+    """Every message and signal of the shipped DBC: IDs, senders, cycle times, units, ranges, protection."""
+    import cantools
+
+    db = cantools.database.load_string((files("dsg_hil") / "data" / "dsg_hil.dbc").read_text(encoding="utf-8"),
+                                       database_format="dbc")
+    lines = ["# DBC messages and signals", "",
+             "Generated from `dbc/dsg_hil.dbc`, the file the codec loads. Classic CAN, 11-bit IDs.",
+             "Each message's `Counter` and `CRC` carry the end-to-end protection ([the CAN contract](can.md)).", "",
+             *_table(["ID", "message", "sender", "cycle", "bytes", "signals"],
+                     [[f"0x{m.frame_id:03X}", f"[{m.name}](#{m.name.lower()})", ", ".join(m.senders),
+                       f"{m.cycle_time} ms" if m.cycle_time else "-", m.length, len(m.signals)]
+                      for m in db.messages]), ""]
+    for m in db.messages:
+        lines += [f"## {m.name} {{#{m.name.lower()}}}", "",
+                  f"ID 0x{m.frame_id:03X}, sent by {', '.join(m.senders)}, every "
+                  f"{m.cycle_time} ms, {m.length} bytes." if m.cycle_time else
+                  f"ID 0x{m.frame_id:03X}, sent by {', '.join(m.senders)}, {m.length} bytes.", ""]
+        if m.comment:
+            lines += [_cell(m.comment), ""]
+        rows: list[list[object]] = []
+        for s in m.signals:
+            values = "; ".join(f"{k} = {v}" for k, v in s.choices.items()) if s.choices else ""
+            rows.append([f"`{s.name}`", f"{s.start}\\|{s.length}", s.scale, s.offset,
+                         f"{s.minimum} .. {s.maximum}", s.unit or "-", " ".join(filter(None, [s.comment, values]))])
+        lines += _table(["signal", "start\\|bits", "scale", "offset", "range", "unit", "meaning"], rows) + [""]
+    return "\n".join(lines)
+
+
+# -- parameters ------------------------------------------------------------------------------------------------
+
+def _entries(table: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, dict[str, Any]]]:
+    for key, value in table.items():
+        if isinstance(value, dict) and "value" in value:
+            yield prefix + key, value
+        elif isinstance(value, dict):
+            yield from _entries(value, f"{prefix}{key}.")
+
+
+def params_page() -> str:
+    """Every model parameter of the shipped ``params.toml``: value, unit, and where it comes from."""
+    data = tomllib.loads((files("dsg_hil") / "data" / "params.toml").read_text(encoding="utf-8"))
+    entries = list(_entries({k: v for k, v in data.items() if k != "meta"}))
+    counts = {s: sum(e["source"] == s for _, e in entries) for s in ("paper", "assumed", "calibrated")}
+    lines = ["# Parameters", "",
+             "Generated from `dsg_hil/data/params.toml`, the file the plant loads. SI units, temperatures in °C.",
+             f"{len(entries)} values: {counts['paper']} from the paper, {counts['assumed']} assumed, "
+             f"{counts['calibrated']} calibrated.",
+             "`dsg-hil params` prints the same table; [Parameters](../how-to/parameters.md) says how to change "
+             "them.", ""]
+    sections: dict[str, list[tuple[str, dict[str, Any]]]] = {}
+    for key, entry in entries:
+        sections.setdefault(key.rsplit(".", 1)[0], []).append((key, entry))
+    for section, items in sections.items():
+        lines += [f"## {section}", "",
+                  *_table(["key", "value", "unit", "source", "where from"],
+                          [[f"`{key}`", entry["value"], entry.get("unit", ""), entry["source"],
+                            entry.get("ref") or entry.get("why") or entry.get("target") or ""]
+                           for key, entry in items]), ""]
+    return "\n".join(lines)
+
+
+# -- exit codes, errors, fault kinds ----------------------------------------------------------------------------
+
+def codes_page() -> str:
+    """Exit codes and the error tree from ``dsg_hil.common.errors``; fault kinds from the fault parser's table."""
+    from dsg_hil.common import errors
+    from dsg_hil.protocol.faults import spec
+
+    codes = sorted((value, name) for name, value in vars(errors).items() if name.startswith("EXIT_"))
+    tree = (errors.__doc__ or "").split("::", 1)[1].split("\n\n", 2)[1]
+    lines = ["# Exit codes, errors and fault kinds", "",
+             "Generated from `dsg_hil.common.errors` and `dsg_hil.protocol.faults`, the tables the programs use.",
+             "", "## Exit codes", "",
+             *_table(["status", "constant"], [[value, f"`{name}`"] for value, name in codes]), "",
+             "## The error tree", "",
+             "Every error dsg-hil and ecu-stub raise on purpose, with its exit status "
+             "(the module in brackets defines it):", "", "```text", tree.rstrip(), "```", "",
+             "## Fault kinds", "",
+             "The kinds `--fault` and a scenario's `[[fault]]` tables accept "
+             f"(signal faults, which target `MESSAGE.Signal`: {', '.join(sorted(spec.SIGNAL_KINDS))}):", "",
+             *_table(["kind", "what happens to the frame"], [[f"`{k}`", v] for k, v in spec.KINDS.items()]), ""]
+    return "\n".join(lines)
+
+
+# -- performance -----------------------------------------------------------------------------------------------
+
+def bench_page() -> str:
+    """The measured figures: every ``bench/results/*.json`` with its date, machine and command."""
+    found = sorted((ROOT / "bench" / "results").glob("*.json"))
+    lines = ["Generated from the JSON files the `bench/` scripts write into `bench/results/`.", ""]
+    if not found:
+        lines += ["No benchmark result is recorded in `bench/results/` yet.",
+                  "Run a script with `--json` and keep its file there to show it here.", ""]
+    for path in found:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        lines += [f"### {path.stem}", "",
+                  *_table(["date", "machine", "command"],
+                          [[data.get("date", "?"), data.get("machine", "?"), f"`{data.get('command', '?')}`"]]), ""]
+        results = data.get("results", {})
+        if isinstance(results, dict):
+            lines += [*_table(["figure", "value"], [[k, v] for k, v in results.items()]), ""]
+    scripts = sorted((ROOT / "bench").glob("*.py"))
+    lines += ["### The scripts", "", *_table(["script", "what it measures"],
+                                          [[f"`bench/{p.name}`", _first_line(p)] for p in scripts]), ""]
+    return "\n".join(lines)
+
+
+def _first_line(path: Path) -> str:
+    import ast
+
+    doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
+    return doc.split("\n\n", 1)[0]
+
+
+PAGES: dict[str, Callable[[], str]] = {
+    "reference/cli.md": cli_page,
+    "reference/dbc.md": dbc_page,
+    "reference/params.md": params_page,
+    "reference/codes.md": codes_page,
+}
+BENCH_MARKER = "<!-- bench-results -->"  # where performance.md shows the recorded benchmark JSON
+
+
+def on_files(files: Any, config: Any) -> Any:
+    """MkDocs event: add the generated pages to the site's files."""
+    from mkdocs.structure.files import File
+
+    for uri, make in PAGES.items():
+        files.append(File.generated(config, uri, content=make()))
+    return files
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
+    """MkDocs event: the recorded benchmark results where a page asks for them."""
+    return markdown.replace(BENCH_MARKER, bench_page()) if BENCH_MARKER in markdown else markdown
