@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import re
 import tomllib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -26,6 +27,11 @@ ROOT = Path(__file__).resolve().parents[2]
 def _cell(text: object) -> str:
     """A Markdown table cell: one line, pipes escaped."""
     return " ".join(str(text).split()).replace("|", "\\|")
+
+
+def _plain(text: object) -> str:
+    """Text from the code shown as it is: brackets escaped (``[-o FILE]`` is no Markdown link)."""
+    return _cell(text).replace("[", "\\[").replace("]", "\\]")
 
 
 def _table(head: list[str], rows: list[list[object]]) -> list[str]:
@@ -91,7 +97,7 @@ def _option_rows(parser: argparse.ArgumentParser) -> list[list[object]]:
             names += f" {formatter._format_args(action, action.dest.upper())}"
         if isinstance(action, argparse._SubParsersAction):
             continue
-        rows.append([f"`{names}`", formatter._expand_help(action) if action.help else ""])
+        rows.append([f"`{names}`", _plain(formatter._expand_help(action)) if action.help else ""])
     return rows
 
 
@@ -106,8 +112,8 @@ def cli_page() -> str:
                      [[f"[`dsg-hil {name}`](#dsg-hil-{name})", help_] for name, (_, help_) in COMMANDS.items()]),
              ""]
     for name, parser in parsers().items():
-        lines += [f"## `{name}` {{#{name.replace(' ', '-').replace('.', '-').replace('-m-', '')}}}", "",
-                  _cell(parser.description or ""), "", "```text", parser.format_usage().strip(), "```", "",
+        lines += [f"## `{name}` {{#{re.sub('[^a-z0-9]+', '-', name).strip('-')}}}", "",
+                  _plain(parser.description or ""), "", "```text", parser.format_usage().strip(), "```", "",
                   *_table(["option", "meaning"], _option_rows(parser)), ""]
     return "\n".join(lines)
 
@@ -133,12 +139,12 @@ def dbc_page() -> str:
                   f"{m.cycle_time} ms, {m.length} bytes." if m.cycle_time else
                   f"ID 0x{m.frame_id:03X}, sent by {', '.join(m.senders)}, {m.length} bytes.", ""]
         if m.comment:
-            lines += [_cell(m.comment), ""]
+            lines += [_plain(m.comment), ""]
         rows: list[list[object]] = []
         for s in m.signals:
             values = "; ".join(f"{k} = {v}" for k, v in s.choices.items()) if s.choices else ""
             rows.append([f"`{s.name}`", f"{s.start}\\|{s.length}", s.scale, s.offset,
-                         f"{s.minimum} .. {s.maximum}", s.unit or "-", " ".join(filter(None, [s.comment, values]))])
+                         f"{s.minimum} .. {s.maximum}", s.unit or "-", _plain(" ".join(filter(None, [s.comment, values])))])
         lines += _table(["signal", "start\\|bits", "scale", "offset", "range", "unit", "meaning"], rows) + [""]
     return "\n".join(lines)
 
@@ -171,7 +177,7 @@ def params_page() -> str:
         lines += [f"## {section}", "",
                   *_table(["key", "value", "unit", "source", "where from"],
                           [[f"`{key}`", entry["value"], entry.get("unit", ""), entry["source"],
-                            entry.get("ref") or entry.get("why") or entry.get("target") or ""]
+                            _plain(entry.get("ref") or entry.get("why") or entry.get("target") or "")]
                            for key, entry in items]), ""]
     return "\n".join(lines)
 
@@ -195,7 +201,7 @@ def codes_page() -> str:
              "## Fault kinds", "",
              "The kinds `--fault` and a scenario's `[[fault]]` tables accept "
              f"(signal faults, which target `MESSAGE.Signal`: {', '.join(sorted(spec.SIGNAL_KINDS))}):", "",
-             *_table(["kind", "what happens to the frame"], [[f"`{k}`", v] for k, v in spec.KINDS.items()]), ""]
+             *_table(["kind", "what happens to the frame"], [[f"`{k}`", _plain(v)] for k, v in spec.KINDS.items()]), ""]
     return "\n".join(lines)
 
 
