@@ -56,7 +56,7 @@ def _capturing() -> Iterator[None]:
     def capture(self: argparse.ArgumentParser, *args: Any, **kwargs: Any) -> Any:
         raise _Parsed(self)
 
-    argparse.ArgumentParser.parse_args = capture  # type: ignore[method-assign,assignment]
+    argparse.ArgumentParser.parse_args = capture  # type: ignore[method-assign]
     try:
         yield
     finally:
@@ -92,7 +92,7 @@ def _option_rows(parser: argparse.ArgumentParser) -> list[list[object]]:
     for action in parser._actions:
         if action.help == argparse.SUPPRESS:
             continue
-        names = ", ".join(action.option_strings) or (action.metavar or action.dest)
+        names = ", ".join(action.option_strings) or str(action.metavar or action.dest)
         if action.option_strings and action.nargs != 0:
             names += f" {formatter._format_args(action, action.dest.upper())}"
         if isinstance(action, argparse._SubParsersAction):
@@ -122,10 +122,9 @@ def cli_page() -> str:
 
 def dbc_page() -> str:
     """Every message and signal of the shipped DBC: IDs, senders, cycle times, units, ranges, protection."""
-    import cantools
+    from dsg_hil.protocol.codec import load_dbc
 
-    db = cantools.database.load_string((files("dsg_hil") / "data" / "dsg_hil.dbc").read_text(encoding="utf-8"),
-                                       database_format="dbc")
+    db = load_dbc()  # the shipped DBC, as the plant and ecu-stub load it
     lines = ["# DBC messages and signals", "",
              "Generated from `dbc/dsg_hil.dbc`, the file the codec loads. Classic CAN, 11-bit IDs.",
              "Each message's `Counter` and `CRC` carry the end-to-end protection ([the CAN contract](can.md)).", "",
@@ -144,7 +143,8 @@ def dbc_page() -> str:
         for s in m.signals:
             values = "; ".join(f"{k} = {v}" for k, v in s.choices.items()) if s.choices else ""
             rows.append([f"`{s.name}`", f"{s.start}\\|{s.length}", s.scale, s.offset,
-                         f"{s.minimum} .. {s.maximum}", s.unit or "-", _plain(" ".join(filter(None, [s.comment, values])))])
+                         f"{s.minimum} .. {s.maximum}", s.unit or "-",
+                         _plain(" ".join(filter(None, [s.comment, values])))])
         lines += _table(["signal", "start\\|bits", "scale", "offset", "range", "unit", "meaning"], rows) + [""]
     return "\n".join(lines)
 

@@ -1,5 +1,5 @@
-"""The contract page (docs/reference/contract.md) names every DBC message and signal with the DBC's ID, sender, cycle time, unit and range, so the page
-cannot drift from the DBC."""
+"""The contract page (docs/reference/contract.md) names every DBC message and signal with the DBC's ID, sender,
+cycle time, unit and range, so the page cannot drift from the DBC."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The summary reference page (docs/reference/summary.md) against the summary itself: the same keys in the same order as a real
-run's ``as_json()``, and every ``stop_reason`` value the code can produce documented."""
+"""The summary reference page (docs/reference/summary.md) against the summary itself: the same keys in the same
+order as a real run's ``as_json()``, and every ``stop_reason`` value the code can produce documented."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The pytest tutorial's plugin example, run as a user would: the block itself, in a pytest of its own (a fresh process),
-against ecu-stub started as a controller process on udp_multicast."""
+"""The pytest tutorial's plugin example, run as a user would: the block itself, in a pytest of its own (a fresh
+process), against ecu-stub started as a controller process on udp_multicast."""
 
 from __future__ import annotations
 
