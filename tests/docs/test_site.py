@@ -76,3 +76,17 @@ def test_the_api_page_renders_the_docstrings(site):
     page = " ".join((site / "reference" / "api" / "index.html").read_text(encoding="utf-8").split())
     words = " ".join((RunConfig.__doc__ or "").split()[:3])  # its docstring's first words, rendered
     assert "open_run" in page and "dsg_hil_run" in page and "run_sweep" in page and words in page, words
+
+
+def test_the_readme_s_links_reach_files_of_the_checkout():
+    """README.md is read on the forge and the package index, outside the site: its relative links are files."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    links = [link for link in re.findall(r"\]\(([^)#]+)[^)]*\)", readme) if "://" not in link]
+    assert len(links) >= 10
+    assert [link for link in links if not (ROOT / link).is_file()] == []
+
+
+def test_no_page_names_an_issue_number():
+    """What users read says what the program does, not which work item changed it."""
+    pages = [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")]
+    assert [str(p.relative_to(ROOT)) for p in pages if re.search(r"\bissues? #?\d", p.read_text(encoding="utf-8"))] == []
