@@ -12,6 +12,7 @@ import argparse
 import importlib
 import json
 import re
+import textwrap
 import tomllib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -190,7 +191,7 @@ def codes_page() -> str:
     from dsg_hil.protocol.faults import spec
 
     codes = sorted((value, name) for name, value in vars(errors).items() if name.startswith("EXIT_"))
-    tree = (errors.__doc__ or "").split("::", 1)[1].split("\n\n", 2)[1]
+    tree = textwrap.dedent((errors.__doc__ or "").split("::", 1)[1].split("\n\nAny other", 1)[0].strip("\n"))
     lines = ["# Exit codes, errors and fault kinds", "",
              "Generated from `dsg_hil.common.errors` and `dsg_hil.protocol.faults`, the tables the programs use.",
              "", "## Exit codes", "",
@@ -198,6 +199,7 @@ def codes_page() -> str:
              "## The error tree", "",
              "Every error dsg-hil and ecu-stub raise on purpose, with its exit status "
              "(the module in brackets defines it):", "", "```text", tree.rstrip(), "```", "",
+             "Any other exception that ends a command is a bug: exit 1.", "",
              "## Fault kinds", "",
              "The kinds `--fault` and a scenario's `[[fault]]` tables accept "
              f"(signal faults, which target `MESSAGE.Signal`: {', '.join(sorted(spec.SIGNAL_KINDS))}):", "",
