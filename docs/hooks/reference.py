@@ -123,6 +123,7 @@ def cli_page() -> str:
 
 def dbc_page() -> str:
     """Every message and signal of the shipped DBC: IDs, senders, cycle times, units, ranges, protection."""
+    from dsg_hil.protocol import e2e
     from dsg_hil.protocol.codec import load_dbc
 
     db = load_dbc()  # the shipped DBC, as the plant and ecu-stub load it
@@ -132,6 +133,13 @@ def dbc_page() -> str:
              *_table(["ID", "message", "sender", "cycle", "bytes", "signals"],
                      [[f"0x{m.frame_id:03X}", f"[{m.name}](#{m.name.lower()})", ", ".join(m.senders),
                        f"{m.cycle_time} ms" if m.cycle_time else "-", m.length, len(m.signals)]
+                      for m in db.messages]), "",
+             "## End-to-end protection", "",
+             # the scheme as the protection module states it (its docstring, rst literals as Markdown code)
+             (e2e.__doc__ or "").replace("``MAX_DELTA``", str(e2e.MAX_DELTA)).replace("``", "`"),
+             "Each message's CRC byte and counter range, as the protection reads them from its signals:", "",
+             *_table(["message", "CRC byte", "counter values"],
+                     [[m.name, (p := e2e.Protection.of(m)).crc_byte, f"0 .. {p.counter_modulus - 1}"]
                       for m in db.messages]), ""]
     for m in db.messages:
         lines += [f"## {m.name} {{#{m.name.lower()}}}", "",

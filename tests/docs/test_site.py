@@ -54,6 +54,7 @@ def test_every_dbc_signal_and_parameter_is_on_its_page(site):
     dbc = (site / "reference" / "dbc" / "index.html").read_text(encoding="utf-8")
     for message in cantools.database.load_file(str(ROOT / "dbc" / "dsg_hil.dbc")).messages:
         assert f"0x{message.frame_id:03X}" in dbc and all(s.name in dbc for s in message.signals), message.name
+    assert "End-to-end protection" in dbc and "CRC-8 SAE J1850" in dbc  # the protection module's own statement
     params = (site / "reference" / "params" / "index.html").read_text(encoding="utf-8")
     data = tomllib.loads((ROOT / "dsg_hil" / "data" / "params.toml").read_text(encoding="utf-8"))
     assert f"{data['vehicle']['m']['value']}" in params and "vehicle.m" in params
