@@ -121,3 +121,16 @@ def test_the_fault_guide_s_python_block_gives_the_counts_it_shows(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     faults = json.loads(done.stdout.strip().splitlines()[-1])
     assert faults["seed"] == 0 and faults["injected"] == {shown.group(1): int(shown.group(2))}
+
+
+def test_every_toml_block_of_fault_tables_is_a_fault_the_dbc_takes():
+    """A ``[[fault]]`` table shown in the docs is read as a scenario's are, and checked against the shipped DBC."""
+    import tomllib
+
+    from dsg_hil.protocol.codec import load_dbc
+    from dsg_hil.protocol.faults.spec import check_faults, fault_from_mapping
+
+    tables = [table for _, block in blocks("toml") for table in tomllib.loads(block).get("fault", [])]
+    assert tables
+    by_side = check_faults([fault_from_mapping(table) for table in tables], load_dbc())
+    assert sum(map(len, by_side.values())) == len(tables)
