@@ -20,7 +20,8 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "on_files", "params_page"]
+__all__ = ["PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "nested_lists", "on_files", "on_page_markdown",
+           "params_page"]
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -263,6 +264,32 @@ def on_files(files: Any, config: Any) -> Any:
     return files
 
 
+def nested_lists(markdown: str) -> str:
+    """Lists written as GitHub reads them, made what Python-Markdown reads: a blank line before a list that
+    follows a paragraph, and nested items indented four spaces a level rather than two (outside code blocks;
+    continuation lines stay lazy continuations)."""
+    out: list[str] = []
+    fenced = in_list = False
+    for line in markdown.split("\n"):
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+        if fenced or not line.strip():
+            out.append(line)
+            continue
+        if re.match(r"^(?:[-*]|\d+\.) ", line):
+            if not in_list and out and out[-1].strip():
+                out.append("")
+            in_list = True
+        elif not line.startswith(" ") and out and not out[-1].strip():
+            in_list = False
+        marker = re.match(r"^((?:  )+)(?:[-*]|\d+\.) ", line)
+        if marker and len(marker.group(1)) % 4:
+            line = marker.group(1) * 2 + line[len(marker.group(1)):]
+        out.append(line)
+    return "\n".join(out)
+
+
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
-    """MkDocs event: the recorded benchmark results where a page asks for them."""
+    """MkDocs event: nested lists as GitHub shows them; the recorded benchmark results where a page asks."""
+    markdown = nested_lists(markdown)
     return markdown.replace(BENCH_MARKER, bench_page()) if BENCH_MARKER in markdown else markdown

@@ -92,3 +92,11 @@ def test_no_page_names_an_issue_number():
     pages = [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")]
     named = [p for p in pages if re.search(r"\bissues? #?\d", p.read_text(encoding="utf-8"), re.IGNORECASE)]
     assert [str(p.relative_to(ROOT)) for p in named] == []
+
+
+def test_lists_written_for_github_are_lists_on_the_site():
+    """A list right after a paragraph gets its blank line, nested items four spaces; code blocks stay as they are."""
+    fix = hook().nested_lists
+    assert fix("Text:\n- a\n  - b\n  lazy\n- c") == "Text:\n\n- a\n    - b\n  lazy\n- c"
+    assert fix("```\nx\n  - y\n```") == "```\nx\n  - y\n```"
+    assert fix("- a\n\n- b") == "- a\n\n- b"
