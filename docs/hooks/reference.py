@@ -224,15 +224,17 @@ def bench_page() -> str:
     lines = ["Generated from the JSON files the `bench/` scripts write into `bench/results/`.", ""]
     if not found:
         lines += ["No benchmark result is recorded in `bench/results/` yet.",
-                  "Run a script with `--json` and keep its file there to show it here.", ""]
+                  "To show one here, keep a script's `--json` output there as `NAME.json`: an object with `date`, "
+                  "`machine`, `command` and `results` (the script's JSON).", ""]
     for path in found:
         data = json.loads(path.read_text(encoding="utf-8"))
         lines += [f"### {path.stem}", "",
                   *_table(["date", "machine", "command"],
                           [[data.get("date", "?"), data.get("machine", "?"), f"`{data.get('command', '?')}`"]]), ""]
-        results = data.get("results", {})
+        results = data.get("results", {k: v for k, v in data.items() if k not in ("date", "machine", "command")})
         if isinstance(results, dict):
-            lines += [*_table(["figure", "value"], [[k, v] for k, v in results.items()]), ""]
+            lines += [*_table(["figure", "value"], [[k, json.dumps(v) if isinstance(v, dict | list) else v]
+                                                    for k, v in results.items()]), ""]
     scripts = sorted((ROOT / "bench").glob("*.py"))
     lines += ["### The scripts", "", *_table(["script", "what it measures"],
                                           [[f"`bench/{p.name}`", _first_line(p)] for p in scripts]), ""]
