@@ -20,8 +20,8 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "nested_lists", "on_files", "on_page_markdown",
-           "params_page"]
+__all__ = ["PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "nested_lists", "on_files", "on_page_content",
+           "on_page_markdown", "params_page", "plain_roles"]
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -289,6 +289,19 @@ def nested_lists(markdown: str) -> str:
             line = marker.group(1) * 2 + line[len(marker.group(1)):]
         out.append(line)
     return "\n".join(out)
+
+
+ROLE = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):<code>(~?)([\w.]+)</code>")
+
+
+def plain_roles(html: str) -> str:
+    """The docstrings' Sphinx roles (``:class:`~a.b.C```) as the code they name (``C``; the full path without ~)."""
+    return ROLE.sub(lambda m: f"<code>{m.group(2).rsplit('.', 1)[-1] if m.group(1) else m.group(2)}</code>", html)
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
+    """MkDocs event: the API page's docstrings without Sphinx role markup."""
+    return plain_roles(html)
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:

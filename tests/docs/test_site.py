@@ -77,6 +77,7 @@ def test_the_api_page_renders_the_docstrings(site):
     page = " ".join((site / "reference" / "api" / "index.html").read_text(encoding="utf-8").split())
     words = " ".join((RunConfig.__doc__ or "").split()[:3])  # its docstring's first words, rendered
     assert "open_run" in page and "dsg_hil_run" in page and "run_sweep" in page and words in page, words
+    assert not re.search(r":(class|func|meth|mod|data):<code>", page)  # roles read as code
 
 
 def test_the_readme_s_links_reach_files_of_the_checkout():
@@ -100,3 +101,9 @@ def test_lists_written_for_github_are_lists_on_the_site():
     assert fix("Text:\n- a\n  - b\n  lazy\n- c") == "Text:\n\n- a\n    - b\n  lazy\n- c"
     assert fix("```\nx\n  - y\n```") == "```\nx\n  - y\n```"
     assert fix("- a\n\n- b") == "- a\n\n- b"
+
+
+def test_sphinx_roles_in_docstrings_read_as_code():
+    fix = hook().plain_roles
+    assert fix(":class:<code>~dsg_hil.sim.scenario.Scenario</code>") == "<code>Scenario</code>"
+    assert fix(":mod:<code>dsg_hil.protocol.local</code>") == "<code>dsg_hil.protocol.local</code>"
