@@ -107,3 +107,19 @@ def test_sphinx_roles_in_docstrings_read_as_code():
     fix = hook().plain_roles
     assert fix(":class:<code>~dsg_hil.sim.scenario.Scenario</code>") == "<code>Scenario</code>"
     assert fix(":mod:<code>dsg_hil.protocol.local</code>") == "<code>dsg_hil.protocol.local</code>"
+
+
+def test_the_readme_is_a_landing_page_with_the_fixed_commands():
+    """At most 150 lines; Quick start's first sh block the two commands CI runs; the editable install only under
+    Contributing, as its one command."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+
+    def first_sh(section: str) -> list[str]:
+        body = readme.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+        return body.split("```sh\n", 1)[1].split("```", 1)[0].splitlines()
+
+    assert len(readme.splitlines()) <= 150
+    assert first_sh("Quick start") == ["pip install . && dsg-hil run",
+                                       "pip install '.[dev]' && pytest && dsg-hil vcan --install --load 4"]
+    assert first_sh("Contributing") == ["pip install -e '.[dev]' && ruff check . && mypy && pytest"]
+    assert readme.count(" -e ") == 1
