@@ -14,7 +14,7 @@ from dsg_hil.protocol.faults import check_faults, parse_fault
 from dsg_hil.sim.scenario import load_scenario
 from ecu_stub.cli import main as ecu_stub_main
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+README = Path(__file__).resolve().parents[2] / "docs" / "how-to" / "interfaces.md"  # a plant's first lines
 
 
 def _help(entry, argv: list[str], capsys) -> str:
@@ -70,6 +70,6 @@ def test_params_mention_no_internal_issue(capsys):
 
 
 def test_readme_plant_line_shows_the_default_duration():
-    """The README's example of 'dsg-hil plant' prints the shipped scenario's duration."""
+    """The interfaces guide's example of 'dsg-hil plant' prints the shipped scenario's duration."""
     shown = re.findall(r"^plant: .*?, (\d+(?:\.\d+)?) s, ", README.read_text(encoding="utf-8"), re.MULTILINE)
     assert shown and all(float(s) == load_scenario().duration_s for s in shown)

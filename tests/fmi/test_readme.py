@@ -1,4 +1,4 @@
-"""The README's FMPy snippet runs as printed (in a directory and a process of its own: it instantiates the FMU)."""
+"""The FMI guide's FMPy snippet runs as printed (in a directory and a process of its own: it instantiates the FMU)."""
 
 from __future__ import annotations
 
@@ -6,17 +6,17 @@ import subprocess
 import sys
 from pathlib import Path
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "how-to" / "fmi.md"
 
 
 def fmpy_snippet() -> str:
-    """The README's python block under '## FMI' that calls simulate_fmu."""
-    section = README.read_text(encoding="utf-8").split("\n## FMI", 1)[1].split("\n## ", 1)[0]
+    """The FMI guide's python block that calls simulate_fmu."""
+    section = PAGE.read_text(encoding="utf-8")
     blocks = [block.split("```", 1)[0] for block in section.split("```python\n")[1:]]
     return next(block for block in blocks if "simulate_fmu(" in block)
 
 
-def test_the_readme_s_fmpy_snippet_runs(tmp_path):
+def test_the_guide_s_fmpy_snippet_runs(tmp_path):
     import os
 
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}

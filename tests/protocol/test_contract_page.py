@@ -1,5 +1,5 @@
-"""CONTRACT.md names every DBC message and signal with the DBC's ID, sender, cycle time, unit and range, so the page
-cannot drift from the DBC."""
+"""The contract page (docs/reference/contract.md) names every DBC message and signal with the DBC's ID, sender,
+cycle time, unit and range, so the page cannot drift from the DBC."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from dsg_hil.protocol import load_dbc
 
-PAGE = Path(__file__).resolve().parents[2] / "CONTRACT.md"
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "reference" / "contract.md"
 HEADING = re.compile(r"^### 0x([0-9A-F]{3}) (\w+): (\w+) → (\w+), every (\d+) ms$", re.M)
 ROW = re.compile(r"^\| `(\w+)` \| ([^|]*) \| (\S+) … (\S+) \| (.+) \|$", re.M)
 
@@ -18,12 +18,12 @@ ROW = re.compile(r"^\| `(\w+)` \| ([^|]*) \| (\S+) … (\S+) \| (.+) \|$", re.M)
 def sections() -> dict[str, tuple[tuple[str, ...], str]]:
     text = PAGE.read_text(encoding="utf-8")
     found = list(HEADING.finditer(text))
-    assert found, "CONTRACT.md: no message headings"
+    assert found, "contract page: no message headings"
     ends = [m.start() for m in found[1:]] + [text.index("\n## ", found[-1].end())]
     return {m.group(2): (m.groups(), text[m.end():end]) for m, end in zip(found, ends, strict=True)}
 
 
-@pytest.mark.skipif(not PAGE.exists(), reason="CONTRACT.md is in the checkout and the sdist, not in the wheel")
+@pytest.mark.skipif(not PAGE.exists(), reason="the contract page is in the checkout and the sdist, not in the wheel")
 def test_the_page_describes_every_message_and_signal_as_the_dbc_defines_it():
     db, pages = load_dbc(), sections()
     assert sorted(pages) == sorted(m.name for m in db.messages)

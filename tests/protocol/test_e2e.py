@@ -108,16 +108,16 @@ def test_a_repeated_counter_is_refused_even_after_a_timeout():
     assert rx.receive(frozen, frozen.timestamp) is None and rx.rejected["counter"] == 1
 
 
-def test_the_readme_shows_the_codecs_worked_examples():
-    """The contract's worked example frames in README.md are what the codec encodes (skipped without a checkout:
-    an installed package has no README)."""
+def test_the_contract_page_shows_the_codecs_worked_examples():
+    """The contract's worked example frames on the CAN contract page are what the codec encodes (skipped without a
+    checkout: an installed package has no docs/)."""
     from pathlib import Path
 
     from dsg_hil.protocol.examples import example_frames
 
-    readme = Path(__file__).resolve().parents[2] / "README.md"
+    readme = Path(__file__).resolve().parents[2] / "docs" / "reference" / "can.md"
     if not readme.exists():
-        pytest.skip("no README.md beside the tests (installed package)")
+        pytest.skip("no docs/ beside the tests (installed package)")
     text = readme.read_text(encoding="utf-8")
     db = load_dbc()
     frames = example_frames(db)

@@ -1,5 +1,5 @@
-"""The README's "The summary, key by key" against the summary itself: the same keys in the same order as a real
-run's ``as_json()``, and every ``stop_reason`` value the code can produce documented."""
+"""The summary reference page (docs/reference/summary.md) against the summary itself: the same keys in the same
+order as a real run's ``as_json()``, and every ``stop_reason`` value the code can produce documented."""
 
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ from dsg_hil.sim.run import RunConfig, open_run
 
 from ..source import definition
 
-README = Path(__file__).resolve().parents[2] / "README.md"
-HEADING = "### The summary, key by key"
+README = Path(__file__).resolve().parents[2] / "docs" / "reference" / "summary.md"
+HEADING = "# The summary, key by key"
 
 
 def _section() -> str:
@@ -79,7 +79,7 @@ def test_every_stop_reason_is_documented():
 
 
 def test_the_failure_metrics_follow_their_rows_in_the_table():
-    """The keys no average can hide a failure in, on a hand-built record: each as its README row defines it."""
+    """The keys no average can hide a failure in, on a hand-built record: each as its row on that page defines it."""
     from .test_summary import feed, out
 
     rows = {_code(row[0]): row[2] for row in _tables(_section())["key"]}

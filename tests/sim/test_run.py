@@ -123,11 +123,10 @@ def test_default_tcu_is_the_bundled_ecu_stub():
     assert RunConfig().tcu == ECU_STUB
 
 
-def test_the_readme_example_runs(tmp_path):
-    readme = Path(__file__).resolve().parents[2] / "README.md"
-    section = readme.read_text(encoding="utf-8").split("### A run from Python: `open_run`", 1)[1]
-    block = re.search(r"```python\n(.*?)```", section, re.S)
-    assert block, "README: no python block under 'A run from Python'"
+def test_the_tutorial_example_runs(tmp_path):
+    page = Path(__file__).resolve().parents[2] / "docs" / "tutorials" / "python.md"
+    block = re.search(r"```python\n(.*?)```", page.read_text(encoding="utf-8"), re.S)
+    assert block, "docs/tutorials/python.md: no python block"
     proc = subprocess.run([sys.executable, "-c", block.group(1)], cwd=tmp_path, capture_output=True, text=True,
                           timeout=600)
     assert proc.returncode == 0, proc.stderr

@@ -1,5 +1,5 @@
-"""The README's plugin example, run as a user would: the block itself, in a pytest of its own (a fresh process),
-against ecu-stub started as a controller process on udp_multicast."""
+"""The pytest tutorial's plugin example, run as a user would: the block itself, in a pytest of its own (a fresh
+process), against ecu-stub started as a controller process on udp_multicast."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "tutorials" / "pytest.md"
 # a checkout on PYTHONPATH has no entry point: register the plugin as tests/conftest.py does
 CONFTEST = '''
 def pytest_configure(config):
@@ -21,9 +21,8 @@ def pytest_configure(config):
 
 
 def readme_example() -> str:
-    section = README.read_text(encoding="utf-8").split("## Testing your controller with pytest", 1)[1]
-    block = re.search(r"```python\n(.*?)```", section, re.S)
-    assert block, "README: no python block in 'Testing your controller with pytest'"
+    block = re.search(r"```python\n(.*?)```", PAGE.read_text(encoding="utf-8"), re.S)
+    assert block, "docs/tutorials/pytest.md: no python block"
     return block.group(1)
 
 

@@ -1,0 +1,310 @@
+"""MkDocs hook: the reference pages made from the code at build time, so they cannot drift from it.
+
+Each page is read from what the program itself uses: the argparse parsers of every command, the DBC the codec
+loads, the shipped ``params.toml`` with each value's source, the exit codes and error tree of
+``dsg_hil.common.errors``, the fault kinds of ``dsg_hil.protocol.faults``, and the JSON the ``bench/`` scripts
+write. ``mkdocs.yml`` lists this module under ``hooks``; nothing here is copied into the site.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import re
+import textwrap
+import tomllib
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+__all__ = ["PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "nested_lists", "on_files", "on_page_content",
+           "on_page_markdown", "params_page", "plain_roles"]
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _cell(text: object) -> str:
+    """A Markdown table cell: one line, pipes escaped."""
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
+def _plain(text: object) -> str:
+    """Text from the code shown as it is: brackets escaped (``[-o FILE]`` is no Markdown link)."""
+    return _cell(text).replace("[", "\\[").replace("]", "\\]")
+
+
+def _table(head: list[str], rows: list[list[object]]) -> list[str]:
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head),
+            *("| " + " | ".join(_cell(c) for c in row) + " |" for row in rows)]
+
+
+# -- command lines ---------------------------------------------------------------------------------------------
+
+class _Parsed(Exception):
+    """Carries the parser a command's ``_parse_args`` built (raised instead of parsing)."""
+
+    def __init__(self, parser: argparse.ArgumentParser) -> None:
+        super().__init__(parser.prog)
+        self.parser = parser
+
+
+@contextmanager
+def _capturing() -> Iterator[None]:
+    original = argparse.ArgumentParser.parse_args
+
+    def capture(self: argparse.ArgumentParser, *args: Any, **kwargs: Any) -> Any:
+        raise _Parsed(self)
+
+    argparse.ArgumentParser.parse_args = capture  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        argparse.ArgumentParser.parse_args = original  # type: ignore[method-assign]
+
+
+def _parser_of(parse_args: Callable[[list[str] | None], Any]) -> argparse.ArgumentParser:
+    """The parser a command line's ``_parse_args`` builds, as its ``main`` uses it."""
+    with _capturing():
+        try:
+            parse_args([])
+        except _Parsed as parsed:
+            return parsed.parser
+    raise RuntimeError(f"{parse_args} parsed nothing")
+
+
+def parsers() -> dict[str, argparse.ArgumentParser]:
+    """Every command line by how a user types it: ``dsg-hil``'s subcommands, ``ecu-stub``, the identification."""
+    from dsg_hil.cli import COMMANDS
+
+    sub = argparse.ArgumentParser(prog="dsg-hil").add_subparsers()
+    for module, _ in COMMANDS.values():
+        importlib.import_module(f"dsg_hil.cli.{module}").add_subparser(sub)
+    found = {f"dsg-hil {name}": parser for name, parser in sub.choices.items()}
+    found["ecu-stub"] = _parser_of(importlib.import_module("ecu_stub.cli")._parse_args)
+    found["python -m ecu_stub.identify"] = _parser_of(importlib.import_module("ecu_stub.identify")._parse_args)
+    return found
+
+
+def _option_rows(parser: argparse.ArgumentParser) -> list[list[object]]:
+    formatter = parser._get_formatter()
+    rows: list[list[object]] = []
+    for action in parser._actions:
+        if action.help == argparse.SUPPRESS:
+            continue
+        names = ", ".join(action.option_strings) or str(action.metavar or action.dest)
+        if action.option_strings and action.nargs != 0:
+            names += f" {formatter._format_args(action, action.dest.upper())}"
+        if isinstance(action, argparse._SubParsersAction):
+            continue
+        rows.append([f"`{names}`", _plain(formatter._expand_help(action)) if action.help else ""])
+    return rows
+
+
+def cli_page() -> str:
+    """Every command and option, from the parsers the commands run."""
+    from dsg_hil.cli import COMMANDS
+
+    lines = ["# Command lines", "",
+             "Generated from the argparse parsers of `dsg-hil`, `ecu-stub` and `python -m ecu_stub.identify`.",
+             "Every command also takes `--help` and `--debug` (a traceback on errors).", "",
+             *_table(["command", "what it does"],
+                     [[f"[`dsg-hil {name}`](#dsg-hil-{name})", help_] for name, (_, help_) in COMMANDS.items()]),
+             ""]
+    for name, parser in parsers().items():
+        lines += [f"## `{name}` {{#{re.sub('[^a-z0-9]+', '-', name).strip('-')}}}", "",
+                  _plain(parser.description or ""), "", "```text", parser.format_usage().strip(), "```", "",
+                  *_table(["option", "meaning"], _option_rows(parser)), ""]
+    return "\n".join(lines)
+
+
+# -- the CAN contract ------------------------------------------------------------------------------------------
+
+def dbc_page() -> str:
+    """Every message and signal of the shipped DBC: IDs, senders, cycle times, units, ranges, protection."""
+    from dsg_hil.protocol import e2e
+    from dsg_hil.protocol.codec import load_dbc
+
+    db = load_dbc()  # the shipped DBC, as the plant and ecu-stub load it
+    lines = ["# DBC messages and signals", "",
+             "Generated from `dbc/dsg_hil.dbc`, the file the codec loads. Classic CAN, 11-bit IDs.",
+             "Each message's `Counter` and `CRC` carry the end-to-end protection ([the CAN contract](can.md)).", "",
+             *_table(["ID", "message", "sender", "cycle", "bytes", "signals"],
+                     [[f"0x{m.frame_id:03X}", f"[{m.name}](#{m.name.lower()})", ", ".join(m.senders),
+                       f"{m.cycle_time} ms" if m.cycle_time else "-", m.length, len(m.signals)]
+                      for m in db.messages]), "",
+             "## End-to-end protection", "",
+             # the scheme as the protection module states it (its docstring, rst literals as Markdown code)
+             (e2e.__doc__ or "").replace("``MAX_DELTA``", str(e2e.MAX_DELTA)).replace("``", "`"),
+             "Each message's CRC byte and counter range, as the protection reads them from its signals:", "",
+             *_table(["message", "CRC byte", "counter values"],
+                     [[m.name, (p := e2e.Protection.of(m)).crc_byte, f"0 .. {p.counter_modulus - 1}"]
+                      for m in db.messages]), ""]
+    for m in db.messages:
+        lines += [f"## {m.name} {{#{m.name.lower()}}}", "",
+                  f"ID 0x{m.frame_id:03X}, sent by {', '.join(m.senders)}, every "
+                  f"{m.cycle_time} ms, {m.length} bytes." if m.cycle_time else
+                  f"ID 0x{m.frame_id:03X}, sent by {', '.join(m.senders)}, {m.length} bytes.", ""]
+        if m.comment:
+            lines += [_plain(m.comment), ""]
+        rows: list[list[object]] = []
+        for s in m.signals:
+            values = "; ".join(f"{k} = {v}" for k, v in s.choices.items()) if s.choices else ""
+            rows.append([f"`{s.name}`", f"{s.start}\\|{s.length}", s.scale, s.offset,
+                         f"{s.minimum} .. {s.maximum}", s.unit or "-",
+                         _plain(" ".join(filter(None, [s.comment, values])))])
+        lines += _table(["signal", "start\\|bits", "scale", "offset", "range", "unit", "meaning"], rows) + [""]
+    return "\n".join(lines)
+
+
+# -- parameters ------------------------------------------------------------------------------------------------
+
+def _entries(table: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, dict[str, Any]]]:
+    for key, value in table.items():
+        if isinstance(value, dict) and "value" in value:
+            yield prefix + key, value
+        elif isinstance(value, dict):
+            yield from _entries(value, f"{prefix}{key}.")
+
+
+def params_page() -> str:
+    """Every model parameter of the shipped ``params.toml``: value, unit, and where it comes from."""
+    data = tomllib.loads((files("dsg_hil") / "data" / "params.toml").read_text(encoding="utf-8"))
+    entries = list(_entries({k: v for k, v in data.items() if k != "meta"}))
+    counts = {s: sum(e["source"] == s for _, e in entries) for s in ("paper", "assumed", "calibrated")}
+    lines = ["# Parameters", "",
+             "Generated from `dsg_hil/data/params.toml`, the file the plant loads. SI units, temperatures in °C.",
+             f"{len(entries)} values: {counts['paper']} from the paper, {counts['assumed']} assumed, "
+             f"{counts['calibrated']} calibrated.",
+             "`dsg-hil params` prints the same table; [Parameters](../how-to/parameters.md) says how to change "
+             "them.", ""]
+    sections: dict[str, list[tuple[str, dict[str, Any]]]] = {}
+    for key, entry in entries:
+        sections.setdefault(key.rsplit(".", 1)[0], []).append((key, entry))
+    for section, items in sections.items():
+        lines += [f"## {section}", "",
+                  *_table(["key", "value", "unit", "source", "where from"],
+                          [[f"`{key}`", entry["value"], entry.get("unit", ""), entry["source"],
+                            _plain(entry.get("ref") or entry.get("why") or entry.get("target") or "")]
+                           for key, entry in items]), ""]
+    return "\n".join(lines)
+
+
+# -- exit codes, errors, fault kinds ----------------------------------------------------------------------------
+
+def codes_page() -> str:
+    """Exit codes and the error tree from ``dsg_hil.common.errors``; fault kinds from the fault parser's table."""
+    from dsg_hil.common import errors
+    from dsg_hil.protocol.faults import spec
+
+    codes = sorted((value, name) for name, value in vars(errors).items() if name.startswith("EXIT_"))
+    tree = textwrap.dedent((errors.__doc__ or "").split("::", 1)[1].split("\n\nAny other", 1)[0].strip("\n"))
+    lines = ["# Exit codes, errors and fault kinds", "",
+             "Generated from `dsg_hil.common.errors` and `dsg_hil.protocol.faults`, the tables the programs use.",
+             "", "## Exit codes", "",
+             *_table(["status", "constant"], [[value, f"`{name}`"] for value, name in codes]), "",
+             "## The error tree", "",
+             "Every error dsg-hil and ecu-stub raise on purpose, with its exit status "
+             "(the module in brackets defines it):", "", "```text", tree.rstrip(), "```", "",
+             "Any other exception that ends a command is a bug: exit 1.", "",
+             "## Fault kinds", "",
+             "The kinds `--fault` and a scenario's `[[fault]]` tables accept "
+             f"(signal faults, which target `MESSAGE.Signal`: {', '.join(sorted(spec.SIGNAL_KINDS))}):", "",
+             *_table(["kind", "what happens to the frame"], [[f"`{k}`", _plain(v)] for k, v in spec.KINDS.items()]), ""]
+    return "\n".join(lines)
+
+
+# -- performance -----------------------------------------------------------------------------------------------
+
+def bench_page() -> str:
+    """The measured figures: every ``bench/results/*.json`` with its date, machine and command."""
+    found = sorted((ROOT / "bench" / "results").glob("*.json"))
+    lines = ["Generated from the JSON files the `bench/` scripts write into `bench/results/`.", ""]
+    if not found:
+        lines += ["No benchmark result is recorded in `bench/results/` yet.",
+                  "To show one here, keep a script's `--json` output there as `NAME.json`: an object with `date`, "
+                  "`machine`, `command` and `results` (the script's JSON).", ""]
+    for path in found:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        lines += [f"### {path.stem}", "",
+                  *_table(["date", "machine", "command"],
+                          [[data.get("date", "?"), data.get("machine", "?"), f"`{data.get('command', '?')}`"]]), ""]
+        results = data.get("results", {k: v for k, v in data.items() if k not in ("date", "machine", "command")})
+        if isinstance(results, dict):
+            lines += [*_table(["figure", "value"], [[k, json.dumps(v) if isinstance(v, dict | list) else v]
+                                                    for k, v in results.items()]), ""]
+    scripts = sorted((ROOT / "bench").glob("*.py"))
+    lines += ["### The scripts", "", *_table(["script", "what it measures"],
+                                          [[f"`bench/{p.name}`", _first_line(p)] for p in scripts]), ""]
+    return "\n".join(lines)
+
+
+def _first_line(path: Path) -> str:
+    import ast
+
+    doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
+    return doc.split("\n\n", 1)[0]
+
+
+PAGES: dict[str, Callable[[], str]] = {
+    "reference/cli.md": cli_page,
+    "reference/dbc.md": dbc_page,
+    "reference/params.md": params_page,
+    "reference/codes.md": codes_page,
+}
+BENCH_MARKER = "<!-- bench-results -->"  # where performance.md shows the recorded benchmark JSON
+
+
+def on_files(files: Any, config: Any) -> Any:
+    """MkDocs event: add the generated pages to the site's files."""
+    from mkdocs.structure.files import File
+
+    for uri, make in PAGES.items():
+        files.append(File.generated(config, uri, content=make()))
+    return files
+
+
+def nested_lists(markdown: str) -> str:
+    """Lists written as GitHub reads them, made what Python-Markdown reads: a blank line before a list that
+    follows a paragraph, and nested items indented four spaces a level rather than two (outside code blocks;
+    continuation lines stay lazy continuations)."""
+    out: list[str] = []
+    fenced = in_list = False
+    for line in markdown.split("\n"):
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+        if fenced or not line.strip():
+            out.append(line)
+            continue
+        if re.match(r"^(?:[-*]|\d+\.) ", line):
+            if not in_list and out and out[-1].strip():
+                out.append("")
+            in_list = True
+        elif not line.startswith(" ") and out and not out[-1].strip():
+            in_list = False
+        marker = re.match(r"^((?:  )+)(?:[-*]|\d+\.) ", line)
+        if marker and len(marker.group(1)) % 4:
+            line = marker.group(1) * 2 + line[len(marker.group(1)):]
+        out.append(line)
+    return "\n".join(out)
+
+
+ROLE = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):<code>(~?)([\w.]+)</code>")
+
+
+def plain_roles(html: str) -> str:
+    """The docstrings' Sphinx roles (``:class:`~a.b.C```) as the code they name (``C``; the full path without ~)."""
+    return ROLE.sub(lambda m: f"<code>{m.group(2).rsplit('.', 1)[-1] if m.group(1) else m.group(2)}</code>", html)
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
+    """MkDocs event: the API page's docstrings without Sphinx role markup."""
+    return plain_roles(html)
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
+    """MkDocs event: nested lists as GitHub shows them; the recorded benchmark results where a page asks."""
+    markdown = nested_lists(markdown)
+    return markdown.replace(BENCH_MARKER, bench_page()) if BENCH_MARKER in markdown else markdown

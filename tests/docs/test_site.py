@@ -1,0 +1,125 @@
+"""The documentation site builds offline with warnings as errors (mkdocs build --strict): a broken link or anchor,
+a page missing from the navigation, an API object mkdocstrings cannot find, or a reference page the hook cannot make
+from the code fails it. Skipped without a checkout (an installed package has no docs/)."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+pytestmark = pytest.mark.skipif(not (ROOT / "mkdocs.yml").exists(), reason="the docs are in the checkout only")
+
+
+def hook() -> ModuleType:
+    """The site's hook module (docs/ is no package: loaded from its file, as MkDocs does)."""
+    spec = importlib.util.spec_from_file_location("docs_reference_hook", ROOT / "docs" / "hooks" / "reference.py")
+    assert spec and spec.loader
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("site")
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(out)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})  # Material's notice, not a warning
+    assert done.returncode == 0, done.stderr[-4000:]
+    return out
+
+
+def test_every_command_and_option_is_on_the_cli_page(site):
+    page = (site / "reference" / "cli" / "index.html").read_text(encoding="utf-8")
+    for name, parser in hook().parsers().items():
+        assert name in page, name
+        for action in parser._actions:
+            for option in action.option_strings:
+                assert option in page, f"{name} {option}"
+
+
+def test_every_dbc_signal_and_parameter_is_on_its_page(site):
+    import tomllib
+
+    import cantools
+
+    dbc = (site / "reference" / "dbc" / "index.html").read_text(encoding="utf-8")
+    for message in cantools.database.load_file(str(ROOT / "dbc" / "dsg_hil.dbc")).messages:
+        assert f"0x{message.frame_id:03X}" in dbc and all(s.name in dbc for s in message.signals), message.name
+    assert "End-to-end protection" in dbc and "CRC-8 SAE J1850" in dbc  # the protection module's own statement
+    params = (site / "reference" / "params" / "index.html").read_text(encoding="utf-8")
+    data = tomllib.loads((ROOT / "dsg_hil" / "data" / "params.toml").read_text(encoding="utf-8"))
+    assert f"{data['vehicle']['m']['value']}" in params and "vehicle.m" in params
+
+
+def test_the_codes_page_has_every_exit_code_and_fault_kind(site):
+    from dsg_hil.common import errors
+    from dsg_hil.protocol.faults import KINDS
+
+    page = (site / "reference" / "codes" / "index.html").read_text(encoding="utf-8")
+    for name, value in vars(errors).items():
+        if name.startswith("EXIT_"):
+            assert re.search(rf"<td>{value}</td>\s*<td><code>{name}</code>", page), name
+    assert all(f"<code>{kind}</code>" in page for kind in KINDS)
+
+
+def test_the_api_page_renders_the_docstrings(site):
+    from dsg_hil.sim.run import RunConfig
+
+    page = " ".join((site / "reference" / "api" / "index.html").read_text(encoding="utf-8").split())
+    words = " ".join((RunConfig.__doc__ or "").split()[:3])  # its docstring's first words, rendered
+    assert "open_run" in page and "dsg_hil_run" in page and "run_sweep" in page and words in page, words
+    assert not re.search(r":(class|func|meth|mod|data):<code>", page)  # roles read as code
+
+
+def test_the_readme_s_links_reach_files_of_the_checkout():
+    """README.md is read on the forge and the package index, outside the site: its relative links are files."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    links = [link for link in re.findall(r"\]\(([^)#]+)[^)]*\)", readme) if "://" not in link]
+    assert len(links) >= 10
+    assert [link for link in links if not (ROOT / link).is_file()] == []
+
+
+def test_no_page_names_an_issue_number():
+    """What users read says what the program does, not which work item changed it."""
+    pages = [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")]
+    named = [p for p in pages if re.search(r"\bissues? #?\d", p.read_text(encoding="utf-8"), re.IGNORECASE)]
+    assert [str(p.relative_to(ROOT)) for p in named] == []
+
+
+def test_lists_written_for_github_are_lists_on_the_site():
+    """A list right after a paragraph gets its blank line, nested items four spaces; code blocks stay as they are."""
+    fix = hook().nested_lists
+    assert fix("Text:\n- a\n  - b\n  lazy\n- c") == "Text:\n\n- a\n    - b\n  lazy\n- c"
+    assert fix("```\nx\n  - y\n```") == "```\nx\n  - y\n```"
+    assert fix("- a\n\n- b") == "- a\n\n- b"
+
+
+def test_sphinx_roles_in_docstrings_read_as_code():
+    fix = hook().plain_roles
+    assert fix(":class:<code>~dsg_hil.sim.scenario.Scenario</code>") == "<code>Scenario</code>"
+    assert fix(":mod:<code>dsg_hil.protocol.local</code>") == "<code>dsg_hil.protocol.local</code>"
+
+
+def test_the_readme_is_a_landing_page_with_the_fixed_commands():
+    """At most 150 lines; Quick start's first sh block the two commands CI runs; the editable install only under
+    Contributing, as its one command."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+
+    def first_sh(section: str) -> list[str]:
+        body = readme.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+        return body.split("```sh\n", 1)[1].split("```", 1)[0].splitlines()
+
+    assert len(readme.splitlines()) <= 150
+    assert first_sh("Quick start") == ["pip install . && dsg-hil run",
+                                       "pip install '.[dev]' && pytest && dsg-hil vcan --install --load 4"]
+    assert first_sh("Contributing") == ["pip install -e '.[dev]' && ruff check . && mypy && pytest"]
+    assert readme.count(" -e ") == 1
