@@ -66,5 +66,5 @@ def _do_validate(args: argparse.Namespace) -> int:
         for path in paths:
             progress(f"wrote {path}")
     if not all_ok:
-        raise ResultError("some numbers fall outside the accepted band (see README, 'Validation')")
+        raise ResultError("some numbers fall outside the accepted band (see docs/explanation/fitted.md, 'Validation')")
     return 0

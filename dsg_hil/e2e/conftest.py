@@ -54,7 +54,7 @@ def vcan_ready():
         pytest.fail(f"{EXPECT_ENV} is set but the build loaded is {build()}: the tests would not test the "
                     "compiled build", pytrace=False)
     if missing:
-        reason = f"needs {', '.join(missing)}: run 'dsg-hil vcan' (native or VM), see README"
+        reason = f"needs {', '.join(missing)}: run 'dsg-hil vcan' (native or VM), see docs/how-to/run-tests.md"
         if os.environ.get(ENV_REQUIRE):
             pytest.fail(f"{ENV_REQUIRE} is set but this machine lacks {reason}", pytrace=False)
         pytest.skip(reason)

@@ -1,6 +1,6 @@
 """Worked example frames of the contract: one per message, at a typical moment of a creep (CL slipping, the
-vehicle at 0.22 m/s on the grade), encoded by the codec with counter 3. README.md's contract section prints
-them (a test checks it prints exactly these bytes); CONTRACT.md points there."""
+vehicle at 0.22 m/s on the grade), encoded by the codec with counter 3. docs/reference/can.md prints
+them (a test checks it prints exactly these bytes); docs/reference/contract.md points there."""
 
 from __future__ import annotations
 

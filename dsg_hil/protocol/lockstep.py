@@ -1,4 +1,4 @@
-"""The lockstep protocol (CONTRACT.md, *Lockstep, step by step*), both ends: :class:`LockstepMaster`, the plant's
+"""The lockstep protocol (docs/reference/contract.md, *Lockstep, step by step*), both ends: :class:`LockstepMaster`, the plant's
 (the time master), and :class:`LockstepResponder`, the TCU's.
 
 Neither owns a bus: each is given ``send`` and ``recv`` callables (classic data frames as (ID, data), or

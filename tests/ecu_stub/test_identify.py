@@ -57,7 +57,7 @@ def test_identifies_the_clutch_constants_and_writes_a_calibration(recorded, tmp_
 def test_a_file_that_is_no_log_is_one_clear_error(tmp_path, capsys):
     bad = tmp_path / "x.log"
     bad.write_text("hello\n", encoding="utf-8")
-    assert main([str(bad)]) == 2  # bad input (README, 'Exit codes')
+    assert main([str(bad)]) == 2  # bad input (docs/reference/exit-codes.md)
     assert capsys.readouterr().err.startswith(f"error: {bad}:1: cannot read the log line 'hello'")
 
 

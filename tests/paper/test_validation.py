@@ -35,7 +35,7 @@ def test_case4_torque_start_within_band(results):
 
 
 @pytest.mark.xfail(strict=True, reason="known mismatch: formula (6) as printed gives mu 0.0561 at 114 degC, "
-                   "not 0.060, so the end torque is 7.0 % below 164.8 N m (README, 'Validation')")
+                   "not 0.060, so the end torque is 7.0 % below 164.8 N m (docs/explanation/fitted.md, 'Validation')")
 def test_case4_torque_end_within_band(results):
     t, ref = results[3].trace, results[3].reference
     assert abs(t.torque[-1] / ref.torque_end_nm - 1) <= TOL_TORQUE_REL

@@ -26,7 +26,7 @@ def add_fault_arguments(parser: argparse.ArgumentParser, whose: str,
     parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help=f"inject a fault into {whose}, repeatable: KIND[:MESSAGE[.Signal]][@START-[END]]"
                              f"[,key=value ...], e.g. {' or '.join(repr(e) for e in examples)} (kinds and keys: "
-                             f"README, 'Fault injection'); times in {times}")
+                             f"docs/how-to/faults.md); times in {times}")
     parser.add_argument("--fault-seed", type=int, default=0, metavar="N",
                         help="seed of the draws of faults with probability < 1 (default 0)")
 
