@@ -7,7 +7,8 @@
 * ``thermal.clutch.test.h_plate_oil``: one parameter fitted by least squares to the four Section III.C rises after
   100 s (21 / 47 / 33 / 74 degC) on the rig configuration. Four targets, one unknown: the residuals test the model's
   structure, not its level. (Fitted to case 4 alone it leaves case 3 at -4.6 degC: the printed (6) makes mu fall
-  with pressure, while the published rises imply it grows, so no single gain fits both pressures; see docs/explanation/fitted.md.)
+  with pressure, while the published rises imply it grows, so no single gain fits both pressures; see
+  docs/explanation/fitted.md.)
 * ``clutch.CL.C_plate``, ``clutch.CH.C_plate``, ``thermal.clutch.CL.Q_cool``, ``thermal.clutch.CH.Q_cool``: the
   vehicle's plate capacities and cooling flows, fitted by least squares to Section V.B's timeline (creep 174 s,
   slip CL 43.5 s / CH 130.5 s, CL at 205.5 degC when CH first reaches 250 degC, the on-coming CL at 246 degC at the

@@ -12,7 +12,8 @@ Formula (6) is garbled in the source text. Read literally, its first term raises
 
 with ``n`` the slip speed in r/min, ``T`` the plate temperature in degC and ``P`` the pressure in MPa, as the paper
 prints them. The printed prefactor 23 gives mu >> 1 below about 150 r/min in every reading tried, so ``A`` is a
-calibrated parameter (``friction.A_stribeck`` in the parameter file, with its target). See docs/explanation/model.md, "Formula (6)".
+calibrated parameter (``friction.A_stribeck`` in the parameter file, with its target). See
+docs/explanation/model.md, "Formula (6)".
 
 Units: the fitted coefficients are kept as the paper prints them (0.028574, 0.04398 and 0.0022 per r/min; 28.3 per
 MPa); the functions here take SI (slip speed in rad/s, pressure in Pa, as every caller has them) and convert to

@@ -1,5 +1,5 @@
-"""The lockstep protocol (docs/reference/contract.md, *Lockstep, step by step*), both ends: :class:`LockstepMaster`, the plant's
-(the time master), and :class:`LockstepResponder`, the TCU's.
+"""The lockstep protocol (docs/reference/contract.md, *Lockstep, step by step*), both ends:
+:class:`LockstepMaster`, the plant's (the time master), and :class:`LockstepResponder`, the TCU's.
 
 Neither owns a bus: each is given ``send`` and ``recv`` callables (classic data frames as (ID, data), or
 python-can messages; see :func:`frame_io`), the master also its clock (``time.monotonic``). What a node sends in a

@@ -88,7 +88,8 @@ class ControllerProcess:
     any item ``{interface}``, ``{channel}`` (the group) and ``{port}`` are replaced. The process also gets
     ``CAN_INTERFACE``, ``CAN_CHANNEL`` and ``CAN_CONFIG`` (``{"port": PORT}``) in its environment, so a python-can
     program's ``can.Bus()`` opens the run's bus with no options. It must answer the plant's lockstep protocol
-    (``docs/reference/contract.md``); it is stopped (SIGTERM, then SIGKILL after ``stop_timeout`` s) when the run ends."""
+    (``docs/reference/contract.md``); it is stopped (SIGTERM, then SIGKILL after ``stop_timeout`` s) when the run
+    ends."""
 
     argv: Sequence[str]
     env: Mapping[str, str] = field(default_factory=dict)  # added to this process's environment

@@ -16,7 +16,8 @@ def test_validate_writes_json_and_plots(tmp_path, capsys):
     """--json into a directory not made yet: made, as for every output (issue 35, 4: a raw Errno 2 after the run)."""
     rc = main(["validate", "--json", str(tmp_path / "nodir" / "v.json"), "--plots", str(tmp_path / "plots")])
     out = capsys.readouterr().out
-    assert rc == 3  # case 4's end torque is outside its band: reported, not hidden (docs/explanation/fitted.md, 'Validation')
+    # case 4's end torque is outside its band: reported, not hidden (docs/explanation/fitted.md, 'Validation')
+    assert rc == 3
     assert "OUTSIDE BAND" in out and "torque_end_nm" in out
     data = json.loads((tmp_path / "nodir" / "v.json").read_text())
     assert len(data["cases"]) == 4 and data["cases"][3]["speed_rpm"] == 300.0

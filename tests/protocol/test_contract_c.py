@@ -3,8 +3,8 @@ pack/unpack functions agree with cantools' Python encoding on the contract's wor
 message: unsigned, signed, offset and odd-length signals, the counter and CRC bytes).
 
 The generated ``..._encode(double)`` functions truncate toward zero where dsg-hil and cantools' Python round
-(104.2 degC at 0.1/-40 gives raw 1441, not 1442): docs/reference/contract.md tells vendors to round; here they are held to one
-raw step, and the frames are packed from the raw values."""
+(104.2 degC at 0.1/-40 gives raw 1441, not 1442): docs/reference/contract.md tells vendors to round; here they
+are held to one raw step, and the frames are packed from the raw values."""
 
 from __future__ import annotations
 

@@ -113,8 +113,8 @@ REASONS: dict[str, str] = {p.key: "" for p in PAPER} | {
     "cases.4.torque_end_nm": "formula (6) as printed gives μ 0.0530 → 0.0561 here (paper 0.054 → 0.060); the "
                              "torque follows μ (docs/explanation/fitted.md, 'Validation').",
     "creep_time_s": "ecu-stub hands over below 250 °C by its derived margin (prediction error + crossover heat), "
-                    "where the paper's idealised strategy waits for 250 °C: each phase ends ~2-3 K earlier (docs/explanation/"
-                    "fitted.md, sensitivity of the timeline).",
+                    "where the paper's idealised strategy waits for 250 °C: each phase ends ~2-3 K earlier "
+                    "(docs/explanation/fitted.md, sensitivity of the timeline).",
     "slip_time_s.CL": "as for the creep time: earlier handovers shorten every phase.",
     "slip_time_s.CH": "as for the creep time: earlier handovers shorten every phase.",
     "T_CL_at_stop_c": "the TCU stops when the on-coming clutch lacks its takeover headroom, a little before the "
