@@ -2,8 +2,10 @@
 
 Each page is read from what the program itself uses: the argparse parsers of every command, the DBC the codec
 loads, the shipped ``params.toml`` with each value's source, the exit codes and error tree of
-``dsg_hil.common.errors``, the fault kinds of ``dsg_hil.protocol.faults``, and the JSON the ``bench/`` scripts
-write. ``mkdocs.yml`` lists this module under ``hooks``; nothing here is copied into the site.
+``dsg_hil.common.errors``, the fault kinds of ``dsg_hil.protocol.faults``, the JSON the ``bench/`` scripts
+write, and the DIDs and DTCs of ``dsg_hil/data/diag.toml`` as ``dsg_hil.protocol.diag`` reads it (the
+diagnostics guide's tables, :data:`MARKERS`). ``mkdocs.yml`` lists this module under ``hooks``; nothing here is
+copied into the site.
 """
 
 from __future__ import annotations
@@ -20,8 +22,9 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "nested_lists", "on_files", "on_page_content",
-           "on_page_markdown", "params_page", "plain_roles"]
+__all__ = ["MARKERS", "PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "did_table", "dtc_table",
+           "nested_lists", "on_files", "on_page_content", "on_page_markdown", "params_page", "plain_roles",
+           "snapshot_dids"]
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -241,6 +244,40 @@ def bench_page() -> str:
     return "\n".join(lines)
 
 
+# -- diagnostics -----------------------------------------------------------------------------------------------
+
+def did_table() -> str:
+    """Every DID of ecu-stub's description, one row per field (a text DID: one row), as the server encodes it."""
+    from dsg_hil.protocol.diag import load_description
+
+    rows: list[list[object]] = []
+    for did in load_description().dids.values():
+        if did.ascii_length:
+            rows.append([f"0x{did.id:04X}", f"`{did.name}`", "-", f"ASCII, {did.ascii_length} bytes", "-", "-", "-"])
+        for field in did.fields:
+            rows.append([f"0x{did.id:04X}", f"`{did.name}`", f"`{field.name}`", field.type, f"{field.scale:g}",
+                         f"{field.offset:g}", field.unit])
+    return "\n".join(_table(["DID", "name", "field", "type", "scale", "offset", "unit"], rows))
+
+
+def dtc_table() -> str:
+    """Every DTC of ecu-stub's description: code, number, what sets it, its debounce."""
+    from dsg_hil.protocol.diag import load_description
+
+    rows: list[list[object]] = [[f"`{d.code}`", f"0x{d.number:06X}", f"`{d.name}`", f"`{d.monitor}`", d.debounce,
+                                 f"{10 * d.debounce} ms", _plain(d.text)] for d in load_description().dtcs]
+    head = ["code", "number", "name", "monitor", "debounce [periods]", "debounce time", "meaning"]
+    return "\n".join(_table(head, rows))
+
+
+def snapshot_dids() -> str:
+    """The DIDs of every freeze frame, in their order."""
+    from dsg_hil.protocol.diag import load_description
+
+    description = load_description()
+    return ", ".join(f"0x{did:04X} `{description.dids[did].name}`" for did in description.snapshot)
+
+
 def _first_line(path: Path) -> str:
     import ast
 
@@ -255,6 +292,9 @@ PAGES: dict[str, Callable[[], str]] = {
     "reference/codes.md": codes_page,
 }
 BENCH_MARKER = "<!-- bench-results -->"  # where performance.md shows the recorded benchmark JSON
+# where a page shows a table made from the code: marker -> what replaces it
+MARKERS: dict[str, Callable[[], str]] = {BENCH_MARKER: bench_page, "<!-- diag-dids -->": did_table,
+                                         "<!-- diag-dtcs -->": dtc_table, "<!-- diag-snapshot -->": snapshot_dids}
 
 
 def on_files(files: Any, config: Any) -> Any:
@@ -305,6 +345,10 @@ def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
-    """MkDocs event: nested lists as GitHub shows them; the recorded benchmark results where a page asks."""
+    """MkDocs event: nested lists as GitHub shows them; the tables made from the code (:data:`MARKERS`) where a page
+    asks."""
     markdown = nested_lists(markdown)
-    return markdown.replace(BENCH_MARKER, bench_page()) if BENCH_MARKER in markdown else markdown
+    for marker, make in MARKERS.items():
+        if marker in markdown:
+            markdown = markdown.replace(marker, make())
+    return markdown
