@@ -1,5 +1,6 @@
 """The summary reference page (docs/reference/summary.md) against the summary itself: the same keys in the same
-order as a real run's ``as_json()``, and every ``stop_reason`` value the code can produce documented."""
+order as a real run's ``as_json()`` (a run with an input outside the operating range, which adds the one key a run
+inside it lacks), and every ``stop_reason`` value the code can produce documented."""
 
 from __future__ import annotations
 
@@ -48,16 +49,25 @@ def _code(cell: str) -> str:
     return match.group(1)
 
 
+OUTSIDE = {"vehicle.m": 12544.0}  # above the operating range's 11,760 kg (dsg_hil.sim.operating_range)
+
+
 @pytest.fixture(scope="module")
-def summary_keys() -> list[str]:
-    with open_run(RunConfig(duration=1.0)) as run:
-        return list(run.run().as_json())
+def summary_keys() -> dict[str, list[str]]:
+    keys = {}
+    for name, params in (("inside", None), ("outside", OUTSIDE)):
+        with open_run(RunConfig(duration=1.0, params=params)) as run:
+            keys[name] = list(run.run().as_json())
+    return keys
 
 
 def test_the_table_has_every_key_in_order(summary_keys):
     rows = _tables(_section())["key"]
     assert all(len(row) == 4 and all(row) for row in rows), "each row: key, unit, meaning, null when"
-    assert [_code(row[0]) for row in rows] == summary_keys
+    assert [_code(row[0]) for row in rows] == summary_keys["outside"]
+    absent = [_code(row[0]) for row in rows if row[3].startswith("absent")]  # documented as absent, not null
+    assert absent == ["outside_range"]
+    assert summary_keys["inside"] == [key for key in summary_keys["outside"] if key not in absent]
 
 
 def _identifiers(node: ast.AST) -> set[str]:
