@@ -129,8 +129,9 @@ def _ids(args: argparse.Namespace, description: DiagDescription) -> tuple[int, i
         from ..protocol.codec import DEFAULT_DBC  # noqa: PLC0415
         from ..protocol.diag import diag_ids  # noqa: PLC0415
 
+        db = load_dbc(args.dbc)
         try:
-            from_dbc = diag_ids(load_dbc(args.dbc))
+            from_dbc = diag_ids(db)
         except InputError as exc:
             raise type(exc)(f"{args.dbc or DEFAULT_DBC}: {str(exc).removeprefix('DBC: ')}") from None
         request = from_dbc[0] if request is None else request
