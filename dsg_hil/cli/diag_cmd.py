@@ -224,7 +224,7 @@ def _require_diag_extra() -> None:
 
 def _do_diag(args: argparse.Namespace) -> int:
     from ..protocol.bus import bus_config, bus_name, open_bus  # noqa: PLC0415
-    from ..protocol.diag import DEFAULT_DIAG, load_description  # noqa: PLC0415 - cantools at run time only
+    from ..protocol.diag import load_description  # noqa: PLC0415 - cantools at run time only
 
     _require_diag_extra()
     _log_uds(args.verbose)
@@ -234,7 +234,7 @@ def _do_diag(args: argparse.Namespace) -> int:
     if args.did and args.action != "read":
         raise InputError(f"DID {args.did[0]!r}: DIDs are for 'dsg-hil diag read', not '{args.action}'")
     description = load_description(args.description)
-    where = args.description or str(DEFAULT_DIAG)
+    where = args.description or "dsg_hil/data/diag.toml"  # the shipped one, by its place in the package
     dids = resolve_dids(args.did, description, where) if args.action == "read" else []
     request_id, response_id = _ids(args, description)
     config = bus_config(args)
