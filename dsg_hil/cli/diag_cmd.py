@@ -290,7 +290,8 @@ def _talk(ecu: str, service: str, call: Callable[[], _T], timeout: float,
         refusals.append(_nrc(exc))
         return None
     except (InvalidResponseException, UnexpectedResponseException) as exc:
-        raise RunError(f"{ecu}: {service}: {exc}") from None
+        hint = " (is the DID's size in the description the ECU's?)" if service.startswith("ReadData") else ""
+        raise RunError(f"{ecu}: {service}: {str(exc).strip()}{hint}") from None
 
 
 def _dtc(args: argparse.Namespace, client: Any, description: DiagDescription,

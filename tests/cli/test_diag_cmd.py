@@ -118,6 +118,15 @@ def test_a_users_description_and_ids_and_a_refused_did(ecu, capsys, tmp_path):
     assert data["refused"] == {"mine": "RequestOutOfRange (0x31)"} and set(data["dids"]) == {"state"}
 
 
+def test_a_description_that_does_not_fit_the_ecu_is_exit_1_in_one_line(ecu, capsys, tmp_path):
+    """The description gives software_version 8 bytes; ecu-stub sends 16."""
+    path = tmp_path / "short.toml"
+    path.write_text('[[did]]\nid = 0xF189\nname = "sw"\nkind = "ascii"\nlength = 8\n')
+    assert main(["diag", "read", "sw", *ecu, "--description", str(path)]) == 1
+    assert "ReadDataByIdentifier 0xF189" in (error := error_line(capsys)[1])
+    assert error.endswith("(is the DID's size in the description the ECU's?)")
+
+
 def test_an_ecu_that_does_not_answer_is_exit_1_in_one_line(ecu, capsys):
     """ecu-stub is on the bus, but not at these IDs."""
     assert main(["diag", "dtc", *ecu, "--request-id", "0x7E0", "--response-id", "0x7E8", "--timeout", "0.3"]) == 1
