@@ -17,6 +17,7 @@ share them; each class is defined where it belongs (the module in brackets) and 
          |   +-- FmuCallError         (fmi.slave)            an FMI host's call our FMUs refuse (logged, not raised)
          |   +-- SpaceError           (sweep.space)          a sweep's space file
          |   +-- DriverError          (sweep.drivers)        a sweep's driver setting that makes no behaviour
+         |   +-- DiagError            (protocol.diag)        a UDS description (DIDs, DTCs) or the DBC's diagnostic IDs
          +-- RunError (also a RuntimeError)                  exit 1: the run could not go on
          |   +-- PeerTimeout          (common.errors)        no TCU answered the lock-step presence probe
          |   |   +-- PeerLost         (common.errors)        the TCU fell silent during a lock-step run

@@ -147,7 +147,7 @@ def load_description(path: str | Path | None = None) -> DiagDescription:
     try:
         return _parse(tomllib.loads(text))
     except tomllib.TOMLDecodeError as exc:
-        raise DiagError(f"{where}: {exc}") from None
+        raise DiagError(f"{where}: not valid TOML: {exc}") from None
     except (KeyError, TypeError, ValueError) as exc:
         message = str(exc) if isinstance(exc, DiagError) else f"{type(exc).__name__} {exc}"
         raise DiagError(f"{where}: {message}") from None

@@ -158,7 +158,7 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # (program, argv, bad: 'option' or 'file', form, needle). In the directory: bad.toml (not TOML), garbage.log,
 # notblf.blf (text), short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty
 # directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
-# (bad ones).
+# (bad ones), nodid.toml (a diagnostic description whose DID lacks its id).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -244,6 +244,17 @@ CASES = [
      "--bus-kwargs port=abc: Port config must be a number!"),
     ("dsg-hil", ["plot", "short.log", "-o", "p.xyz"], "option", ERROR,
      "--output p.xyz: the image's extension is one of"),
+    # issue 39: dsg-hil diag checks everything before it opens the bus (nothing sent)
+    ("dsg-hil", ["diag", "read", "nosuch", *BUS], "option", ERROR, "DID 'nosuch': not in the description"),
+    ("dsg-hil", ["diag", "dtc", *BUS, "--request-id", "0x800"], "option", USAGE,
+     "argument --request-id: an 11-bit CAN ID must be 0x0-0x7FF, got 0x800"),
+    ("dsg-hil", ["diag", "dtc", *BUS, "--json", "/proc/nope/d.json"], "option", ERROR,
+     "--json /proc/nope/d.json: /proc is not a writable directory"),
+    ("dsg-hil", ["diag", "dtc", *BUS, "--description", "bad.toml"], "file", ERROR, "bad.toml: not valid TOML"),
+    ("dsg-hil", ["diag", "dtc", *BUS, "--description", "nodid.toml"], "file", ERROR,
+     "nodid.toml: did[0]: id must be an integer 0-65535, not None"),
+    ("dsg-hil", ["diag", "dtc", *BUS, "--dbc", "small.dbc"], "file", ERROR,
+     "small.dbc: no network attribute DiagRequestId"),
 ]
 
 
@@ -259,6 +270,7 @@ def write_inputs(where: Path) -> None:
     (where / "space.toml").write_text(space, encoding="utf-8")  # a good sweep space
     (where / "badkey.toml").write_text(space + '"params.vehicle.mass" = {uniform = [1000.0, 2000.0]}\n',
                                        encoding="utf-8")  # a sweep space drawing a parameter that is none
+    (where / "nodid.toml").write_text('[[did]]\nname = "x"\n', encoding="utf-8")  # a DID description without its id
     (where / "noctl.toml").write_text(space + '[controller]\nkind = "python"\ntarget = "nosuch_module:make"\n',
                                       encoding="utf-8")  # a controller that cannot be imported
     codec = Codec(load_dbc(), {"PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed")})

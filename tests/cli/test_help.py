@@ -73,3 +73,24 @@ def test_readme_plant_line_shows_the_default_duration():
     """The interfaces guide's example of 'dsg-hil plant' prints the shipped scenario's duration."""
     shown = re.findall(r"^plant: .*?, (\d+(?:\.\d+)?) s, ", README.read_text(encoding="utf-8"), re.MULTILINE)
     assert shown and all(float(s) == load_scenario().duration_s for s in shown)
+
+
+def test_diag_examples_are_accepted(capsys):
+    """Every example in ``dsg-hil diag --help`` parses, and the DIDs it reads are the shipped description's."""
+    import argparse  # noqa: PLC0415
+    import shlex  # noqa: PLC0415
+
+    from dsg_hil.cli.diag_cmd import add_subparser, resolve_dids  # noqa: PLC0415
+    from dsg_hil.protocol.diag import load_description  # noqa: PLC0415
+
+    with pytest.raises(SystemExit):
+        main(["diag", "--help"])
+    examples = [shlex.split(line) for line in capsys.readouterr().out.splitlines()
+                if line.strip().startswith("dsg-hil diag ")]
+    assert len(examples) >= 5 and {argv[2] for argv in examples} == {"dtc", "read", "clear"}
+    parser = argparse.ArgumentParser(prog="dsg-hil")
+    add_subparser(parser.add_subparsers())
+    for argv in examples:
+        args = parser.parse_args(argv[1:])
+        if args.description is None:
+            assert len(resolve_dids(args.did, load_description(), "diag.toml")) >= 1
