@@ -584,8 +584,10 @@ class CreepController:
         return out
 
     def _engage(self, clutch: str) -> None:
-        """A launch on ``clutch``: ENGAGE, the pre-fill's force (:meth:`prefill_force`), no dwell running."""
+        """A launch on ``clutch``: ENGAGE, the pre-fill's force (:meth:`prefill_force`), no dwell running; a pedal
+        overrun ends with it (the pedal it overruled is off)."""
         self.state, self.active, self.near_limit_since, self.stalled_since = "ENGAGE", clutch, None, None
+        self.pedal_overrun = False
         self.F_cmd = self.prefill_force()
 
     def _read_grade(self, inp: TcuInputs) -> None:

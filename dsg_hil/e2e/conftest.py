@@ -81,7 +81,7 @@ def console(name: str) -> str:
     """A console script of this environment (next to the interpreter), as a user would start it."""
     path = Path(sys.executable).parent / name
     found = str(path) if path.exists() else shutil.which(name)
-    assert found, f"console script {name} is not installed (pip install -e .)"
+    assert found, f"console script {name} is not installed (pip install .)"
     return found
 
 

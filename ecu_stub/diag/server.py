@@ -96,9 +96,11 @@ class DiagServer:
             self.frames_sent += 1
 
     def poll(self) -> None:
-        """Consecutive frames waiting for STmin; transport timeouts."""
+        """Consecutive frames waiting for STmin; transport timeouts; the session's S3 timeout."""
+        now = self.clock()
+        self.uds.expire(now)
         if self.link.busy:
-            self._transmit(self.link.poll(self.clock()))
+            self._transmit(self.link.poll(now))
 
     def serve(self, bus: can.BusABC, stop: threading.Event) -> None:
         """Answer requests on ``bus`` until ``stop`` is set: the TCU's diagnostics after its run (no control

@@ -55,8 +55,7 @@ class UdsServer:
         """One request -> its response (None: suppressed, or an empty request)."""
         if not request:
             return None
-        if self.session != DEFAULT and now - self.last_request > S3_S:
-            self._leave_extended()
+        self.expire(now)
         self.last_request = now
         sid = request[0]
         self.requests[sid] = self.requests.get(sid, 0) + 1
@@ -67,6 +66,12 @@ class UdsServer:
         if response is not None and response[0] == 0x7F:
             self.negative[response[2]] = self.negative.get(response[2], 0) + 1
         return response
+
+    def expire(self, now: float) -> None:
+        """Back to the default session (and DTC recording on) once S3 has passed since the last request; the server
+        calls it on every poll, so a tester that disappears cannot leave ControlDTCSetting off."""
+        if self.session != DEFAULT and now - self.last_request > S3_S:
+            self._leave_extended()
 
     def _leave_extended(self) -> None:
         self.session = DEFAULT

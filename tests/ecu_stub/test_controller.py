@@ -487,3 +487,22 @@ def distinct(field: dataclasses.Field, i: int) -> object:
     if kind == "bool":
         return field.default is not True
     return {"float": 1000.5 + i, "int": 1000 + i, "str": f"value {i}", "dict": {"CL": float(i)}}[kind]
+
+
+def test_a_pedal_overrun_ends_with_the_launch_that_follows_it():
+    """The brake request that overrules a pressed pedal not holding the vehicle (:attr:`pedal_overrun`) lasts while
+    that pedal stays pressed; the driver lifting it and the creep taking over ends it. A later press that does slow
+    the vehicle is his to control again (before: the latch outlived the creep and the next press of a moving
+    vehicle got the full brake request)."""
+    ctrl, clock = creeping()
+    light = replace(CREEP, P_CL_mpa=1.0, brake_pct=6.0)
+    ctrl.update(replace(light, v_mps=0.30), clock.tick())
+    out = ctrl.update(replace(light, v_mps=0.31), clock.tick())  # over 1.2 x its target and speeding up
+    assert out.state == "IDLE" and out.brake_request and ctrl.pedal_overrun
+    out = ctrl.update(replace(CREEP, P_CL_mpa=1.0, v_mps=0.30), clock.tick())  # foot off, still moving: creep again
+    assert out.state in ("ENGAGE", "CREEP") and not ctrl.pedal_overrun
+    run(ctrl, clock, replace(CREEP, P_CL_mpa=1.0, v_mps=0.2), 1.0)
+    firm = replace(CREEP, P_CL_mpa=1.0, brake_pct=30.0)
+    ctrl.update(replace(firm, v_mps=0.19), clock.tick())
+    out = ctrl.update(replace(firm, v_mps=0.18), clock.tick())  # slowing under his pedal
+    assert out.state == "IDLE" and not out.brake_request

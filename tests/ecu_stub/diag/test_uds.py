@@ -103,3 +103,24 @@ def test_operation_cycle_and_dtc_setting(uds):
     uds.handle(b"\x10\x01", 0.0)  # back to default: recording on again
     memory.report("vehicle_hold", True, 0.0)
     assert memory.records["vehicle_hold"].status & CONFIRMED
+
+
+def test_s3_expires_without_a_request():
+    """A tester that turns DTC recording off and disappears: the server's poll (every control period, and the
+    after-run server's loop) ends the extended session after S3, recording on again, with no further request."""
+    from ecu_stub.diag.server import DiagServer
+    from ecu_stub.diag.uds import S3_S
+
+    now = [100.0]
+    sent: list[tuple[int, bytes]] = []
+    server = DiagServer(DESCRIPTION, 0x7E1, 0x7E9, lambda frame_id, data: sent.append((frame_id, data)), {}, {},
+                        clock=lambda: now[0])
+    server.take(bytes((0x02, 0x10, 0x03)) + bytes(5))  # single frames: extended session, then DTC setting off
+    server.take(bytes((0x02, 0x85, 0x02)) + bytes(5))
+    assert [data[1] for _, data in sent] == [0x50, 0xC5] and not server.memory.recording
+    now[0] += S3_S / 2
+    server.poll()
+    assert server.uds.session == 0x03 and not server.memory.recording
+    now[0] += S3_S
+    server.poll()
+    assert server.uds.session == 0x01 and server.memory.recording
