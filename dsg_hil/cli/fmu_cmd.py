@@ -32,10 +32,6 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 def _do_fmu(args: argparse.Namespace) -> int:
     from ..fmi.export import export_fmu  # noqa: PLC0415 - the package (pythonfmu: when the FMU is written)
-    from ..physics.params import CONFIGURATIONS  # noqa: PLC0415
-
-    # a configuration's name ('fitted', 'table1') is accepted wherever a parameter file is: its file goes in
-    params = CONFIGURATIONS.get(args.params, args.params) if args.params is not None else None
-    path = export_fmu(args.out, model=args.model, params=params)
+    path = export_fmu(args.out, model=args.model, params=args.params)
     progress(f"wrote {path} ({args.model}; needs dsg_hil[fmi] in the host's Python)")
     return 0

@@ -48,9 +48,10 @@ def export_fmu(out: str | Path, model: str = "plant", params: str | Path | None 
         raise InputError(f"--out {out}: an FMU's file name ends in .fmu")
     check_output_path("--out", str(out))
     if params is not None:
-        from ..physics.params import load_params  # noqa: PLC0415
+        from ..physics.params import load_params, params_path  # noqa: PLC0415
 
         load_params(params)  # checked here, not on the host
+        params = params_path(params)  # a configuration's name ('fitted', 'table1'): its file goes in
     try:
         from pythonfmu import FmuBuilder  # noqa: PLC0415 - the fmi extra, when an FMU is written
     except ImportError as exc:

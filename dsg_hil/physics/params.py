@@ -34,8 +34,8 @@ from ..common.quantities import finite, quantity
 __all__ = ["CONFIGURATIONS", "Circuit", "ClutchGeometry", "ClutchThermal", "ClutchThermals", "Clutches",
            "DEFAULT_CONFIGURATION", "DEFAULT_PARAMS_PATH",
            "Element", "Engine", "Friction", "Hydraulics", "Oil", "ParameterError", "Params", "Powertrain", "SOURCES",
-           "Thermal", "Vehicle", "load_params", "nonneg", "p", "parameters", "parse_params", "positive", "ratio",
-           "value_of", "with_overrides"]
+           "Thermal", "Vehicle", "load_params", "nonneg", "p", "parameters", "params_path", "parse_params", "positive",
+           "ratio", "value_of", "with_overrides"]
 
 DEFAULT_PARAMS_PATH = Path(__file__).resolve().parent.parent / "data" / "params.toml"
 # name -> file layered on the shipped one (None: the shipped file alone)
@@ -329,14 +329,21 @@ def parse_params(text: str, origin: str = "<string>", base: Params | None = None
     return _with_provenance(params, {key: provenance[key] for key in _leaf_keys(Params)})
 
 
+def params_path(path: str | Path | None) -> Path | None:
+    """The file a ``--params`` value names: a configuration's of :data:`CONFIGURATIONS` (None: the shipped file
+    alone), else the path itself (None stays None)."""
+    if isinstance(path, str) and path in CONFIGURATIONS:
+        return CONFIGURATIONS[path]
+    return None if path is None else Path(path)
+
+
 def load_params(path: str | Path | None = None) -> Params:
     """Load a parameter file layered on the shipped one (``path`` None: the shipped one alone, every key given):
     the keys it gives replace the shipped values, each checked and tagged as in the shipped file. A ``str`` that
     names a configuration of :data:`CONFIGURATIONS` (``"fitted"``, ``"table1"``) loads that configuration."""
     shipped = parse_params(read_input_file(DEFAULT_PARAMS_PATH, "parameter file", ParameterError),
                            str(DEFAULT_PARAMS_PATH))
-    if isinstance(path, str) and path in CONFIGURATIONS:
-        path = CONFIGURATIONS[path]
+    path = params_path(path)
     if path is None:
         return shipped
     text = read_input_file(Path(path), "parameter file", ParameterError)
