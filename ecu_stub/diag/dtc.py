@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterable, Sequence
 
 from dsg_hil.protocol.diag import Dtc
 
-__all__ = ["AVAILABILITY_MASK", "CONFIRMED", "PENDING", "TEST_FAILED", "TEST_FAILED_SINCE_CLEAR",
+__all__ = ["AVAILABILITY_MASK", "CONFIRMED", "PASS_CLEARS", "PENDING", "TEST_FAILED", "TEST_FAILED_SINCE_CLEAR",
            "TEST_FAILED_THIS_CYCLE", "TEST_NOT_COMPLETED_SINCE_CLEAR", "TEST_NOT_COMPLETED_THIS_CYCLE",
            "DtcMemory", "DtcRecord"]
 
@@ -34,6 +34,7 @@ TEST_NOT_COMPLETED_THIS_CYCLE = 0x40
 WARNING_INDICATOR = 0x80  # not supported: no lamp
 AVAILABILITY_MASK = 0x7F
 CLEARED = TEST_NOT_COMPLETED_SINCE_CLEAR | TEST_NOT_COMPLETED_THIS_CYCLE
+PASS_CLEARS = TEST_FAILED | TEST_NOT_COMPLETED_SINCE_CLEAR | TEST_NOT_COMPLETED_THIS_CYCLE  # the bits a pass clears
 
 
 class DtcRecord:
@@ -59,6 +60,7 @@ class DtcMemory:
         self.records = {d.name: DtcRecord(d) for d in dtcs}
         self.by_number = {r.dtc.number: r for r in self.records.values()}
         self.recording = True  # ControlDTCSetting off: the status bits are frozen
+        self.changes = 0  # +1 whenever a status or count may have changed (a monitor's cache key)
 
     def report(self, name: str, failed: bool | None, now: float,
                freeze: Callable[[], Iterable[tuple[int, bytes]]] | None = None) -> bool:
@@ -67,9 +69,10 @@ class DtcMemory:
         record = self.records[name]
         if failed is None or not self.recording:
             return False
+        self.changes += 1
         if not failed:
             record.count = 0
-            record.status &= ~(TEST_FAILED | TEST_NOT_COMPLETED_SINCE_CLEAR | TEST_NOT_COMPLETED_THIS_CYCLE)
+            record.status &= ~PASS_CLEARS
             return False
         record.count += 1
         if record.count < record.dtc.debounce or record.status & TEST_FAILED:
@@ -83,6 +86,7 @@ class DtcMemory:
         return True
 
     def new_operation_cycle(self) -> None:
+        self.changes += 1
         for record in self.records.values():
             status = record.status
             if status & PENDING and not status & TEST_FAILED_THIS_CYCLE and not status & TEST_NOT_COMPLETED_THIS_CYCLE:
@@ -92,8 +96,13 @@ class DtcMemory:
 
     def clear(self, number: int | None = None) -> None:
         """Clear one DTC (by its number) or all (None)."""
+        self.changes += 1
         for record in self.records.values() if number is None else (self.by_number[number],):
             record.clear()
+
+    def settled(self) -> bool:
+        """Whether a passed result would change no DTC (every count 0, no bit a pass clears set)."""
+        return not any(r.count or r.status & PASS_CLEARS for r in self.records.values())
 
     def matching(self, mask: int) -> list[DtcRecord]:
         """The DTCs whose status has a bit of ``mask`` (ISO 14229-1: status & mask != 0), in table order."""

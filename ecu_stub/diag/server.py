@@ -25,12 +25,12 @@ from importlib import metadata
 import can
 
 from dsg_hil.protocol.diag import DiagDescription, DiagError
-from dsg_hil.protocol.validity import RxMonitor
+from dsg_hil.protocol.validity import RxMonitor, RxState, all_valid
 
 from ..controller import TcuInputs, TcuOutputs
-from .dtc import DtcMemory
+from .dtc import PASS_CLEARS, DtcMemory
 from .isotp import IsoTpServer
-from .uds import UdsServer
+from .uds import DEFAULT, UdsServer
 
 __all__ = ["DiagServer", "response_frame", "software_version"]
 
@@ -73,11 +73,21 @@ class DiagServer:
             self.monitors.append((dtc.name, kind, argument))
         self.uds = UdsServer(description, self.memory, self.read_did)
         self.link = IsoTpServer(self._request)
-        self.values: dict[str, float] = {}  # the last control period's, by DID field name
+        # the last control period's (values), the last valid inputs; by monitor the counts it saw last period
+        self._now = 0.0
+        self._inp: TcuInputs | None = None
+        self._out: TcuOutputs | None = None
+        self._cache: dict[str, float] | None = None
+        self._judged: list[tuple[str, str, str, list[int]]] = [(*m, []) for m in self.monitors]
+        # what lets a period skip the monitors (period): the DTC memory's changes when it was last seen settled, the
+        # states that fail a monitor, the sums of the implausible and rejected counts, the timed messages' states
+        self._settled_at = -1
+        self._failing_states = {argument for _, kind, argument in self.monitors if kind == "state"}
+        self._judges_hold = any(kind == "hold" for _, kind, _ in self.monitors)
+        self._sums = (-1, -1)
+        self._timeouts: tuple[RxMonitor, list[RxState]] | None = None
         self.texts = {"software_version": software_version(),
                       "calibration_id": hashlib.sha256(calibration.encode()).hexdigest()[:16].upper()}
-        self._seen: dict[str, tuple[int, int, int]] = {}  # implausible count, or (received, rejected) by message
-        self._implausible: Mapping[str, int] = {}
         self.frames_sent = 0
 
     # -- the bus side
@@ -97,6 +107,8 @@ class DiagServer:
 
     def poll(self) -> None:
         """Consecutive frames waiting for STmin; transport timeouts; the session's S3 timeout."""
+        if self.uds.session == DEFAULT and not self.link.busy:
+            return  # the usual period: nothing to send, no session to time out
         now = self.clock()
         self.uds.expire(now)
         if self.link.busy:
@@ -120,63 +132,92 @@ class DiagServer:
         entry = self.description.dids[did]
         if entry.ascii_length:
             return entry.encode(self.texts.get(entry.name, ""))
-        return entry.encode(self.values) if self.values else None
+        values = self.values
+        return entry.encode(values) if values else None
 
     # -- the monitors, once per control period
     def period(self, now: float, rx_now: float, rx: RxMonitor, implausible: Mapping[str, int], inp: TcuInputs,
                out: TcuOutputs, hold: bool) -> None:
         """Judge every monitor on this period's inputs ``inp`` and outputs ``out`` at TCU time ``now`` [s] (the
-        freeze frames' time); ``rx_now``: the time the receive checks judge freshness at (the runner's)."""
-        self._values(now, inp, out)
-        memory, seen = self.memory, self._seen
-        for name, kind, argument in self.monitors:
+        freeze frames' time); ``rx_now``: the time the receive checks judge freshness at (the runner's). Runs in
+        every ecu-stub period: a settled pass (nothing to change in the DTC) is skipped, the DIDs' values are made
+        only when read (:attr:`values`)."""
+        self._now, self._out, self._cache = now, out, None
+        if inp.plant_valid or self._inp is None:  # while the plant's frames are missing: the last inputs it had
+            self._inp = inp
+        memory, records, state_name, plant_valid = self.memory, self.memory.records, out.state, inp.plant_valid
+        states = rx.states
+        # the usual period, every DTC settled and nothing that could fail them: no monitor can change a DTC
+        implausible_n, rejected_n = sum(implausible.values()), sum(rx.rejected.values())
+        if self._timeouts is None or self._timeouts[0] is not rx:
+            self._timeouts = (rx, [states[argument] for _, kind, argument, _ in self._judged if kind == "timeout"])
+        quiet = (self._settled_at == memory.changes and state_name not in self._failing_states
+                 and not (hold and self._judges_hold) and implausible_n == self._sums[0]
+                 and rejected_n == self._sums[1] and all_valid(self._timeouts[1], rx_now))
+        self._sums = (implausible_n, rejected_n)
+        if quiet:
+            self.poll()
+            return
+        for name, kind, argument, last in self._judged:
             failed: bool | None
             if kind == "state":
-                failed = out.state == argument
+                failed = state_name == argument
             elif kind == "hold":
                 failed = hold
             elif kind == "implausible":
                 n = implausible.get(argument, 0)
-                last = seen.get(name, (n, 0, 0))[0]
-                seen[name] = (n, 0, 0)
-                failed = True if n > last else (False if inp.plant_valid else None)
+                failed = True if last and n > last[0] else (False if plant_valid else None)
+                last[:] = (n,)
             else:
-                state = rx.states[argument]
+                state = states[argument]
                 if kind == "timeout":
                     failed = None if state.last_time is None else not state.valid(rx_now)
                 else:
                     received, rejected = state.received, sum(state.rejected.values())
-                    last_received, last_rejected, _ = seen.get(name, (received, rejected, 0))
-                    seen[name] = (received, rejected, 0)
-                    failed = True if rejected > last_rejected else (False if received > last_received else None)
+                    failed = None if not last else (True if rejected > last[1] else
+                                                    (False if received > last[0] else None))
+                    last[:] = (received, rejected)
+            if failed is None:
+                continue
+            if not failed:
+                record = records[name]
+                if not record.count and not record.status & PASS_CLEARS:
+                    continue  # passed again: nothing to change
             memory.report(name, failed, now, self._freeze)
+        if memory.settled():
+            self._settled_at = memory.changes
         self.poll()
 
     def new_operation_cycle(self) -> None:
         """The TCU restarted (a lock-step run's presence probe)."""
         self.memory.new_operation_cycle()
-        self._seen.clear()
-        self.values = {}
+        for *_, last in self._judged:
+            last.clear()
+        self._inp = self._out = self._cache = None
 
     def _freeze(self) -> tuple[tuple[int, bytes], ...]:
-        dids = self.description.dids
-        return tuple((did, dids[did].encode(self.values)) for did in self.description.snapshot)
+        dids, values = self.description.dids, self.values
+        return tuple((did, dids[did].encode(values)) for did in self.description.snapshot)
 
-    def _values(self, now: float, inp: TcuInputs, out: TcuOutputs) -> None:
-        """The DIDs' values this period: the inputs the controller used (while the plant's frames are missing
-        or untrusted, the last it had), its outputs, the thermal margin and the TCU's time."""
-        T_safe = self.T_safe_c
-        values = self.values
-        if inp.plant_valid or not values:
-            values = {
+    @property
+    def values(self) -> dict[str, float]:
+        """The DIDs' values of the last control period (empty before the first): the inputs the controller used
+        (while the plant's frames are missing or untrusted, the last it had), its outputs, the thermal margin and
+        the TCU's time."""
+        inp, out = self._inp, self._out
+        if inp is None or out is None:
+            return {}
+        if self._cache is None:
+            T_safe = self.T_safe_c
+            self._cache = {
                 "EngineSpeed": inp.engine_speed_rpm, "ClutchInputSpeed": inp.clutch_in_rpm,
                 "CLOutputSpeed": inp.cl_out_rpm, "CHOutputSpeed": inp.ch_out_rpm, "VehicleSpeed": inp.v_mps,
                 "T_OilCL": inp.T_oil_CL_c, "T_OilCH": inp.T_oil_CH_c, "T_Sump": inp.T_sump_c,
-                "P_CL": inp.P_CL_mpa, "P_CH": inp.P_CH_mpa}
-        self.values = {
-            **values, "t": now, "T_CL_Pred": out.T_CL_pred_c, "T_CH_Pred": out.T_CH_pred_c,
-            "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa,
-            "State": float(self.states.get(out.state, 0xFF)),
-            "ActiveClutch": float(self.clutches.get(out.active_clutch, 0xFF)),
-            "margin_CL": T_safe - out.T_CL_pred_c, "margin_CH": T_safe - out.T_CH_pred_c,
-        }
+                "P_CL": inp.P_CL_mpa, "P_CH": inp.P_CH_mpa,
+                "t": self._now, "T_CL_Pred": out.T_CL_pred_c, "T_CH_Pred": out.T_CH_pred_c,
+                "P_CL_Cmd": out.P_CL_cmd_mpa, "P_CH_Cmd": out.P_CH_cmd_mpa,
+                "State": float(self.states.get(out.state, 0xFF)),
+                "ActiveClutch": float(self.clutches.get(out.active_clutch, 0xFF)),
+                "margin_CL": T_safe - out.T_CL_pred_c, "margin_CH": T_safe - out.T_CH_pred_c,
+            }
+        return self._cache

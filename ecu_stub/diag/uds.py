@@ -12,8 +12,9 @@
 
 Bit 7 of a sub-function (suppressPosRspMsgIndicationBit) suppresses the positive response. Negative responses
 (0x7F, SID, NRC): 0x11 service not supported, 0x12 sub-function not supported, 0x13 incorrect message length or
-format, 0x31 request out of range (no DID of the request known, an unknown DTC or record), 0x7F service not supported
-in the active session. A non-default session falls back to default after S3 = 5 s without a request.
+format, 0x22 conditions not correct (DIDs known, but no value yet: before the first control period), 0x31 request
+out of range (no DID of the request known, an unknown DTC or record), 0x7F service not supported in the active
+session. A non-default session falls back to default after S3 = 5 s without a request.
 """
 
 from __future__ import annotations
@@ -24,10 +25,10 @@ from dsg_hil.protocol.diag import DiagDescription
 
 from .dtc import AVAILABILITY_MASK, DtcMemory
 
-__all__ = ["NRC", "S3_S", "UdsServer"]
+__all__ = ["DEFAULT", "EXTENDED", "NRC", "S3_S", "UdsServer"]
 
 NRC = {"serviceNotSupported": 0x11, "subFunctionNotSupported": 0x12, "incorrectMessageLengthOrInvalidFormat": 0x13,
-       "requestOutOfRange": 0x31, "serviceNotSupportedInActiveSession": 0x7F}
+       "conditionsNotCorrect": 0x22, "requestOutOfRange": 0x31, "serviceNotSupportedInActiveSession": 0x7F}
 S3_S = 5.0  # non-default session timeout
 P2_MS, P2_STAR_10MS = 50, 500  # DiagnosticSessionControl's timing parameters (P2*: 10 ms units)
 DEFAULT, EXTENDED = 0x01, 0x03
@@ -116,12 +117,17 @@ class UdsServer:
         if len(request) < 3 or len(request) % 2 != 1:
             return _negative(0x22, "incorrectMessageLengthOrInvalidFormat")
         out = bytearray(b"\x62")
+        known = False
         for at in range(1, len(request), 2):
             did = int.from_bytes(request[at:at + 2], "big")
-            data = self.read_did(did) if did in self.description.dids else None
-            if data is not None:
-                out += did.to_bytes(2, "big") + data
-        return bytes(out) if len(out) > 1 else _negative(0x22, "requestOutOfRange")
+            if did in self.description.dids:
+                known = True
+                data = self.read_did(did)
+                if data is not None:
+                    out += did.to_bytes(2, "big") + data
+        if len(out) > 1:
+            return bytes(out)
+        return _negative(0x22, "conditionsNotCorrect" if known else "requestOutOfRange")
 
     def _read_dtc(self, request: bytes) -> bytes | None:
         if len(request) < 2:

@@ -53,6 +53,14 @@ def test_bad_requests_get_the_standard_negative_response(uds, request_, code):
     assert nrc(uds.handle(request_, 0.0)) == code
 
 
+def test_a_known_did_without_a_value_yet_is_conditions_not_correct():
+    """Before the TCU's first control period a known DID has no value: 0x22, not 0x31 (which says the DID does not
+    exist, and made a tester give up on a TCU process still starting)."""
+    server = UdsServer(DESCRIPTION, DtcMemory(DESCRIPTION.dtcs), lambda did: None)
+    assert nrc(server.handle(b"\x22\x01\x01", 0.0)) == 0x22
+    assert nrc(server.handle(b"\x22\xab\xcd", 0.0)) == 0x31
+
+
 def test_empty_request_is_ignored(uds):
     assert uds.handle(b"", 0.0) is None
 

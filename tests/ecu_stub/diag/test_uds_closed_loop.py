@@ -152,14 +152,23 @@ def _talker(bus_config, answers, errors):
     """A tester reading DIDs and keeping the session alive until the run is done (at most 20 rounds); requests
     before the TCU first answers (a TCU process still starting) and one the run's end left unanswered are no
     errors."""
-    from udsoncan.exceptions import TimeoutException
+    from udsoncan.exceptions import NegativeResponseException, TimeoutException
 
     def talk(done):
-        with can.Bus(**bus_config) as bus, uds_client(bus, DESCRIPTION, 0x7E1, 0x7E9, timeout=1.0) as client:
+        # asked every 0.2 s until the TCU first answers (a TCU process starts within the run: a request it did not
+        # hear, or one answered 0x22 before its first control period, must not leave a short run without a
+        # tester), then given 1 s per request
+        with can.Bus(**bus_config) as bus, uds_client(bus, DESCRIPTION, 0x7E1, 0x7E9, timeout=0.2) as client:
             while not done.is_set() and len(answers) < 20:
                 try:
                     answers.append(read_dids(client, DESCRIPTION, [0x0101, 0x0110]))
+                    for key in ("request_timeout", "p2_timeout", "p2_star_timeout"):
+                        client.set_config(key, 1.0)
                     client.tester_present()
+                except NegativeResponseException as exc:
+                    if answers or exc.response.code != 0x22:  # conditionsNotCorrect: no control period yet
+                        errors.append(exc)
+                        return
                 except TimeoutException as exc:
                     if answers and not done.is_set():
                         errors.append(exc)
