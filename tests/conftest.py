@@ -19,6 +19,10 @@ def pytest_configure(config):
     register_plugin(config)
     config.addinivalue_line("markers", "slow: a minute or so: the 100-s cases against solve_ivp; building a wheel "
                                        "(needs the package index for setuptools)")
+    config.addinivalue_line("markers", "wheel: builds a wheel of the checkout (pip, mypyc) and tests it; run where "
+                                       "dsg-hil is installed editable from the checkout (the contributors' run): a "
+                                       "regular install's run tests that install itself, and leaves them out "
+                                       "unless -m names wheel")
     config.addinivalue_line("markers", "vcan: end-to-end on a real SocketCAN vcan0 with separate processes (run "
                                        "with 'dsg-hil vcan'); deselected unless DSG_HIL_REQUIRE_VCAN is set or -m "
                                        "names vcan")
@@ -43,10 +47,29 @@ def params():
 def pytest_collection_modifyitems(config, items):
     """Deselect the vcan tests (not skip: they never count as run) unless asked for: ``DSG_HIL_REQUIRE_VCAN``
     set (``dsg-hil vcan`` sets it) or a ``-m`` expression that names ``vcan``. Any other ``-m`` (``"not slow"``)
-    leaves them out too, so a marker expression cannot bring them back by replacing a configured one."""
-    if os.environ.get(ENV_REQUIRE) or re.search(r"\bvcan\b", config.option.markexpr or ""):
-        return
-    vcan = [item for item in items if item.get_closest_marker("vcan")]
-    if vcan:
-        config.hook.pytest_deselected(items=vcan)
-        items[:] = [item for item in items if not item.get_closest_marker("vcan")]
+    leaves them out too, so a marker expression cannot bring them back by replacing a configured one. The wheel
+    tests likewise, on a regular install (they build the checkout's wheel: the contributors' editable run has
+    them, so CI runs them once, not in both of its runs)."""
+    markexpr = config.option.markexpr or ""
+    left_out = set()
+    if not (os.environ.get(ENV_REQUIRE) or re.search(r"\bvcan\b", markexpr)):
+        left_out.add("vcan")
+    if not (editable_install() or re.search(r"\bwheel\b", markexpr)):
+        left_out.add("wheel")  # the wheel tests: in the editable run (CI runs both), not twice
+    out = [item for item in items if any(item.get_closest_marker(name) for name in left_out)]
+    if out:
+        config.hook.pytest_deselected(items=out)
+        items[:] = [item for item in items if item not in out]
+
+
+def editable_install() -> bool:
+    """Whether the dsg-hil installed is an editable install (pip's direct_url.json, PEP 610); no distribution (the
+    checkout on PYTHONPATH) counts as one."""
+    import json  # noqa: PLC0415
+    from importlib import metadata  # noqa: PLC0415
+
+    try:
+        direct = json.loads(metadata.distribution("dsg-hil").read_text("direct_url.json") or "{}")
+    except metadata.PackageNotFoundError:
+        return True
+    return bool(direct.get("dir_info", {}).get("editable", False))

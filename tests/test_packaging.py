@@ -90,6 +90,7 @@ def compiled_modules() -> list[str]:
     return [path.removesuffix(".py") for path in COMPILED]
 
 
+@pytest.mark.wheel
 @pytest.mark.slow
 def test_wheel_ships_the_dbc_typing_license_and_extras(wheel):
     with zipfile.ZipFile(wheel) as zf:
@@ -106,6 +107,7 @@ def test_wheel_ships_the_dbc_typing_license_and_extras(wheel):
     assert "Provides-Extra: plots" in meta and requires and all('extra == "plots"' in r for r in requires)
 
 
+@pytest.mark.wheel
 @pytest.mark.slow
 def test_wheel_holds_every_source_and_data_file_so_an_install_has_the_checkout_s_code_digest(wheel, tmp_path):
     """A sweep tells its runs' code by a digest of the packages' .py, .toml and .dbc files (dsg_hil.sweep.code):
@@ -122,6 +124,7 @@ NEEDS_CC = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc")
                               reason="no C compiler: pip builds the pure-Python package (setup.py)")
 
 
+@pytest.mark.wheel
 @pytest.mark.slow
 @NEEDS_CC
 def test_wheel_holds_the_closed_loop_compiled_beside_its_source(wheel):
@@ -134,6 +137,7 @@ def test_wheel_holds_the_closed_loop_compiled_beside_its_source(wheel):
     assert any(n.startswith("dsg_hil_compiled__mypyc.") for n in names)
 
 
+@pytest.mark.wheel
 @pytest.mark.slow
 @NEEDS_CC
 def test_a_failed_compile_gives_the_whole_pure_python_package(tmp_path):
@@ -143,6 +147,7 @@ def test_a_failed_compile_gives_the_whole_pure_python_package(tmp_path):
         assert not [n for n in zf.namelist() if n.endswith(".so")]
 
 
+@pytest.mark.wheel
 @pytest.mark.slow
 @NEEDS_CC
 def test_the_codec_tests_pass_on_the_compiled_plans(wheel, tmp_path):
@@ -160,6 +165,7 @@ def test_the_codec_tests_pass_on_the_compiled_plans(wheel, tmp_path):
     assert " passed" in proc.stdout and "skipped" not in proc.stdout
 
 
+@pytest.mark.wheel
 @pytest.mark.slow
 def test_pure_python_wheel_on_request(tmp_path):
     """DSG_HIL_PURE_PYTHON=1: no extension module in the wheel (what an editable install always is)."""
@@ -190,6 +196,7 @@ def _run_logged(path: Path, out: Path, *options: str) -> tuple[bytes, dict, str]
     return (out / "run.log").read_bytes(), summary, origin
 
 
+@pytest.mark.wheel
 @pytest.mark.slow
 @NEEDS_CC
 @pytest.mark.parametrize("options", FRAME_RUNS,
