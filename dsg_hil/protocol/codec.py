@@ -134,12 +134,11 @@ class Codec:
             self._by_id[message.frame_id] = message
             self._encoders[name] = partial(self._encode_reference, name)
             self._decoders[message.frame_id] = partial(self._decode_reference, message)
-            protection = self._protection[message.frame_id]
-            if not reference and isinstance(protection, Protection) and unsupported(message, protection) is None:
-                generated = generate(message, protection, FrameError, DecodedFrame)
+            if not reference and isinstance(protected, Protection) and unsupported(message, protected) is None:
+                generated = generate(message, protected, FrameError, DecodedFrame)
                 self._encoders[name], self._decoders[message.frame_id] = generated.encode, generated.decode
                 self.sources[name] = generated.source
-                message_plan = plan(message, protection, FrameError, DecodedFrame) if use_plans else None
+                message_plan = plan(message, protected, FrameError, DecodedFrame) if use_plans else None
                 if message_plan is not None:
                     self._plans[name] = message_plan
                     self._decoders[message.frame_id] = message_plan.decode

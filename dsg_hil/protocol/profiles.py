@@ -260,9 +260,9 @@ def protection_signals(message: Message, protection: FrameProtection) -> frozens
         owned.update(dict.fromkeys(range(offset, offset + bits), name))
     inside = set()
     for signal in message.signals:
-        bits = signal_bits(signal)
-        shared = bits & owned.keys()
-        if shared == bits:
+        occupied = signal_bits(signal)
+        shared = occupied & owned.keys()
+        if shared == occupied:
             inside.add(signal.name)
         elif shared:
             what = owned[min(shared)]
@@ -303,7 +303,7 @@ class ProtectionSpec:
     where: str = field(default="protection", compare=False)
 
     @classmethod
-    def from_table(cls, table: Mapping[str, object], where: str) -> ProtectionSpec:
+    def from_table(cls, table: ProtectionSpec | Mapping[str, object], where: str) -> ProtectionSpec:
         """The spec of ``table`` (e.g. ``{"profile": "P05", "data_id": 0x1234, "offset": 0}``)."""
         if isinstance(table, ProtectionSpec):
             return table
