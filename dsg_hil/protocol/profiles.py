@@ -399,7 +399,7 @@ class ProtectionSpec:
         protection: FrameProtection
         if self.profile in ("P01", "P11"):
             mode, data_id = str(self.data_id_mode), int(self.data_id or 0)
-            limit = 0xFFF if mode == "nibble" else 0xFF if mode == "low" else 0xFFFF
+            limit = 0xFFF if mode == "nibble" else 0xFFFF  # ("low": the high byte not covered, as the PRS has it)
             if data_id > limit:
                 raise ProtectionError(f"{where}: protection data_id {data_id:#x} does not fit data ID mode {mode} "
                                       f"(at most {limit:#x})")
