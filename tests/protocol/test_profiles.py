@@ -5,6 +5,7 @@ CRCs, the E2E Protocol Specification's example frames, frames of two other imple
 from __future__ import annotations
 
 import random
+from pathlib import Path
 from typing import Any
 
 import can
@@ -345,3 +346,41 @@ def test_protection_for_uses_the_dsg_hil_scheme_by_default():
     message = load_dbc().get_message_by_name("TCU_CMD")
     assert protection_for(message) == Protection.of(message)
     assert protection_for(message, {"profile": "none"}).counter_modulus == 0
+
+
+# ---- an ARXML's E2E data -----------------------------------------------------------------------------------------
+ARXML = Path(__file__).parent / "data" / "e2e_profile5.arxml"
+
+
+def test_an_arxml_messages_e2e_data_gives_its_protection():
+    """cantools reads the ARXML's END-TO-END-PROTECTION (category PROFILE_05, data ID 0x1234): the codec protects
+    the message by it without a table, and cantools' own Profile 5 check, given the message, accepts the frames."""
+    db = cantools.database.load_file(str(ARXML), strict=True)
+    message = db.get_message_by_name("COMMAND")
+    assert ProtectionSpec.from_autosar(message) == ProtectionSpec.from_table(
+        {"profile": "P05", "data_id": 0x1234, "data_length": 64}, "COMMAND")
+    codec = Codec(db, {"COMMAND": ["Torque"]})
+    assert codec.protection("COMMAND").profile == "P05"
+    frames = [codec.encode("COMMAND", {"Torque": 300 + k}, k) for k in range(3)]
+    assert all(end_to_end.check_profile5_crc(f, message) for f in frames)
+    assert [codec.decode(0x200, f) for f in frames][2].values == {"Torque": 302.0}  # Crc, Counter: not values
+    override = Codec(db, {"COMMAND": ["Torque"]}, protection={"COMMAND": {"profile": "P05", "data_id": 0x4321}})
+    assert override.protection("COMMAND").cause(frames[0]) == "crc"  # a table wins over the ARXML
+
+
+@pytest.mark.parametrize("category, profile", [("PROFILE_01", "P01"), ("Profile2", "P02"), ("p2", "P02"),
+                                               ("PROFILE_05", "P05"), ("Profile11", "P11"), ("E2E_P05", "P05")])
+def test_arxml_category_names_as_tools_write_them(category, profile):
+    db = cantools.database.load_file(str(ARXML), strict=True)
+    message = db.get_message_by_name("COMMAND")
+    message.autosar.e2e.category = category
+    message.autosar.e2e.data_ids = list(range(16)) if profile == "P02" else [7]
+    assert ProtectionSpec.from_autosar(message).profile == profile
+
+
+def test_an_arxml_profile_we_do_not_have_is_one_error():
+    db = cantools.database.load_file(str(ARXML), strict=True)
+    message = db.get_message_by_name("COMMAND")
+    message.autosar.e2e.category = "PROFILE_04"
+    with pytest.raises(ProtectionError, match="COMMAND \\(ARXML E2E\\): E2E category 'PROFILE_04' is not a supported"):
+        ProtectionSpec.from_autosar(message)
