@@ -5,6 +5,8 @@ CRCs, the E2E Protocol Specification's example frames, frames of two other imple
 from __future__ import annotations
 
 import random
+import re
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -384,3 +386,22 @@ def test_an_arxml_profile_we_do_not_have_is_one_error():
     message.autosar.e2e.category = "PROFILE_04"
     with pytest.raises(ProtectionError, match="COMMAND \\(ARXML E2E\\): E2E category 'PROFILE_04' is not a supported"):
         ProtectionSpec.from_autosar(message)
+
+
+# ---- the reference page ------------------------------------------------------------------------------------------
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "reference" / "e2e.md"
+
+
+def _blocks(language: str) -> list[str]:
+    if not PAGE.exists():
+        pytest.skip("no docs/ beside the tests (installed package)")
+    return re.findall(rf"^```{language}\n(.*?)^```", PAGE.read_text(encoding="utf-8"), re.S | re.M)
+
+
+def test_the_pages_tables_are_specs_and_its_python_runs():
+    (toml,) = _blocks("toml")
+    tables = tomllib.loads(toml)
+    specs = {name: ProtectionSpec.from_table(table, name) for name, table in tables.items()}
+    assert [s.profile for s in specs.values()] == ["P05", "P01", "P02", "none"]
+    (python,) = _blocks("python")
+    exec(compile(python, str(PAGE), "exec"), {})  # noqa: S102 - the page's own example, its asserts included
