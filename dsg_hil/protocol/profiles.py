@@ -37,7 +37,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 from .crc import crc8_h2f, crc8_p01, crc16_ccitt
 from .e2e import COUNTER, CRC, Protection, ProtectionError
@@ -130,14 +130,8 @@ class _Counted:
     counter_offset: int
     crc_offset: int
     max_delta: int
-
-    @property
-    def counter_bits(self) -> int:
-        return 4
-
-    @property
-    def crc_bits(self) -> int:
-        return 8
+    counter_bits: ClassVar[int] = 4
+    crc_bits: ClassVar[int] = 8
 
     @property
     def layout(self) -> tuple[tuple[str, int, int], ...]:
@@ -225,14 +219,8 @@ class ProfileP05(_Counted):
 
     data_id: int = 0
     profile: str = field(default="P05", init=False)
-
-    @property
-    def counter_bits(self) -> int:
-        return 8
-
-    @property
-    def crc_bits(self) -> int:
-        return 16
+    counter_bits: ClassVar[int] = 8
+    crc_bits: ClassVar[int] = 16
 
     def crc(self, data: bytes | bytearray, counter: int) -> int:
         k, n = self.crc_offset // 8, self.data_length // 8

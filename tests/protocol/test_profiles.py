@@ -21,6 +21,8 @@ from dsg_hil.protocol.e2e import Protection, ProtectionError
 from dsg_hil.protocol.faults import FaultError, FaultInjector, parse_fault
 from dsg_hil.protocol.profiles import ProtectionSpec, protection_for
 
+from .dbcs import one_message_db
+
 e2e = pytest.importorskip("e2e", reason="autosar-e2e (the test extra) is the second implementation")
 end_to_end = pytest.importorskip("cantools.autosar.end_to_end")
 
@@ -37,18 +39,7 @@ TABLES: dict[str, dict[str, Any]] = {  # one table per profile/variant, default 
 
 
 def _db(length: int = 8, signals: str = ' SG_ Value : 32|16@1+ (1,0) [0|65535] "-" B') -> cantools.database.Database:
-    text = f"""VERSION ""
-NS_ :
-BS_:
-BU_: A B
-BO_ 256 MSG: {length} A
-{signals}
-BA_DEF_ BO_ "GenMsgCycleTime" INT 0 10000;
-BA_ "GenMsgCycleTime" BO_ 256 10;
-"""
-    db = cantools.database.load_string(text, "dbc", strict=False)
-    assert isinstance(db, cantools.database.Database)
-    return db
+    return one_message_db(length, signals)
 
 
 def _bind(table, length=8, signals=' SG_ Value : 32|16@1+ (1,0) [0|65535] "-" B'):
