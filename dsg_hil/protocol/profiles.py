@@ -37,7 +37,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 from .crc import crc8_h2f, crc8_p01, crc16_ccitt
 from .e2e import COUNTER, CRC, Protection, ProtectionError
@@ -51,6 +51,7 @@ __all__ = ["DATA_ID_MODES", "PROFILES", "FrameProtection", "ProfileP01", "Profil
 PROFILES = ("none", "dsg-hil", "P01", "P02", "P05", "P11")
 DATA_ID_MODES = ("both", "alt", "low", "nibble")
 _VARIANTS = {"P01": {"1A": "both", "1B": "alt", "1C": "nibble"}, "P11": {"11A": "both", "11C": "nibble"}}
+_DEFAULT_VARIANT = {"P01": "1A", "P11": "11A"}
 _KEYS = {"none": (), "dsg-hil": (), "P02": ("data_ids", "data_length", "max_delta_counter"),
          "P05": ("data_id", "offset", "data_length", "max_delta_counter"),
          **dict.fromkeys(("P01", "P11"), ("variant", "data_id", "data_id_mode", "counter_offset", "crc_offset",
@@ -305,7 +306,7 @@ class ProtectionSpec:
         if unknown:
             raise ProtectionError(f"{where}: protection key {unknown[0]!r} is not one of profile {profile}'s "
                                   f"({', '.join(('profile', *_KEYS[profile]))})")
-        values: dict = {"profile": profile, "where": where}
+        values: dict[str, Any] = {"profile": profile, "where": where}
         for key in ("counter_offset", "crc_offset", "data_id_nibble_offset", "offset", "data_length"):
             values[key] = _int(table, key, where, 0, 8 * 4096)
         values["data_id"] = _int(table, "data_id", where, 0, 0xFFFF)
@@ -322,10 +323,11 @@ class ProtectionSpec:
             if variant is not None and mode is not None and _VARIANTS[profile][str(variant)] != mode:
                 raise ProtectionError(f"{where}: protection data_id_mode {mode!r} is not variant {variant}'s "
                                       f"({_VARIANTS[profile][str(variant)]!r})")
+            if variant is None and mode is None:
+                variant = _DEFAULT_VARIANT[profile]
             values["variant"] = variant if variant is not None else next(
-                (v for v, m in _VARIANTS[profile].items() if m == mode), None)
-            values["data_id_mode"] = mode if mode is not None else _VARIANTS[profile][str(variant or
-                                                                                          f"{profile[1:].lstrip('0')}A")]
+                (v for v, m in _VARIANTS[profile].items() if m == mode), None)  # (P01 "low": no variant)
+            values["data_id_mode"] = mode if mode is not None else _VARIANTS[profile][str(variant)]
         if profile == "P02":
             ids = table.get("data_ids")
             if not isinstance(ids, Sequence) or isinstance(ids, str) or len(ids) != 16 or any(
