@@ -56,7 +56,7 @@ class RxState:
     counter_jumps: int = 0  # gaps in the counter (it advanced by more than one)
     lost: int = 0  # frames missing in those gaps (at most max_delta - 1 each; a longer outage is a timeout)
     duplicates: int = 0  # byte-identical repeats of the last frame taken (retransmissions), ignored
-    rejected: Tally[str] = field(default_factory=Tally)  # by cause: dlc, crc, range, malformed, counter
+    rejected: Tally[str] = field(default_factory=Tally)  # by cause: dlc, crc, data_id, range, malformed, counter
     last_data: bytes | None = None
     deadline: float = field(init=False)  # TIMEOUT_CYCLES cycle times [s]
     deadline_ns: int = field(init=False)  # the same in whole ns
