@@ -9,8 +9,9 @@ rejects (never clamps) a frame with a wrong DLC, CRC or a value outside its rang
 
 The frames are encoded and decoded by functions generated per message from the DBC (:mod:`.generated`), which
 do byte for byte what the cantools path here does, five times faster; ``reference=True`` keeps the cantools path
-for every message (the reference of the tests, the baseline of ``bench/closed_loop_speed.py``), and so does a
-message protected otherwise than by the dsg-hil scheme.
+for every message (the reference of the tests, the baseline of ``bench/closed_loop_speed.py``). A message under
+another profile than the dsg-hil scheme gets generated functions too, which call its protection's ``seal``,
+``cause`` and ``counter``; no plan (:mod:`.plan` holds the dsg-hil scheme's CRC only).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import cantools
 from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
-from .profiles import FrameProtection, ProtectionSpec, protection_for, protection_signals
+from .profiles import CAUSE_TEXT, FrameProtection, ProtectionSpec, protection_for, protection_signals
 from ..common.errors import InputError
 from ..common.units import CV
 from .generated import dict_of, generate, generate_fused, generate_planned, plan, unsupported
@@ -36,7 +37,6 @@ from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-export
 __all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "load_dbc"]
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
-_CAUSES = {"crc": "CRC mismatch", "data_id": "data ID mismatch", "counter": "counter value the profile never sends"}
 
 
 class ProtocolError(InputError):
@@ -134,11 +134,12 @@ class Codec:
             self._by_id[message.frame_id] = message
             self._encoders[name] = partial(self._encode_reference, name)
             self._decoders[message.frame_id] = partial(self._decode_reference, message)
-            if not reference and isinstance(protected, Protection) and unsupported(message, protected) is None:
+            if not reference and unsupported(message, protected) is None:
                 generated = generate(message, protected, FrameError, DecodedFrame)
                 self._encoders[name], self._decoders[message.frame_id] = generated.encode, generated.decode
                 self.sources[name] = generated.source
-                message_plan = plan(message, protected, FrameError, DecodedFrame) if use_plans else None
+                message_plan = plan(message, protected, FrameError, DecodedFrame) \
+                    if use_plans and isinstance(protected, Protection) else None  # (the dsg-hil scheme's only)
                 if message_plan is not None:
                     self._plans[name] = message_plan
                     self._decoders[message.frame_id] = message_plan.decode
@@ -188,9 +189,9 @@ class Codec:
         message = self._by_name[name]
         if name in self._plans:
             return generate_planned(message, self._plans[name], args, values, namespace, floats=floats)[0]
-        protection = self._protection[message.frame_id]
-        if name in self.sources and isinstance(protection, Protection):
-            return generate_fused(message, protection, args, values, namespace, floats=floats)[0]
+        if name in self.sources:
+            return generate_fused(message, self._protection[message.frame_id], args, values, namespace,
+                                  floats=floats)[0]
         encode, of = self._encoders[name], dict_of(args, values, namespace)
         return lambda *a: encode(of(*a[:-1]), a[-1])
 
@@ -230,7 +231,7 @@ class Codec:
         protection = self._protection[frame_id]
         cause = protection.cause(data)
         if cause is not None:
-            raise FrameError(cause, f"{message.name}: {_CAUSES.get(cause, cause)}")
+            raise FrameError(cause, f"{message.name}: {CAUSE_TEXT.get(cause, cause)}")
         try:
             values = cast("dict[str, float]",  # no container messages in the DBC: a dict
                           message.decode(bytes(data), decode_choices=False, scaling=True))

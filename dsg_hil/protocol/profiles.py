@@ -45,13 +45,14 @@ from .e2e import COUNTER, CRC, Protection, ProtectionError
 if TYPE_CHECKING:
     from cantools.database.can import Message, Signal
 
-__all__ = ["DATA_ID_MODES", "PROFILES", "FrameProtection", "ProfileP01", "ProfileP02", "ProfileP05", "ProtectionSpec",
-           "Unprotected", "protection_for", "protection_signals", "signal_bits"]
+__all__ = ["CAUSE_TEXT", "DATA_ID_MODES", "PROFILES", "FrameProtection", "ProfileP01", "ProfileP02", "ProfileP05",
+           "ProtectionSpec", "Unprotected", "protection_for", "protection_signals", "signal_bits"]
 
 PROFILES = ("none", "dsg-hil", "P01", "P02", "P05", "P11")
 DATA_ID_MODES = ("both", "alt", "low", "nibble")
 _VARIANTS = {"P01": {"1A": "both", "1B": "alt", "1C": "nibble"}, "P11": {"11A": "both", "11C": "nibble"}}
 _DEFAULT_VARIANT = {"P01": "1A", "P11": "11A"}
+CAUSE_TEXT = {"crc": "CRC mismatch", "data_id": "data ID mismatch", "counter": "counter value the profile never sends"}
 _KEYS = {"none": (), "dsg-hil": (), "P02": ("data_ids", "data_length", "max_delta_counter"),
          "P05": ("data_id", "offset", "data_length", "max_delta_counter"),
          **dict.fromkeys(("P01", "P11"), ("variant", "data_id", "data_id_mode", "counter_offset", "crc_offset",
