@@ -141,7 +141,8 @@ class TcuRunner:
                                          scale("PLANT_VEHICLE", "VehicleSpeed"),
                                          max(scale("PLANT_SPEEDS", "CLOutputSpeed"),
                                              scale("PLANT_SPEEDS", "CHOutputSpeed")),
-                                         codec.cycle_time("PLANT_VEHICLE"))
+                                         codec.cycle_time("PLANT_VEHICLE"),
+                                         codec.protection("PLANT_VEHICLE").counter_modulus or 16)  # (0: no counter)
             self.sensor_checks = SensorChecks(
                 cal.strategy.hydraulic_lag_s, 0.5 * (scale("PLANT_PRESSURE", "P_CL") + scale("TCU_CMD", "P_CL_Cmd")),
                 cal.vehicle.input_ratio,

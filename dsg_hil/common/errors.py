@@ -9,8 +9,8 @@ share them; each class is defined where it belongs (the module in brackets) and 
          |   +-- ScenarioError        (sim.scenario)         a scenario file or a run's option
          |   +-- FaultError           (protocol.faults)      a [[fault]] table or --fault
          |   +-- ProtocolError        (protocol.codec)       the DBC: missing, unreadable, or lacks what is used
-         |   +-- ProtectionError      (protocol.e2e)         a DBC Counter/CRC signal that cannot carry them
-         |   +-- FrameError           (protocol.codec)       a received frame (unknown, dlc, crc, range): rejected
+         |   +-- ProtectionError      (protocol.e2e)         a message's E2E protection: bad table or no fit
+         |   +-- FrameError           (protocol.codec)       a received frame (dlc, crc, data_id, range, ...): rejected
          |   +-- LogError             (common.errors)        a recorded log: unreadable, not of the DBC, no data
          |   +-- CalibrationError     (ecu_stub.calibration) the TCU's calibration file
          |   +-- FmuError             (fmi.controller)       a controller FMU: unreadable, or a variable no DBC signal

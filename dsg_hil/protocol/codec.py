@@ -1,5 +1,7 @@
-"""DBC codec with the frame protection of this contract (:mod:`.e2e`): the ``Counter`` and ``CRC`` signals are
-filled here, never by callers, at the positions the DBC gives them.
+"""DBC codec with each message's end-to-end protection (:mod:`.profiles`): by default this contract's own scheme
+(:mod:`.e2e`), its ``Counter`` and ``CRC`` signals filled here, never by callers, at the positions the DBC gives
+them; per message an AUTOSAR E2E profile or none where ``protection`` says so (or an ARXML's E2E data does). The
+signals that carry a protection are not values: encoding ignores them, decoding returns none of them.
 
 Every message and signal the code uses is resolved once, at start-up: a missing one raises :class:`ProtocolError`
 naming it. Encoding clamps each value to its signal's DBC range, then encodes with ``strict=True``; decoding
@@ -7,7 +9,9 @@ rejects (never clamps) a frame with a wrong DLC, CRC or a value outside its rang
 
 The frames are encoded and decoded by functions generated per message from the DBC (:mod:`.generated`), which
 do byte for byte what the cantools path here does, five times faster; ``reference=True`` keeps the cantools path
-for every message (the reference of the tests, the baseline of ``bench/closed_loop_speed.py``).
+for every message (the reference of the tests, the baseline of ``bench/closed_loop_speed.py``). A message under
+another profile than the dsg-hil scheme gets generated functions too, which call its protection's ``seal``,
+``cause`` and ``counter``; no plan (:mod:`.plan` holds the dsg-hil scheme's CRC only).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import cantools
 from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
+from .profiles import CAUSE_TEXT, FrameProtection, ProtectionSpec, protection_for, protection_signals
 from ..common.errors import InputError
 from ..common.units import CV
 from .generated import dict_of, generate, generate_fused, generate_planned, plan, unsupported
@@ -39,7 +44,8 @@ class ProtocolError(InputError):
 
 
 class FrameError(InputError):
-    """A received frame is not acceptable. ``reason`` is one of: unknown, dlc, crc, range, malformed."""
+    """A received frame is not acceptable. ``reason`` is one of: unknown, dlc, crc, data_id, counter, range,
+    malformed."""
 
     def __init__(self, reason: str, message: str) -> None:
         super().__init__(message)
@@ -77,17 +83,25 @@ class Codec:
     ``reference``: encode and decode through cantools only (no generated functions). ``plans``: decode, and encode
     from expressions (:meth:`expression_encoder`), by the messages' plans (:mod:`.plan`), which give the same frames
     and values; by default where the plans run compiled (the mypyc build, :data:`.plan.COMPILED`), faster there
-    than the generated source, slower run by the interpreter."""
+    than the generated source, slower run by the interpreter. ``protection``: a message's protection as a table
+    or :class:`.profiles.ProtectionSpec` (e.g. ``{"TCU_CMD": {"profile": "P05", "data_id": 0x1234}}``); a message
+    not named there has the ARXML's E2E data, if any, else the dsg-hil scheme on its Counter and CRC signals."""
 
     def __init__(self, db: Database, uses: Mapping[str, Sequence[str]], *, reference: bool = False,
-                 plans: bool | None = None) -> None:
+                 plans: bool | None = None,
+                 protection: Mapping[str, ProtectionSpec | Mapping[str, object]] | None = None) -> None:
         self.db = db
         self.reference = reference
         self._plans: dict[str, MessagePlan] = {}
         use_plans = PLANS_COMPILED if plans is None else plans
         self._by_name: dict[str, Message] = {}
         self._by_id: dict[int, Message] = {}
-        self._protection: dict[int, Protection] = {}
+        self._protection: dict[int, FrameProtection] = {}
+        self._carriers: dict[int, frozenset[str]] = {}  # by frame ID: the signals that carry the protection
+        specs = dict(protection or {})
+        unknown = sorted(set(specs) - set(uses))
+        if unknown:
+            raise ProtocolError(f"protection given for {unknown[0]}, a message the codec does not use")
         self._encoders: dict[str, Callable[[Mapping[str, float], int], bytes]] = {}
         self._decoders: dict[int, Callable[[bytes], DecodedFrame]] = {}
         self.sources: dict[str, str] = {}  # the generated functions' source, by message
@@ -96,7 +110,9 @@ class Codec:
                 message = db.get_message_by_name(name)
             except KeyError:
                 raise ProtocolError(f"message {name} is not in the DBC") from None
-            for signal in (*signals, COUNTER, CRC):
+            spec = specs.get(name)
+            default = spec is None and (message.autosar is None or message.autosar.e2e is None)
+            for signal in (*signals, *((COUNTER, CRC) if default else ())):
                 try:
                     message.get_signal_by_name(signal)
                 except KeyError:
@@ -104,19 +120,26 @@ class Codec:
             if message.cycle_time is None or message.cycle_time <= 0:
                 raise ProtocolError(f"message {name} has no GenMsgCycleTime in the DBC")
             try:
-                self._protection[message.frame_id] = Protection.of(message)
+                protected = protection_for(message, spec)
             except ProtectionError as exc:
+                if not default:
+                    raise
                 raise ProtocolError(str(exc)) from None
+            carriers = protection_signals(message, protected)
+            if carriers & set(signals):
+                raise ProtocolError(f"signal {name}.{sorted(carriers & set(signals))[0]} carries the message's "
+                                    f"{protected.profile} protection: not a value")
+            self._protection[message.frame_id], self._carriers[message.frame_id] = protected, carriers
             self._by_name[name] = message
             self._by_id[message.frame_id] = message
             self._encoders[name] = partial(self._encode_reference, name)
             self._decoders[message.frame_id] = partial(self._decode_reference, message)
-            protection = self._protection[message.frame_id]
-            if not reference and unsupported(message, protection) is None:
-                generated = generate(message, protection, FrameError, DecodedFrame)
+            if not reference and unsupported(message, protected) is None:
+                generated = generate(message, protected, FrameError, DecodedFrame)
                 self._encoders[name], self._decoders[message.frame_id] = generated.encode, generated.decode
                 self.sources[name] = generated.source
-                message_plan = plan(message, protection, FrameError, DecodedFrame) if use_plans else None
+                message_plan = plan(message, protected, FrameError, DecodedFrame) \
+                    if use_plans and isinstance(protected, Protection) else None  # (the dsg-hil scheme's only)
                 if message_plan is not None:
                     self._plans[name] = message_plan
                     self._decoders[message.frame_id] = message_plan.decode
@@ -128,9 +151,13 @@ class Codec:
     def frame_id(self, name: str) -> int:
         return self._by_name[name].frame_id
 
-    def protection(self, name: str) -> Protection:
-        """Where ``name`` carries its counter and CRC."""
+    def protection(self, name: str) -> FrameProtection:
+        """How ``name`` is protected: its counter and CRC, where it carries them."""
         return self._protection[self._by_name[name].frame_id]
+
+    def protections(self) -> dict[str, FrameProtection]:
+        """Every message's protection, by name (e.g. for the fault injector of a node's frames)."""
+        return {name: self._protection[message.frame_id] for name, message in self._by_name.items()}
 
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
@@ -182,38 +209,42 @@ class Codec:
     # ---- the cantools path (the reference) -----------------------------------------------------------------------
     def _encode_reference(self, name: str, values: Mapping[str, float], counter: int) -> bytes:
         message = self._by_name[name]
+        protection, carriers = self._protection[message.frame_id], self._carriers[message.frame_id]
         data: dict[str, float] = {}
         for signal in message.signals:
-            if signal.name in (COUNTER, CRC):
+            lo, hi = signal_range(signal)
+            if signal.name in carriers:  # filled by the protection's seal
+                data[signal.name] = min(max(0.0, lo), hi)
                 continue
             value = values.get(signal.name)
-            lo, hi = signal_range(signal)
             default = min(max(0.0, lo), hi) if signal.raw_initial is None else \
                 signal.raw_initial * signal.scale + signal.offset  # .initial may be a value name (VAL_)
             if value is None or not math.isfinite(value):
                 value = default
             data[signal.name] = min(max(float(value), lo), hi)
-        protection = self._protection[message.frame_id]
-        data[COUNTER] = counter % protection.counter_modulus
-        data[CRC] = 0
-        return protection.seal(message.encode(data, strict=True, scaling=True))
+        return protection.seal(message.encode(data, strict=True, scaling=True), counter)
 
     def _decode_reference(self, message: Message, data: bytes) -> DecodedFrame:
         frame_id = message.frame_id
         if len(data) != message.length:
             raise FrameError("dlc", f"{message.name}: DLC {len(data)}, expected {message.length}")
-        if not self._protection[frame_id].check(data):
-            raise FrameError("crc", f"{message.name}: CRC mismatch")
+        protection = self._protection[frame_id]
+        cause = protection.cause(data)
+        if cause is not None:
+            raise FrameError(cause, f"{message.name}: {CAUSE_TEXT.get(cause, cause)}")
         try:
             values = cast("dict[str, float]",  # no container messages in the DBC: a dict
                           message.decode(bytes(data), decode_choices=False, scaling=True))
         except Exception as exc:  # noqa: BLE001 - cantools raises several types
             raise FrameError("malformed", f"{message.name}: {exc}") from None
+        carriers = self._carriers[frame_id]
+        dsg_hil = isinstance(protection, Protection)  # (its Counter and CRC ranges checked, as they always were)
         for signal in message.signals:
+            if signal.name in carriers and not dsg_hil:
+                continue
             v = values[signal.name]
             lo, hi = signal_range(signal)
             if not (lo - 1e-9 <= v <= hi + 1e-9):
                 raise FrameError("range", f"{message.name}.{signal.name} = {v} outside [{lo:g}, {hi:g}]")
-        counter = int(values.pop(COUNTER))
-        values.pop(CRC)
-        return DecodedFrame(message.name, {k: float(v) for k, v in values.items()}, counter)
+        counter = int(values[COUNTER]) if dsg_hil else protection.counter(data)
+        return DecodedFrame(message.name, {k: float(v) for k, v in values.items() if k not in carriers}, counter)

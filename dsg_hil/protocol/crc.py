@@ -1,9 +1,20 @@
-"""CRC-8 SAE J1850: width 8, poly 0x1D, init 0xFF, not reflected, final XOR 0xFF, check value 0x4B (the polynomial
-of AUTOSAR's Crc_CalculateCRC8; how this contract applies it is in :mod:`.e2e`)."""
+"""The CRCs of the end-to-end protections.
+
+* CRC-8 SAE J1850: width 8, poly 0x1D, init 0xFF, not reflected, final XOR 0xFF, check value 0x4B (the polynomial
+  of AUTOSAR's Crc_CalculateCRC8). :func:`crc8_j1850` is our own table (the dsg-hil scheme's generated fast path,
+  :mod:`.generated`, derives its tables from it); how the dsg-hil scheme applies it is in :mod:`.e2e`.
+* The AUTOSAR E2E profiles' CRCs (:mod:`.profiles`) come from crccheck (a dependency of cantools, so of every
+  install): CRC-8 SAE J1850 with init and final XOR 0x00 (:func:`crc8_p01`, Profiles 1 and 11: AUTOSAR's
+  Crc_CalculateCRC8 chained from 0xFF with IsFirstCall false, its result XOR 0xFF), CRC-8H2F (:func:`crc8_h2f`,
+  Profile 2: poly 0x2F, init 0xFF, final XOR 0xFF, check 0xDF) and CRC-16/CCITT-FALSE (:func:`crc16_ccitt`,
+  Profile 5: poly 0x1021, init 0xFFFF, no final XOR, check 0x29B1).
+"""
 
 from __future__ import annotations
 
-__all__ = ["crc8_j1850"]
+from crccheck.crc import Crc8Autosar, Crc8SaeJ1850, Crc16CcittFalse
+
+__all__ = ["crc16_ccitt", "crc8_h2f", "crc8_j1850", "crc8_p01"]
 
 
 def _table() -> tuple[int, ...]:
@@ -25,3 +36,19 @@ def crc8_j1850(data: bytes) -> int:
     for byte in data:
         crc = _TABLE[crc ^ byte]
     return crc ^ 0xFF
+
+
+def crc8_p01(data: bytes) -> int:
+    """CRC-8 SAE J1850's polynomial with init 0x00 and final XOR 0x00, as E2E Profiles 1 and 11 apply it (check
+    value of b"123456789": 0x37, the catalogued CRC-8/GSM-A)."""
+    return int(Crc8SaeJ1850.calc(data, initvalue=0x00)) ^ 0xFF
+
+
+def crc8_h2f(data: bytes) -> int:
+    """CRC-8H2F (AUTOSAR Crc_CalculateCRC8H2F) of ``data`` (check value 0xDF)."""
+    return int(Crc8Autosar.calc(data))
+
+
+def crc16_ccitt(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE (AUTOSAR Crc_CalculateCRC16) of ``data`` (check value 0x29B1)."""
+    return int(Crc16CcittFalse.calc(data))

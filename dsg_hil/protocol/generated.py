@@ -6,7 +6,9 @@ does with ``strict=True``, seal the CRC; decode rejecting a wrong DLC, CRC or a 
 reasons and messages), byte for byte: a test checks both on thousands of random and corrupted frames. cantools
 still loads and validates the DBC and is the reference; a message with something this generator does not cover
 (multiplexing, float signals, a range its bits cannot carry, a Counter or CRC that is not a plain integer) gets
-no generated functions, and the codec keeps the cantools path for it.
+no generated functions, and the codec keeps the cantools path for it. A message under another protection than the
+dsg-hil scheme (:mod:`.profiles`) has the signals that carry it left out, and its protection's own ``seal`` and
+``cause`` called by the generated functions instead of the CRC written into them.
 
 Why generated source (``exec``) rather than a loop over signal descriptions: one Python function per message
 with its constants inlined runs in about 1 us per frame, a generic loop several times that; the source of each
@@ -27,6 +29,7 @@ from cantools.database.can import Message, Signal
 from cantools.database.conversion import BaseConversion, IdentityConversion, LinearIntegerConversion
 
 from .e2e import COUNTER, CRC, Protection
+from .profiles import CAUSE_TEXT, FrameProtection, protection_signals
 from .plan import IDENTITY, LINEAR_INTEGER, SCALED, SCALED_OFFSET, MessagePlan, SignalPlan
 from .ranges import raw_range, signal_range
 
@@ -97,15 +100,18 @@ def _shift(signal: Signal, length: int) -> tuple[str, int]:
     return "G", 8 * length - msb_from_left - signal.length
 
 
-def unsupported(message: Message, protection: Protection) -> str | None:
+def unsupported(message: Message, protection: FrameProtection) -> str | None:
     """Why no functions are generated for ``message`` (the codec then keeps cantools), or None."""
     if message.is_container or message.is_multiplexed():
         return "multiplexed or container message"
+    carriers = protection_signals(message, protection)
     for signal in message.signals:
         if signal.is_float:
             return f"{signal.name} is a float signal"
         if signal.multiplexer_ids or signal.is_multiplexer:
             return f"{signal.name} is multiplexed"
+        if signal.name in carriers and not isinstance(protection, Protection):
+            continue  # (the profile's own fields: sealed and read by the protection, not as signals)
         if signal.name in (COUNTER, CRC):
             if not isinstance(_conversion(signal), IdentityConversion):
                 return f"{signal.name} is scaled"
@@ -123,18 +129,28 @@ def unsupported(message: Message, protection: Protection) -> str | None:
     return None
 
 
-def generate(message: Message, protection: Protection, frame_error: type, decoded_frame: type) -> GeneratedMessage:
+def generate(message: Message, protection: FrameProtection, frame_error: type,
+             decoded_frame: type) -> GeneratedMessage:
     """The encode and decode functions of ``message`` (check :func:`unsupported` first); decode raises
-    ``frame_error`` and returns a ``decoded_frame``, a NamedTuple of (name, values, counter)."""
-    name, length, k = message.name, message.length, protection.crc_byte
-    crc, crc_tables = _crc_expression(protection)
+    ``frame_error`` and returns a ``decoded_frame``, a NamedTuple of (name, values, counter). The dsg-hil scheme's
+    counter and CRC are written into the source; another profile's are the protection's own ``seal``, ``cause``
+    and ``counter`` (:mod:`.profiles`), called by it, its signals (:func:`.profiles.protection_signals`) left out."""
+    name, length = message.name, message.length
     enc = ["def encode(values, counter):", "    get = values.get", "    F = G = 0"]
     dec = ["def decode(data):",
            f"    if len(data) != {length}:",
-           f"        raise FrameError('dlc', f'{name}: DLC {{len(data)}}, expected {length}')",
-           "    F = from_bytes(data, 'little')",
-           f"    if {_field('F', 8 * k, 255)} != {crc}:",
-           f"        raise FrameError('crc', '{name}: CRC mismatch')"]
+           f"        raise FrameError('dlc', f'{name}: DLC {{len(data)}}, expected {length}')"]
+    crc_tables: dict[str, Any]
+    if isinstance(protection, Protection):
+        crc, crc_tables = _crc_expression(protection)
+        dec += ["    F = from_bytes(data, 'little')",
+                f"    if {_field('F', 8 * protection.crc_byte, 255)} != {crc}:",
+                f"        raise FrameError('crc', '{name}: CRC mismatch')"]
+    else:
+        crc_tables = {"CAUSE": protection.cause, "COUNTER_OF": protection.counter, "SEAL": protection.seal}
+        dec += ["    c = CAUSE(data)", "    if c is not None:",
+                f"        raise FrameError(c, {name + ': '!r} + TEXT.get(c, c))", "    F = from_bytes(data, 'little')"]
+    carriers = protection_signals(message, protection)
     if any(s.byte_order == "big_endian" for s in message.signals):
         dec.append("    G = from_bytes(data, 'big')")
     out = []
@@ -143,10 +159,12 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
         acc, shift = _shift(signal, length)
         mask = (1 << signal.length) - 1
         lo, hi = signal_range(signal)
+        if signal.name in carriers and not isinstance(protection, Protection):
+            continue
         enc += _encode_lines(signal, protection, length)
         # decode: from the frame, to physical, range check
         checked = _checked(signal)
-        if signal.name == CRC and not checked:
+        if signal.name == CRC and not checked and isinstance(protection, Protection):
             continue  # checked above, its value not returned
         dec.append(f"    r = {_field(acc, shift, mask)}")
         if signal.is_signed:
@@ -155,15 +173,17 @@ def generate(message: Message, protection: Protection, frame_error: type, decode
         if checked:
             dec += [f"    if not ({lo - 1e-9!r} <= v{i} <= {hi + 1e-9!r}):",
                     f"        raise FrameError('range', f'{name}.{signal.name} = {{v{i}}} outside [{lo:g}, {hi:g}]')"]
-        if signal.name not in (COUNTER, CRC):
+        if signal.name not in (COUNTER, CRC) or not isinstance(protection, Protection):
             out.append(f"{signal.name!r}: {_as_float(conversion, f'v{i}')}")
-    counter_index = next(i for i, s in enumerate(message.signals) if s.name == COUNTER)
+    counter = "COUNTER_OF(data)" if not isinstance(protection, Protection) else \
+        f"v{next(i for i, s in enumerate(message.signals) if s.name == COUNTER)}"
     # DecodedFrame(...) without its Python-level __new__ (a NamedTuple's is tuple.__new__ with the fields)
-    dec.append(f"    return NEW(DecodedFrame, ({name!r}, {{{', '.join(out)}}}, v{counter_index}))")  # an int counter
+    dec.append(f"    return NEW(DecodedFrame, ({name!r}, {{{', '.join(out)}}}, {counter}))")  # an int counter
     enc += _encode_end(message, protection)
     source = "\n".join(enc) + "\n\n\n" + "\n".join(dec) + "\n"
     namespace: dict = {"FrameError": frame_error, "DecodedFrame": decoded_frame, "INF": math.inf,
-                       "from_bytes": int.from_bytes, "NEW": tuple.__new__, **crc_tables}  # each looked up once
+                       "from_bytes": int.from_bytes, "NEW": tuple.__new__, "TEXT": CAUSE_TEXT,
+                       **crc_tables}  # each looked up once
     exec(_compiled(source, name), namespace)  # noqa: S102 - our own source
     return GeneratedMessage(namespace["encode"], namespace["decode"], source)
 
@@ -208,17 +228,17 @@ def plan(message: Message, protection: Protection, frame_error: type, decoded_fr
                        order)
 
 
-def _encode_lines(signal: Signal, protection: Protection, length: int, value: str | None = None,
+def _encode_lines(signal: Signal, protection: FrameProtection, length: int, value: str | None = None,
                   is_float: bool = False) -> list[str]:
     """Source lines putting ``signal`` into the frame (``F`` or ``G``): clamped (NaN or missing: the default), to
     raw. Its value is ``values.get(name)`` (``get``; None: missing), or the expression ``value`` (never missing;
-    ``is_float``: a float already, else taken as one), or with ``value`` :data:`DEFAULT` its default; the Counter
-    is ``counter``; the CRC is sealed after all."""
+    ``is_float``: a float already, else taken as one), or with ``value`` :data:`DEFAULT` its default; the dsg-hil
+    scheme's Counter is ``counter``, its CRC sealed after all (another profile's signals are not given here)."""
     acc, shift = _shift(signal, length)
     mask = (1 << signal.length) - 1
-    if signal.name == COUNTER:
+    if signal.name == COUNTER and isinstance(protection, Protection):
         return [f"    {acc} |= ((counter % {protection.counter_modulus}) & {mask}){_shifted(shift)}"]
-    if signal.name == CRC:
+    if signal.name == CRC and isinstance(protection, Protection):
         return []
     lo, hi = signal_range(signal)
     default = _default(signal)
@@ -234,17 +254,25 @@ def _encode_lines(signal: Signal, protection: Protection, length: int, value: st
     return [*lines, *_to_raw(_conversion(signal)), f"    {acc} |= (r & {mask}){_shifted(shift)}"]
 
 
-def _encode_end(message: Message, protection: Protection) -> list[str]:
-    """The last source lines of an encoder: big-endian signals moved in, the CRC sealed, the frame's bytes."""
-    length, k = message.length, protection.crc_byte
-    crc, _ = _crc_expression(protection)
+def _encode_end(message: Message, protection: FrameProtection) -> list[str]:
+    """The last source lines of an encoder: big-endian signals moved in, the CRC sealed, the frame's bytes (another
+    profile than dsg-hil's: its ``seal`` of them, with the counter)."""
+    length = message.length
     lines = []
     if any(s.byte_order == "big_endian" for s in message.signals):
         lines.append(f"    F |= from_bytes(G.to_bytes({length}, 'big'), 'little')")
-    return [*lines, f"    return (F | ({crc}){_shifted(8 * k)}).to_bytes({length}, 'little')"]
+    if not isinstance(protection, Protection):
+        return [*lines, f"    return SEAL(F.to_bytes({length}, 'little'), counter)"]
+    crc, _ = _crc_expression(protection)
+    return [*lines, f"    return (F | ({crc}){_shifted(8 * protection.crc_byte)}).to_bytes({length}, 'little')"]
 
 
-def generate_fused(message: Message, protection: Protection, args: Sequence[str], values: Mapping[str, str],
+def _namespace(protection: FrameProtection) -> dict[str, Any]:
+    """What an encoder's source looks up for its protection: the dsg-hil scheme's CRC tables, another's seal."""
+    return _crc_expression(protection)[1] if isinstance(protection, Protection) else {"SEAL": protection.seal}
+
+
+def generate_fused(message: Message, protection: FrameProtection, args: Sequence[str], values: Mapping[str, str],
                    namespace: Mapping[str, object] | None = None, *,
                    floats: bool = False) -> tuple[Callable[..., bytes], str]:
     """An encoder of ``message`` (check :func:`unsupported` first) taking ``args`` and then the counter, whose
@@ -253,23 +281,26 @@ def generate_fused(message: Message, protection: Protection, args: Sequence[str]
     ``{signal: float(expression)}``, byte for byte, without the dict built and looked up. ``namespace``: names the
     expressions use besides ``args``; ``floats``: every expression gives a float (else each is taken as
     ``float(expression)``). Returns the function and its source."""
-    _check_expressions(message, args, values)
+    carriers = protection_signals(message, protection)
+    _check_expressions(message, args, values, carriers)
     lines = [f"def encode({', '.join((*args, 'counter'))}):", "    F = G = 0"]
     for signal in message.signals:
-        lines += _encode_lines(signal, protection, message.length, values.get(signal.name, DEFAULT), floats)
+        if signal.name not in carriers or isinstance(protection, Protection):
+            lines += _encode_lines(signal, protection, message.length, values.get(signal.name, DEFAULT), floats)
     source = "\n".join([*lines, *_encode_end(message, protection)]) + "\n"
-    scope: dict = {"INF": math.inf, "from_bytes": int.from_bytes, **_crc_expression(protection)[1], **(namespace or {})}
+    scope: dict = {"INF": math.inf, "from_bytes": int.from_bytes, **_namespace(protection), **(namespace or {})}
     exec(_compiled(source, f"{message.name} fused"), scope)  # noqa: S102 - our own source
     return scope["encode"], source
 
 
-def _check_expressions(message: Message, args: Sequence[str], values: Mapping[str, str]) -> None:
-    """A ValueError for a value given to no signal of ``message`` (or to its Counter or CRC), or an argument named as
-    a name the generated encoders use."""
-    unknown = set(values) - {s.name for s in message.signals} | set(values) & {COUNTER, CRC}
+def _check_expressions(message: Message, args: Sequence[str], values: Mapping[str, str],
+                       carriers: frozenset[str] = frozenset((COUNTER, CRC))) -> None:
+    """A ValueError for a value given to no signal of ``message`` (or to one that carries its protection, e.g. its
+    Counter or CRC), or an argument named as a name the generated encoders use."""
+    unknown = set(values) - {s.name for s in message.signals} | set(values) & carriers
     if unknown:
         raise ValueError(f"{message.name}: no signal {sorted(unknown)[0]} to give a value")
-    taken = set(args) & {"F", "G", "v", "r", "d", "q", "m", "counter", "INF", "from_bytes", "ENCODE"}
+    taken = set(args) & {"F", "G", "v", "r", "d", "q", "m", "counter", "INF", "from_bytes", "ENCODE", "SEAL"}
     if taken:
         raise ValueError(f"{message.name}: argument {sorted(taken)[0]!r} is a name the encoder uses")
 

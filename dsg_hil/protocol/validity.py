@@ -40,19 +40,23 @@ NEW, DUPLICATE, REJECTED, IGNORED = "new", "duplicate", "rejected", "ignored"
 @dataclass(slots=True)
 class RxState:
     """Validity of one received message: fresh within ``TIMEOUT_CYCLES`` cycle times, counter moving by the
-    rules of :mod:`.e2e` (resynchronised by the first frame after a timeout)."""
+    rules of :mod:`.e2e` (resynchronised by the first frame after a timeout) with its protection's modulus and
+    largest step (``max_delta``, :mod:`.profiles`). ``counted`` False (a message without a counter): every frame
+    that passes its checks is taken, none is a repeat or a duplicate."""
 
     name: str
     cycle_time: float
     counter_modulus: int = 16
+    max_delta: int = MAX_DELTA
+    counted: bool = True
     last_time: float | None = None
     last_counter: int | None = None
     values: dict[str, float] = field(default_factory=dict)
     received: int = 0
     counter_jumps: int = 0  # gaps in the counter (it advanced by more than one)
-    lost: int = 0  # frames missing in those gaps (at most MAX_DELTA - 1 each; a longer outage is a timeout)
+    lost: int = 0  # frames missing in those gaps (at most max_delta - 1 each; a longer outage is a timeout)
     duplicates: int = 0  # byte-identical repeats of the last frame taken (retransmissions), ignored
-    rejected: Tally[str] = field(default_factory=Tally)  # by cause: dlc, crc, range, malformed, counter
+    rejected: Tally[str] = field(default_factory=Tally)  # by cause: dlc, crc, data_id, range, malformed, counter
     last_data: bytes | None = None
     deadline: float = field(init=False)  # TIMEOUT_CYCLES cycle times [s]
     deadline_ns: int = field(init=False)  # the same in whole ns
@@ -70,13 +74,14 @@ class RxState:
                 return f"counter {counter} repeated"
             if step != 1:  # the usual step needs no further check
                 resync = self.last_time is not None and not self.valid(now)  # timed out: any other step is taken
-                if step > MAX_DELTA and not resync:
+                if step > self.max_delta and not resync:
                     return f"counter {counter} after {last_counter}: out of order (step {step})"
                 if not resync:
                     self.counter_jumps += 1
                     self.lost += step - 1
-        self.last_counter = counter
-        self.last_data = data
+        if self.counted:
+            self.last_counter = counter
+            self.last_data = data
         self.last_time = now
         self.values = frame.values
         self.received += 1
@@ -110,8 +115,11 @@ class RxMonitor:
 
     def __init__(self, codec: Codec, names: list[str]) -> None:
         self.codec = codec
-        self.states = {name: RxState(name, codec.cycle_time(name), codec.protection(name).counter_modulus)
-                       for name in names}
+        self.states = {}
+        for name in names:
+            protection = codec.protection(name)
+            modulus = protection.counter_modulus
+            self.states[name] = RxState(name, codec.cycle_time(name), modulus or 1, protection.max_delta, modulus > 0)
         self._ids = {codec.frame_id(name): name for name in names}
         self._by_id: dict[int, tuple[RxState, Callable[[bytes], DecodedFrame], dict[bytes, DecodedFrame]]] = {
             frame_id: (self.states[name], codec.decoder(frame_id), {})  # take: one look-up per frame
@@ -199,6 +207,8 @@ class RxMonitor:
         already sent, e.g. the answer to the lockstep presence probe): its repeats are then duplicates and the
         next frame's counter is checked against it."""
         state = self.states[self._ids[msg.arbitration_id]]
+        if not state.counted:
+            return
         state.last_counter = self.codec.decode(msg.arbitration_id, bytes(msg.data)).counter
         state.last_data = bytes(msg.data)
 
@@ -239,7 +249,7 @@ class TxScheduler:
         self.sent = 0
         self._periods_ms = {name: codec.cycle_time_ms(name) for name in names}
         self.ids = {name: codec.frame_id(name) for name in names}
-        self._moduli = {name: codec.protection(name).counter_modulus for name in names}
+        self._moduli = {name: codec.protection(name).counter_modulus or 1 for name in names}  # 1: no counter
         self._encoders = {name: codec.encoder(name) for name in names}  # frame: one per frame
         self._fixed = {name: (self._periods_ms[name], self._moduli[name], self.ids[name]) for name in names}
 

@@ -384,3 +384,13 @@ def test_runner_goes_to_fault_when_no_speed_can_be_trusted(bus):
         inp = tcu.inputs(k * DT)
     assert inp is not None and not inp.plant_valid and inp.fault_bits == FAULT_IMPLAUSIBLE
     assert tcu.frame_counts()["implausible"]["speeds"] > 0
+
+
+def test_the_speed_vote_counts_frames_with_the_profiles_counter_range(bus):
+    """PLANT_VEHICLE under AUTOSAR Profile 1 (counter 0..14; its Counter and CRC signals the profile's fields): the
+    vote counts the frames between two VehicleSpeed values modulo 15, not 16."""
+    p01 = {"profile": "P01", "data_id": 0x102, "crc_offset": 56, "counter_offset": 48}
+    tcu = TcuRunner(Codec(load_dbc(), TCU_USES, protection={"PLANT_VEHICLE": p01}), bus)
+    default = TcuRunner(Codec(load_dbc(), TCU_USES), bus)
+    assert tcu.speed_vote is not None and default.speed_vote is not None
+    assert (tcu.speed_vote.counter_modulus, default.speed_vote.counter_modulus) == (15, 16)

@@ -10,6 +10,8 @@ import pytest
 from dsg_hil.protocol import MAX_DELTA, Codec, ProtocolError, RxMonitor, TxScheduler, crc8_j1850, load_dbc
 from dsg_hil.protocol.e2e import Protection
 
+from .dbcs import one_message_db
+
 
 def test_crc_parameters_check_value_and_a_worked_frame():
     assert crc8_j1850(b"123456789") == 0x4B  # CRC-8 SAE J1850: poly 0x1D, init 0xFF, xorout 0xFF, not reflected
@@ -23,20 +25,7 @@ def test_crc_parameters_check_value_and_a_worked_frame():
 
 def _db_with(crc_sig: str,
              counter_sig: str = " SG_ Counter : 48|4@1+ (1,0) [0|15] \"-\" B") -> cantools.database.Database:
-    text = f"""VERSION ""
-NS_ :
-BS_:
-BU_: A B
-BO_ 256 MSG: 8 A
- SG_ Value : 8|16@1+ (1,0) [0|1000] "-" B
-{counter_sig}
-{crc_sig}
-BA_DEF_ BO_ "GenMsgCycleTime" INT 0 10000;
-BA_ "GenMsgCycleTime" BO_ 256 10;
-"""
-    db = cantools.database.load_string(text, "dbc", strict=False)
-    assert isinstance(db, cantools.database.Database)
-    return db
+    return one_message_db(8, f' SG_ Value : 8|16@1+ (1,0) [0|1000] "-" B\n{counter_sig}\n{crc_sig}')
 
 
 def test_positions_come_from_the_dbc():

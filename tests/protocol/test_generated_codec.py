@@ -3,7 +3,8 @@ same bytes for random, out-of-range, missing and non-finite values, and the same
 rejection (reason and text) for random, corrupted, resized and re-sealed frames; on the shipped DBC and on one
 with what the shipped one lacks (Motorola byte order, integer scaling, value tables, a float signal). Each case
 twice: with the generated functions, and with the messages' plans (``Codec(..., plans=True)``, :mod:`.plan`: what the
-compiled build decodes and encodes expressions with), here run by the interpreter."""
+compiled build decodes and encodes expressions with), here run by the interpreter; and a third time with the messages
+under AUTOSAR E2E profiles (:mod:`.profiles`), whose generated functions call the protection's seal and check."""
 
 from __future__ import annotations
 
@@ -50,9 +51,27 @@ SIG_VALTYPE_ 302 Ratio : 1;
 """
 
 
-def codecs(db, planned: bool) -> tuple[Codec, Codec]:
+def profiled(db) -> dict[str, dict]:
+    """AUTOSAR E2E profiles on the messages: P01 (1A, 1B, 1C) and P11 (11A, 11C) in turn on the bits of a Counter at
+    48 and a CRC at 56 (which then carry it), none on the others."""
+    tables = [{"profile": "P01", "variant": "1A"}, {"profile": "P11", "variant": "11C"},
+              {"profile": "P01", "variant": "1B"}, {"profile": "P01", "variant": "1C"}, {"profile": "P11"}]
+    out: dict[str, dict] = {}
+    for k, message in enumerate(db.messages):
+        at = {s.name: s.start for s in message.signals}
+        out[message.name] = {**tables[k % len(tables)], "data_id": 0x100 + k, "crc_offset": 56, "counter_offset": 48,
+                             "data_id_nibble_offset": 52} if (at.get(COUNTER), at.get(CRC)) == (48, 56) else \
+            {"profile": "none"}
+    return out
+
+
+def codecs(db, mode: str) -> tuple[Codec, Codec]:
+    """The codec of ``mode`` ("generated", "plans", "profiles": generated under :func:`profiled`) and the cantools
+    path's, under the same protections."""
     uses = {m.name: () for m in db.messages}
-    return Codec(db, uses, plans=planned), Codec(db, uses, reference=True)
+    protection = profiled(db) if mode == "profiles" else None
+    return (Codec(db, uses, plans=mode == "plans", protection=protection),
+            Codec(db, uses, reference=True, protection=protection))
 
 
 def random_value(rng: random.Random, signal) -> float | int | bool | None:
@@ -85,8 +104,8 @@ def same_decode(generated: Codec, reference: Codec, frame_id: int, data: bytes) 
     return str(results[0][0])
 
 
-@pytest.fixture(params=[False, True], ids=["generated", "plans"])
-def planned(request) -> bool:
+@pytest.fixture(params=["generated", "plans", "profiles"])
+def mode(request) -> str:
     return request.param
 
 
@@ -96,14 +115,14 @@ def db(request):
                                                                                       strict=True)
 
 
-def test_every_message_it_can_is_generated_and_the_rest_stays_on_cantools(db, planned):
-    generated, _ = codecs(db, planned)
+def test_every_message_it_can_is_generated_and_the_rest_stays_on_cantools(db, mode):
+    generated, _ = codecs(db, mode)
     expected = {m.name for m in db.messages} - {"WITH_FLOAT"}
     assert set(generated.sources) == expected
 
 
-def test_encode_is_byte_identical_to_cantools(db, planned):
-    generated, reference = codecs(db, planned)
+def test_encode_is_byte_identical_to_cantools(db, mode):
+    generated, reference = codecs(db, mode)
     rng = random.Random(9)
     n = 0
     for message in db.messages:
@@ -121,11 +140,11 @@ def test_encode_is_byte_identical_to_cantools(db, planned):
     assert n >= 1800
 
 
-def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db, planned):
+def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db, mode):
     """``Codec.expression_encoder``: values as expressions of its arguments (here ``x[name]``), the signals it does
     not name at their defaults; the same bytes as ``encode`` of the dict, fused where the message is generated, and
     on the cantools path."""
-    generated, reference = codecs(db, planned)
+    generated, reference = codecs(db, mode)
     rng = random.Random(21)
     n = 0
     for message in db.messages:
@@ -153,8 +172,8 @@ def test_an_expression_encoder_gives_the_bytes_of_the_dict_one(db, planned):
         generated.expression_encoder(db.messages[0].name, ("v",), {})
 
 
-def test_decode_gives_the_same_values_or_the_same_rejection(db, planned):
-    generated, reference = codecs(db, planned)
+def test_decode_gives_the_same_values_or_the_same_rejection(db, mode):
+    generated, reference = codecs(db, mode)
     rng = random.Random(10)
     reasons: dict[str, int] = {}
     for message in db.messages:
@@ -180,8 +199,8 @@ def test_decode_gives_the_same_values_or_the_same_rejection(db, planned):
         assert reasons.get("range", 0) > 50
 
 
-def test_generated_decode_takes_bytearray_as_received(db, planned):
-    generated, reference = codecs(db, planned)
+def test_generated_decode_takes_bytearray_as_received(db, mode):
+    generated, reference = codecs(db, mode)
     message = db.messages[0]
     data = generated.encode(message.name, {}, 5)
     assert generated.decode(message.frame_id, bytearray(data)) == reference.decode(message.frame_id, data)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import can
 import pytest
@@ -182,15 +183,14 @@ def test_lockstep_without_tcu_fails_clearly():
     bus.shutdown()
 
 
-def test_tcu_service_loop_answers_lockstep_ticks():
-    """The TCU's own loop (as in the ecu-stub process), not the in-process pump: it hears the plant's first
-    frames before the first tick and must not start free-running (regression: it did, then crashed)."""
+def lockstep_with_tcu_loop(plant_codec: Codec, tcu_codec: Codec, channel: str,
+                           seconds: float = 3.0) -> tuple[PlantRunner, TcuRunner, Any, list[can.Message]]:
+    """A lock-step run of the default creep with the TCU in its own loop (as in the ecu-stub process) on a thread:
+    (the plant's runner, the TCU, the run's summary, every frame on the bus)."""
     import threading
 
-    params, scenario, db = load_params(), load_scenario().with_duration(3.0), load_dbc()
-    plant_bus = can.Bus(interface="virtual", channel="svc")
-    tcu_bus = can.Bus(interface="virtual", channel="svc")
-    tcu = TcuRunner(Codec(db, TCU_USES), tcu_bus)
+    plant_bus, tcu_bus, tap = (can.Bus(interface="virtual", channel=channel) for _ in range(3))
+    tcu = TcuRunner(tcu_codec, tcu_bus)
     done = threading.Event()
     errors = []
 
@@ -202,13 +202,25 @@ def test_tcu_service_loop_answers_lockstep_ticks():
 
     thread = threading.Thread(target=serve, daemon=True)
     thread.start()
-    runner = PlantRunner(Plant(params), scenario, Codec(db, PLANT_USES), plant_bus)
+    runner = PlantRunner(Plant(load_params()), load_scenario().with_duration(seconds), plant_codec, plant_bus)
     try:
         summary = runner.run_lockstep(reply_timeout=5.0)
     finally:
         done.set()
         thread.join(5)
-        plant_bus.shutdown()
-        tcu_bus.shutdown()
-    assert not errors and tcu.lockstep
+        frames = []
+        while (msg := tap.recv(0)) is not None:
+            frames.append(msg)
+        for bus in (plant_bus, tcu_bus, tap):
+            bus.shutdown()
+    assert not errors
+    return runner, tcu, summary, frames
+
+
+def test_tcu_service_loop_answers_lockstep_ticks():
+    """The TCU's own loop (as in the ecu-stub process), not the in-process pump: it hears the plant's first
+    frames before the first tick and must not start free-running (regression: it did, then crashed)."""
+    db = load_dbc()
+    runner, tcu, summary, _ = lockstep_with_tcu_loop(Codec(db, PLANT_USES), Codec(db, TCU_USES), "svc")
+    assert tcu.lockstep
     assert summary.tcu_state in ("ENGAGE", "CREEP") and runner.frames()["rejected"] == 0

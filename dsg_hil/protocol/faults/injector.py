@@ -3,8 +3,11 @@
 :class:`FaultInjector` is the pure part: ``apply(msg, t)`` turns one frame a node sends at time ``t`` into the
 frames that reach the bus now (none, one changed, two ...), ``release(t)`` gives back delayed frames that are due.
 Signal faults decode the frame with the DBC, change the value and re-encode it with a valid counter and CRC, so
-they test plausibility, not protection. Draws are from a seeded generator: in lockstep the same faults hit the
-same frames on every run.
+they test plausibility, not protection. The protection faults (``corrupt_crc``, ``freeze_counter``) act on the
+message's protection, whatever its profile (:mod:`..profiles`): the CRC field's bits inverted; the counter held,
+the CRC sealed again. A message's protection is the one given (a node's codec's, :meth:`.Codec.protections`), else
+the one the database gives it (an ARXML's E2E data, else the dsg-hil scheme on Counter/CRC signals, else none).
+Draws are from a seeded generator: in lockstep the same faults hit the same frames on every run.
 
 :class:`FaultyBus` wraps a python-can bus with an injector on what the node sends, so it works for the plant's
 frames, the TCU's, or, between two buses (:func:`bridge_step`), a real ECU's.
@@ -16,7 +19,7 @@ import logging
 import random
 import time
 from collections import Counter as Tally
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import cast
 
 import can
@@ -24,7 +27,8 @@ from cantools.database.can import Database, Message, Signal
 from cantools.database.errors import EncodeError
 
 from ..codec import raw_range, signal_range
-from ..e2e import COUNTER, CRC, Protection
+from ..e2e import ProtectionError
+from ..profiles import FrameProtection, Unprotected, protection_for
 from .spec import FaultError, FaultSpec, check_against_dbc
 
 __all__ = ["FaultInjector", "FaultyBus", "bridge_step", "outside_range"]
@@ -46,13 +50,16 @@ def outside_range(signal: Signal) -> float:
 
 
 class FaultInjector:
-    """Applies ``specs`` to the frames of one sender. ``counts[spec.describe()]`` counts the frames each hit."""
+    """Applies ``specs`` to the frames of one sender. ``counts[spec.describe()]`` counts the frames each hit.
+    ``protections``: the messages' protections by name (those not given: as the database gives them)."""
 
-    def __init__(self, db: Database, specs: Iterable[FaultSpec], seed: int = 0) -> None:
+    def __init__(self, db: Database, specs: Iterable[FaultSpec], seed: int = 0,
+                 protections: Mapping[str, FrameProtection] | None = None) -> None:
         self.specs = tuple(specs)
         for spec in self.specs:
             check_against_dbc(spec, db, spec.origin)
         self._messages = {m.frame_id: m for m in db.messages}
+        self._protections: dict[int, FrameProtection] = {}
         self._by_id: dict[int, list[int]] = {}
         for i, spec in enumerate(self.specs):
             if spec.kind == "flood":
@@ -63,7 +70,13 @@ class FaultInjector:
                     outside_range(db.get_message_by_name(spec.message).get_signal_by_name(str(spec.signal)))
                 except FaultError as exc:
                     raise FaultError(f"{spec.origin}: {exc}") from None
-            self._by_id.setdefault(db.get_message_by_name(spec.message).frame_id, []).append(i)
+            message = db.get_message_by_name(spec.message)
+            protection = self._protections.setdefault(message.frame_id, _protection(message, protections))
+            needs = {"corrupt_crc": "crc", "freeze_counter": "counter"}.get(spec.kind)
+            if needs is not None and needs not in {name for name, _, _ in protection.layout}:
+                raise FaultError(f"{spec.origin}: {spec.message} has no {needs.upper() if needs == 'crc' else needs} "
+                                 f"to fault (protection {protection.profile})")
+            self._by_id.setdefault(message.frame_id, []).append(i)
         self._rng = random.Random(seed)
         self._frozen: dict[int, int] = {}
         self._held: list[tuple[float, int, can.Message]] = []
@@ -124,19 +137,20 @@ class FaultInjector:
             self._sequence += 1
             self._held.append((t + spec.delay_s, self._sequence, msg))
             return []
+        protection = self._protections[msg.arbitration_id]
         if kind == "corrupt_crc":
-            message = self._messages[msg.arbitration_id]
-            values = _decode(message, bytes(msg.data), scaling=False)
-            values[CRC] = int(values[CRC]) ^ 0xFF
-            return [_copy(msg, message.encode(values, scaling=False, strict=False))]
+            _, offset, bits = next(f for f in protection.layout if f[0] == "crc")
+            whole = int.from_bytes(msg.data, "little") ^ ((1 << bits) - 1) << offset
+            return [_copy(msg, whole.to_bytes(len(msg.data), "little"))]
         if kind == "wrong_dlc":
             data = bytes(msg.data)[:spec.dlc].ljust(spec.dlc, b"\x00")
             return [_copy(msg, data)]
-        message = self._messages[msg.arbitration_id]
-        values = _decode(message, bytes(msg.data), scaling=True)
+        data = bytes(msg.data)
         if kind == "freeze_counter":
-            values[COUNTER] = self._frozen.setdefault(i, int(values[COUNTER]))
-        elif spec.signal is None:  # parse_fault gives every other kind its MESSAGE.Signal
+            return [_copy(msg, protection.seal(data, self._frozen.setdefault(i, protection.counter(data))))]
+        message = self._messages[msg.arbitration_id]
+        values = _decode(message, data, scaling=True)
+        if spec.signal is None:  # parse_fault gives every other kind its MESSAGE.Signal
             raise FaultError(f"{spec.origin}: {kind} needs a target MESSAGE.Signal")
         elif kind == "stuck":
             values[spec.signal] = spec.value
@@ -145,7 +159,8 @@ class FaultInjector:
         elif kind == "out_of_range":
             values[spec.signal] = outside_range(message.get_signal_by_name(spec.signal))
         try:
-            return [_copy(msg, _sealed(message, values))]
+            return [_copy(msg, protection.seal(message.encode(values, scaling=True, strict=False),
+                                               protection.counter(data)))]  # (no range check: a fault may leave it)
         except (OverflowError, ValueError, EncodeError) as exc:  # e.g. an offset pushing the value off the bits
             if not self.encode_errors[spec.describe()]:
                 log.warning("%s at t=%.3f s: %s cannot be encoded (%s): such frames are sent unchanged, counted",
@@ -159,9 +174,14 @@ def _decode(message: Message, data: bytes, scaling: bool) -> dict[str, float]:
     return cast("dict[str, float]", message.decode(data, decode_choices=False, scaling=scaling))
 
 
-def _sealed(message: Message, values: dict[str, float]) -> bytes:
-    """Encode without range checks (a fault may leave the range on purpose), then a valid CRC."""
-    return Protection.of(message).seal(message.encode({**values, CRC: 0}, scaling=True, strict=False))
+def _protection(message: Message, given: Mapping[str, FrameProtection] | None) -> FrameProtection:
+    """``message``'s protection: as ``given``, else as the database gives it, else none."""
+    if given is not None and message.name in given:
+        return given[message.name]
+    try:
+        return protection_for(message)
+    except ProtectionError:
+        return Unprotected(message.length)
 
 
 def _copy(msg: can.Message, data: bytes) -> can.Message:

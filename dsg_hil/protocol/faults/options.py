@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING
 
 from .spec import FaultSpec, parse_fault
@@ -13,6 +13,7 @@ if TYPE_CHECKING:
     import can
     from cantools.database.can import Database
 
+    from ..profiles import FrameProtection
     from .injector import FaultInjector
 
 __all__ = ["add_fault_arguments", "fault_counts", "faults_from_args", "with_faults"]
@@ -35,17 +36,18 @@ def faults_from_args(args: argparse.Namespace) -> list[FaultSpec]:
     return [parse_fault(text) for text in getattr(args, "fault", None) or ()]  # (a Namespace built in code: none)
 
 
-def with_faults(bus: can.BusABC, db: Database, specs: Iterable[FaultSpec], seed: int,
-                clock: Callable[[], float]) -> tuple[can.BusABC, FaultInjector | None]:
+def with_faults(bus: can.BusABC, db: Database, specs: Iterable[FaultSpec], seed: int, clock: Callable[[], float],
+                protections: Mapping[str, FrameProtection] | None = None) -> tuple[can.BusABC, FaultInjector | None]:
     """``bus`` behind an injector of ``specs`` (checked against the DBC now), or ``bus`` itself if there are
     none. ``clock()`` is the sender's time: simulated in lockstep, its run time in real time; negative before
-    the run starts (the lockstep handshake is never faulted)."""
+    the run starts (the lockstep handshake is never faulted). ``protections``: the node's messages' protections
+    (its codec's, :meth:`~dsg_hil.protocol.codec.Codec.protections`), where they are not the database's."""
     from .injector import FaultInjector, FaultyBus  # noqa: PLC0415 - python-can and cantools, when needed
 
     specs = list(specs)
     if not specs:
         return bus, None
-    injector = FaultInjector(db, specs, seed)
+    injector = FaultInjector(db, specs, seed, protections)
     return FaultyBus(bus, injector, clock), injector
 
 

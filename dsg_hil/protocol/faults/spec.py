@@ -39,8 +39,9 @@ KINDS = {
     "drop": "the frame is not sent",
     "delay": "the frame is held for delay_s, then sent",
     "duplicate": "the frame is sent twice",
-    "corrupt_crc": "the CRC byte is inverted",
-    "freeze_counter": "the counter keeps the value it had when the window opened (CRC recomputed)",
+    "corrupt_crc": "the CRC's bits are inverted (any profile with a CRC)",
+    "freeze_counter": "the counter keeps the value it had when the window opened (CRC recomputed; any profile with "
+                      "a counter)",
     "stuck": "the signal holds `value` (CRC and counter valid)",
     "offset": "`value` is added to the signal (CRC and counter valid)",
     "out_of_range": "the signal is set just outside its DBC range (CRC and counter valid)",
