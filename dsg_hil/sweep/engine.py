@@ -16,6 +16,8 @@ import contextlib
 import importlib.util
 import logging
 import os
+import signal
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -103,9 +105,10 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
         if address is None:
             warm()  # the numba cache compiled once, here, before any worker starts
             dashboard = ":0" if importlib.util.find_spec("bokeh") is not None else None  # the dashboard needs it
-            cluster = stack.enter_context(LocalCluster(
-                n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                silence_logs=logging.CRITICAL, dashboard_address=dashboard))  # shutdown's heartbeat noise too
+            with _workers_ignore_ctrl_c():
+                cluster = stack.enter_context(LocalCluster(
+                    n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                    silence_logs=logging.CRITICAL, dashboard_address=dashboard))  # shutdown's heartbeat noise too
             client = stack.enter_context(Client(cluster))
         else:
             try:
@@ -119,6 +122,22 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
             say(f"sweep: Dask {'cluster ' + address if address else 'LocalCluster'}, {n} workers"
                 + (f", dashboard {link}" if link else ""))
         yield client, link
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c() -> Iterator[None]:
+    """SIGINT ignored while the local cluster spawns its worker processes: a Python started with SIGINT ignored
+    keeps it so (no KeyboardInterrupt, and asyncio's runner installs no handler), so Ctrl-C, which the terminal
+    sends to the whole process group, interrupts the sweep here, which closes the cluster, and not every worker
+    with a traceback of its own (32 lines each before)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def submit(client: Any, tasks: list[dict[str, Any]], keep_logs: bool) -> list[Any]:

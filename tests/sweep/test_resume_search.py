@@ -49,6 +49,28 @@ def test_a_sweep_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tm
     assert sorted(ids) == sorted(name.removesuffix(".json") for name in after)  # each once, none lost
 
 
+def test_ctrl_c_ends_a_sweep_with_one_line_and_no_worker_tracebacks(tmp_path):
+    """Ctrl-C (SIGINT to the sweep's whole process group, as a terminal sends it) once the cluster is up: exit 130,
+    'error: interrupted', and no traceback from the workers (each printed 32 lines of one before)."""
+    space = tmp_path / "small.toml"
+    space.write_text(SMALL, encoding="utf-8")
+    argv = [sys.executable, "-m", "dsg_hil", "sweep", str(space), "--out", str(tmp_path / "out"), "--workers", "2"]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=sweep_env(),
+                            cwd=REPO, start_new_session=True)
+    try:
+        first = proc.stderr.readline()  # the cluster's line, once its workers have started
+        assert first.startswith("sweep: Dask LocalCluster, 2 workers"), first
+        os.killpg(proc.pid, signal.SIGINT)
+        rest = proc.communicate(timeout=120)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, rest[-3000:]
+    assert "Traceback" not in rest and "KeyboardInterrupt" not in rest, rest[-3000:]
+    assert rest.strip().splitlines()[-1] == "error: interrupted"
+
+
 def _error_line(proc: subprocess.CompletedProcess[str]) -> str:
     assert proc.returncode == 2, proc.stderr[-3000:]
     lines = proc.stderr.strip().splitlines()
