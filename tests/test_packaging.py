@@ -21,6 +21,8 @@ from dsg_hil.e2e.vcan import ENV_REQUIRE
 from dsg_hil.common.build import COMPILED, EXPECT_ENV, build, compiled_modules as loaded_modules
 from dsg_hil.sweep.code import CODE_PACKAGES, digest_of
 
+from .conftest import editable_install
+
 ROOT = Path(__file__).resolve().parents[1]  # the checkout (or unpacked sdist) these tests came from
 TOP_DBC = ROOT / "dbc" / "dsg_hil.dbc"
 
@@ -216,10 +218,8 @@ def test_compiled_closed_loop_sends_the_same_frames(wheel, tmp_path, options):
 
 
 def _installed() -> tuple[metadata.Distribution, bool]:
-    """dsg-hil's distribution and whether it is an editable install (pip's direct_url.json, PEP 610)."""
-    dist = metadata.distribution("dsg-hil")
-    direct = json.loads(dist.read_text("direct_url.json") or "{}")
-    return dist, bool(direct.get("dir_info", {}).get("editable", False))
+    """dsg-hil's distribution and whether it is an editable install (:func:`tests.conftest.editable_install`)."""
+    return metadata.distribution("dsg-hil"), editable_install()
 
 
 def test_the_tests_import_the_installed_package_never_the_checkout():
