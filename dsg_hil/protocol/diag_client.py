@@ -61,23 +61,28 @@ def _codec(did: Did) -> Any:
 def uds_client(bus: can.BusABC, description: DiagDescription, request_id: int, response_id: int, *,
                fd: bool = False, timeout: float = 2.0) -> Iterator[Any]:
     """An open ``udsoncan.client.Client`` on ``bus`` (normal 11-bit addressing: requests on ``request_id``,
-    responses on ``response_id``; ``fd``: CAN FD frames of 64 bytes). ``timeout`` [s]: per request. The bus's
-    receive filters are set to ``response_id`` (on a busy bus the ISO-TP stack would read every frame)."""
+    responses on ``response_id``; ``fd``: CAN FD frames of 64 bytes). ``timeout`` [s]: per request. While the client is
+    open the bus's receive filters are set to ``response_id`` (on a busy bus the ISO-TP stack would read every frame);
+    the caller's filters are set back when it closes, however it closes."""
     try:
         import isotp  # noqa: PLC0415 - extra diag
         from udsoncan.client import Client  # noqa: PLC0415
         from udsoncan.connections import PythonIsoTpConnection  # noqa: PLC0415
     except ImportError as exc:
         raise InputError(f"diag: needs the extra 'diag' (pip install 'dsg-hil[diag]'): {exc}") from exc
-    bus.set_filters([{"can_id": response_id, "can_mask": 0x7FF, "extended": False}])  # a busy bus: ISO-TP sees its own
+    callers_filters = bus.filters
     address = isotp.Address(isotp.AddressingMode.Normal_11bits, txid=request_id, rxid=response_id)
     params = {"tx_data_length": 64 if fd else 8, "can_fd": fd, "tx_padding": 0xCC, "blocking_send": False}
     stack = isotp.CanStack(bus, address=address, params=params)
     config: Any = {"data_identifiers": {did: _codec(entry) for did, entry in description.dids.items()},
               "request_timeout": timeout, "p2_timeout": timeout, "p2_star_timeout": timeout,
               "use_server_timing": False, "exception_on_negative_response": True}
-    with Client(PythonIsoTpConnection(stack), config=config) as client:
-        yield client
+    bus.set_filters([{"can_id": response_id, "can_mask": 0x7FF, "extended": False}])  # a busy bus: ISO-TP sees its own
+    try:
+        with Client(PythonIsoTpConnection(stack), config=config) as client:
+            yield client
+    finally:
+        bus.set_filters(callers_filters)
 
 
 def read_dtcs(client: Any, description: DiagDescription, mask: int = 0xFF,
