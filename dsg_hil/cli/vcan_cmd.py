@@ -35,8 +35,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--native", action="store_true", help="never use the VM")
     where.add_argument("--vm", action="store_true", help="always use the VM")
-    parser.add_argument("--duration", type=positive_number, default=10.0, metavar="S",
-                        help="simulated seconds of each end-to-end scenario (default 10; Python runs ~10x "
+    parser.add_argument("--duration", type=positive_number, default=5.0, metavar="S",
+                        help="simulated seconds of each end-to-end scenario (default 5; Python runs ~10x "
                              "slower under emulation)")
     parser.add_argument("--load", type=non_negative_int, default=0, metavar="N",
                         help="run COMMAND on a busy machine: beside 'stress-ng --cpu N' (N CPU hogs where the "

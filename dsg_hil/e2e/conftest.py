@@ -11,6 +11,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections import defaultdict
 from collections.abc import Iterable
@@ -21,12 +22,15 @@ import pytest
 from ..common.build import EXPECT_ENV, build
 from ..protocol import load_dbc
 from ..protocol.codec import DEFAULT_DBC
+from ..protocol.diag import diag_ids, load_description
 from .vcan import ENV_DURATION, ENV_OUTDIR, ENV_REQUIRE, vcan_present
 
 BUS = ["--interface", "socketcan", "--channel", "vcan0"]
 DBC = Path(str(DEFAULT_DBC))  # the DBC inside the installed package, for 'cantools decode'
 RCVBUF = 8 * 1024 * 1024  # candump's socket receive buffer [bytes]
 TCU_IDLE_EXIT = "10"  # [s] ecu-stub ends once the plant is this long silent: well above a loaded machine's pauses
+UDS_TIMEOUT = 60.0  # [s] per UDS request: a starved VM answers late, never wrongly
+UDS_PATIENCE = 120.0  # [s] the TCU's wait for the tester after the plant has ended (--idle-exit; SIGTERM ends it)
 STARTUP = 1800.0  # [s] for the first frames of a run (imports and compiled code loaded under emulation)
 STALL = 300.0  # [s] a process whose record does not grow for this long has stalled (emulation under load: slow)
 
@@ -62,7 +66,7 @@ def vcan_ready():
 
 @pytest.fixture(scope="session")
 def duration() -> float:
-    return float(os.environ.get(ENV_DURATION, "10"))
+    return float(os.environ.get(ENV_DURATION, "5"))
 
 
 @pytest.fixture(scope="session")
@@ -147,28 +151,89 @@ def finish_while_progressing(proc, record, stall: float = STALL, startup: float 
             proc.kill()
 
 
-def run_pair(outdir, name, mode, duration, extra=()):
+class UdsTester:
+    """A UDS tester in a thread of the test process, as a HIL test specification has one: udsoncan over can-isotp
+    (extra ``diag``) on its own socket on vcan0, talking to the ecu-stub process while the creep runs. It reads the
+    predicted plate temperatures and the state (ReadDataByIdentifier) until the plant has ended, then the DTCs
+    (ReadDTCInformation with their freeze frames) until the plant's silence has confirmed the TCU's timeout DTCs,
+    and lets the TCU go. ``readings``: (asked, answered [s, candump's clock], {DID name: fields}); ``dtcs``: the
+    last DTC report; ``error``: what failed."""
+
+    def __init__(self, db, bus: dict | None = None) -> None:
+        self.bus = bus or {"interface": "socketcan", "channel": "vcan0"}
+        self.ids = diag_ids(db)
+        self.description = load_description()
+        self.plant_ended = threading.Event()
+        self.readings: list[tuple[float, float, dict]] = []
+        self.dtcs: list = []
+        self.not_yet = 0  # readings answered ConditionsNotCorrect: no plant frame heard yet
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._talk, daemon=True)
+
+    def _talk(self) -> None:
+        import can  # noqa: PLC0415
+        from udsoncan import Response  # noqa: PLC0415 - extra diag
+        from udsoncan.exceptions import NegativeResponseException  # noqa: PLC0415
+
+        from ..protocol.diag_client import read_dids, read_dtcs, uds_client  # noqa: PLC0415
+        try:
+            with can.Bus(**self.bus) as bus, \
+                    uds_client(bus, self.description, *self.ids, timeout=UDS_TIMEOUT) as client:
+                while not self.plant_ended.is_set():
+                    asked = time.time()  # candump's clock
+                    try:
+                        values = read_dids(client, self.description, (0x0101, 0x0102))
+                    except NegativeResponseException as exc:  # before the TCU has heard the plant
+                        if exc.response.code != Response.Code.ConditionsNotCorrect:
+                            raise
+                        self.not_yet += 1
+                    else:
+                        self.readings.append((asked, time.time(), values))
+                    self.plant_ended.wait(0.2)
+                deadline = time.monotonic() + UDS_PATIENCE / 2  # the TCU waits UDS_PATIENCE
+                while time.monotonic() < deadline:
+                    self.dtcs = read_dtcs(client, self.description, mask=0x08)  # confirmed
+                    if len({d.name for d in self.dtcs if d.name.endswith("_timeout")}) >= 5:
+                        break
+                    time.sleep(0.5)
+        except BaseException as exc:  # noqa: BLE001 - reported by the test, never lost in the thread
+            self.error = exc
+
+
+def run_pair(outdir, name, mode, duration, extra=(), tester: UdsTester | None = None):
     """Start candump and ecu-stub, run the plant to the end, stop both; returns (summary, frames, log path).
 
     ``frames`` are candump's, in timestamp order (its file order is delivery order, which on several CPUs can put
-    a reply before the frame it answers); in lockstep, from the start of the run (see ``lockstep_run``)."""
+    a reply before the frame it answers); in lockstep, from the start of the run (see ``lockstep_run``). The DBC's
+    messages only: a ``tester`` (:class:`UdsTester`, started once the TCU listens) talks on the diagnostic IDs."""
     dump = Candump(outdir / f"{name}.candump.log")
-    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", TCU_IDLE_EXIT], stderr=subprocess.PIPE, text=True)
+    idle_exit = str(UDS_PATIENCE) if tester else TCU_IDLE_EXIT
+    tcu = subprocess.Popen([console("ecu-stub"), *BUS, "--idle-exit", idle_exit], stderr=subprocess.PIPE, text=True)
     summary = outdir / f"{name}.summary.json"
     try:
+        if tester:
+            assert tcu.stderr is not None and "listening on socketcan:vcan0" in tcu.stderr.readline()
+            tester.thread.start()
         plant = subprocess.Popen([console("dsg-hil"), "plant", *BUS, "--mode", mode, "--duration", str(duration),
                                   "--reply-timeout", "60", "--summary", str(summary), *extra],
                                  stderr=subprocess.PIPE, text=True)
         plant_err = finish_while_progressing(plant, dump.path)
         assert plant.returncode == 0, plant_err
+        if tester:  # the tester reads the DTCs the plant's silence sets, then the TCU is stopped as a bench does
+            tester.plant_ended.set()
+            tester.thread.join(timeout=UDS_PATIENCE + 2 * UDS_TIMEOUT)
+            tcu.send_signal(signal.SIGTERM)
         tcu_err = tcu.communicate(timeout=120)[1]
-        assert tcu.returncode == 0, tcu_err
+        assert tcu.returncode == (143 if tester else 0), tcu_err  # SIGTERM: counts reported, exit 143
     finally:
         if tcu.poll() is None:
             tcu.kill()
         frames = dump.stop()
+        if tester:
+            tester.plant_ended.set()
     (outdir / f"{name}.plant.stderr").write_text(plant_err)
-    frames = sorted(frames, key=lambda f: f[0])
+    messages = {m.frame_id for m in load_dbc().messages}
+    frames = sorted((f for f in frames if f[1] in messages), key=lambda f: f[0])
     return json.loads(summary.read_text()), lockstep_run(frames) if mode == "lockstep" else frames, dump.path
 
 
@@ -228,5 +293,8 @@ def lockstep(outdir, duration):
 
 
 @pytest.fixture(scope="session")
-def realtime(outdir, duration):
-    return run_pair(outdir, "realtime", "realtime", min(duration, 6.0))
+def realtime(outdir, duration, db):
+    """The real-time pair, with a UDS tester talking to the TCU all along (:class:`UdsTester`); returns
+    (summary, frames, log path, tester)."""
+    tester = UdsTester(db)
+    return (*run_pair(outdir, "realtime", "realtime", min(duration, 6.0), tester=tester), tester)

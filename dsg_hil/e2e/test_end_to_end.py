@@ -90,7 +90,7 @@ def test_realtime_periods_and_counters(db, realtime, duration):
     its least-late frame (``frames_over_cycle``: a frame computed on time may leave late). A starved TCU skips
     cycles: how many is the machine's speed, a figure for bench/vcan_timing.py, as are the real-time factor and the
     command latency."""
-    summary, frames, _ = realtime
+    summary, frames, _, _ = realtime  # a UDS tester talked to the TCU all along: the loop keeps its timing
     factor = summary["realtime_factor"]
     assert 0 < factor <= 1.05  # never ahead of real time
     simulated = min(duration, 6.0)
@@ -112,6 +112,35 @@ def test_realtime_periods_and_counters(db, realtime, duration):
     assert_counters_increment(db, frames)
     assert summary["frames"]["received"] > 0 and summary["frames"]["rejected"] == 0
     assert summary["command_latency_ms"]["n"] > 0
+
+
+def test_uds_while_the_realtime_creep_runs_then_the_plant_s_silence_confirms_its_timeout_dtcs(db, realtime):
+    """A tester (udsoncan over can-isotp, its own socket on vcan0) reads the TCU process's predicted plate
+    temperatures while the creep runs: each reading lies between the TCU_STATUS values the TCU sent on the bus just
+    before it was asked and just after it answered. Once the plant has ended, its silence confirms the TCU's timeout
+    DTC of each message the TCU reads, each with a freeze frame; the run's frames and timing are judged by the test
+    above on this same run."""
+    _, frames, _, tester = realtime
+    assert tester.error is None, f"the UDS tester failed: {tester.error!r}"
+    status = db.get_message_by_name("TCU_STATUS")
+    sent = [(t, status.decode(data)["T_CL_Pred"]) for t, ident, data in frames if ident == status.frame_id]
+    judged = 0
+    for asked, answered, values in tester.readings:
+        before = [v for t, v in sent if t <= asked][-1:]
+        after = [v for t, v in sent if t >= answered][:1]
+        if not before or not after:  # asked before the first status or answered after the last
+            continue
+        around = before + [v for t, v in sent if asked < t < answered] + after
+        value = values["plate_temperatures_pred"]["T_CL_Pred"]
+        assert min(around) - 0.1 <= value <= max(around) + 0.1, (asked, answered, value, around)
+        judged += 1
+    assert judged >= 3, f"{judged} of {len(tester.readings)} readings within the run"
+    assert {values["state"]["State"] for *_, values in tester.readings} - {0}  # the creep ran, not only its start
+    confirmed = {d.name: d for d in tester.dtcs}
+    for name in ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP"):
+        dtc = confirmed.get(f"{name}_timeout")
+        assert dtc is not None, f"{name}_timeout not confirmed: {sorted(confirmed)}"
+        assert "confirmed" in dtc.bits and dtc.freeze_frame, dtc
 
 
 def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
