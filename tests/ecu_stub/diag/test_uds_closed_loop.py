@@ -130,17 +130,19 @@ def test_lockstep_re_sends_do_not_count_twice(dsg_hil_run):
 
 def _capture(bus=None, talk=None):
     """The frames of a 3-s lock-step run of the default scenario: on the direct in-process bus, or on ``bus`` (a
-    python-can configuration: ecu-stub in this process on ``virtual``, else as a process) with ``talk(done)`` run
-    in a thread meanwhile."""
+    python-can configuration: ecu-stub in this process on ``virtual``, else as a process) with ``talk(ready, done)``
+    run in a thread meanwhile. The run starts once the tester is ready to ask (its bus and client open): a compiled
+    loop runs the 3 s in a fraction of a second, less than a tester's start takes."""
     run = open_run(RunConfig(duration=3.0, bus=bus, direct=bus is None, capture=True))
     with run:
         if talk is None:
             run.run()
         else:
-            done = threading.Event()
-            thread = threading.Thread(target=talk, args=(done,))
+            ready, done = threading.Event(), threading.Event()
+            thread = threading.Thread(target=talk, args=(ready, done))
             thread.start()
             try:
+                assert ready.wait(60.0), "the tester did not start"
                 run.run()
             finally:
                 done.set()
@@ -154,11 +156,12 @@ def _talker(bus_config, answers, errors):
     errors."""
     from udsoncan.exceptions import NegativeResponseException, TimeoutException
 
-    def talk(done):
+    def talk(ready, done):
         # asked every 0.2 s until the TCU first answers (a TCU process starts within the run: a request it did not
         # hear, or one answered 0x22 before its first control period, must not leave a short run without a
         # tester), then given 1 s per request
         with can.Bus(**bus_config) as bus, uds_client(bus, DESCRIPTION, 0x7E1, 0x7E9, timeout=0.2) as client:
+            ready.set()
             while not done.is_set() and len(answers) < 20:
                 try:
                     answers.append(read_dids(client, DESCRIPTION, [0x0101, 0x0110]))
