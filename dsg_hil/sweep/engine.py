@@ -13,7 +13,6 @@ worker by Dask's scheduler (tested by killing a worker of a real cluster midway)
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import logging
 import os
 import signal
@@ -104,7 +103,9 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
     with contextlib.ExitStack() as stack:
         if address is None:
             warm()  # the numba cache compiled once, here, before any worker starts
-            dashboard = ":0" if importlib.util.find_spec("bokeh") is not None else None  # the dashboard needs it
+            # a free port: the scheduler's HTTP server starts with or without bokeh (the dashboard needs it), and on
+            # its default 8787 a second sweep on the machine prints 'Port 8787 is already in use' first
+            dashboard = ":0"
             with _workers_ignore_ctrl_c():
                 cluster = stack.enter_context(LocalCluster(
                     n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,

@@ -34,7 +34,12 @@ def comparable(out: Path) -> list[dict]:
 def embedded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess.CompletedProcess[str]]:
     where = tmp_path_factory.mktemp("embedded")
     (where / "small.toml").write_text(SMALL, encoding="utf-8")
-    proc = sweep(str(where / "small.toml"), "--out", str(where / "out"), "--workers", "2")
+    with contextlib.ExitStack() as stack:  # Dask's default HTTP port taken, as by another sweep on the machine
+        held = stack.enter_context(socket.socket())
+        with contextlib.suppress(OSError):  # already taken by somebody else: as good
+            held.bind(("", 8787))
+            held.listen()
+        proc = sweep(str(where / "small.toml"), "--out", str(where / "out"), "--workers", "2")
     return where / "out", proc
 
 
@@ -53,6 +58,7 @@ def test_a_dozen_runs_on_the_embedded_local_cluster(embedded):
     assert proc.returncode == (3 if violating else 0)  # the exit status says the verdict
     assert f"verdict: {len(violating)} of 12 runs violate" in proc.stderr
     assert "LocalCluster, 2 workers" in proc.stderr and "ETA" in proc.stderr
+    assert "already in use" not in proc.stderr  # the cluster took free ports, not Dask's default 8787
     page = (out / "sweep.md").read_text(encoding="utf-8")
     assert "Hottest runs" in page and (out / "margin_histogram.png").exists() and (out / "worst_run.png").exists()
     for row in violating:  # each violation: its reproducing files next to the page
