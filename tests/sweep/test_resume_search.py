@@ -55,8 +55,11 @@ def test_ctrl_c_ends_a_sweep_with_one_line_and_no_worker_tracebacks(tmp_path):
     space = tmp_path / "small.toml"
     space.write_text(SMALL, encoding="utf-8")
     argv = [sys.executable, "-m", "dsg_hil", "sweep", str(space), "--out", str(tmp_path / "out"), "--workers", "2"]
+    # SIGINT at its default in the sweep, as in a terminal: a test run started in the background of a shell without
+    # job control (nohup, '&' in a script) hands its children SIGINT ignored, and a Python started so keeps it
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=sweep_env(),
-                            cwd=REPO, start_new_session=True)
+                            cwd=REPO, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # noqa: PLW1509
     try:
         first = proc.stderr.readline()  # the cluster's line, once its workers have started
         assert first.startswith("sweep: Dask LocalCluster, 2 workers"), first
