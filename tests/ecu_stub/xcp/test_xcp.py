@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import logging
 import struct
+import subprocess
+import sys
 import threading
 from contextlib import contextmanager
 from types import SimpleNamespace
@@ -15,6 +17,7 @@ import can
 import pytest
 
 from dsg_hil.protocol import Codec, load_dbc
+from dsg_hil.protocol.bus import UDP_MULTICAST, bus_args, fresh_udp_group
 from dsg_hil.sim.run import RunConfig, open_run
 from ecu_stub.calibration import load_calibration
 from ecu_stub.controller import CreepController
@@ -64,26 +67,36 @@ def daq_list(*names: str) -> DaqList:
 
 
 @contextmanager
+def pyxcp_master(bus, policy=None, ids=DEFAULT_IDS):
+    """A connected pyxcp master (python-can transport) on the python-can bus configuration ``bus``, talking to the
+    slave of CAN IDs ``ids`` (CRO, DTO)."""
+    app = create_application_from_config({"Transport": {"CAN": {
+        "interface": bus["interface"], "channel": bus["channel"], "can_id_master": ids[0], "can_id_slave": ids[1]}},
+        "General": {"disable_error_handling": True}},  # an error packet raises XcpResponseError, no retries
+        log_level=logging.ERROR)
+    app.transport.layer = "CAN"
+    if "port" in bus:
+        app.transport.can.udp_multicast.port = bus["port"]
+    with Master("can", config=app, policy=policy) as master:
+        master.connect()
+        master.getCommModeInfo()
+        yield master
+        master.disconnect()
+
+
+@contextmanager
 def xcp_tcu(policy=None):
     """ecu-stub's TCU with its XCP slave serving a fresh virtual bus in a thread (as the ecu-stub process would),
     and a connected pyxcp master on it: yields (master, TCU, the bus configuration)."""
-    channel = f"xcp-{id(object()):x}"
-    bus = can.Bus(interface="virtual", channel=channel)
+    config = {"interface": "virtual", "channel": f"xcp-{id(object()):x}"}
+    bus = can.Bus(**config)
     tcu = TcuRunner(Codec(DB, TCU_USES), bus, xcp=xcp_slave())
     stop = threading.Event()
     thread = threading.Thread(target=tcu.run, kwargs={"should_stop": stop.is_set})
     thread.start()
-    app = create_application_from_config({"Transport": {"CAN": {
-        "interface": "virtual", "channel": channel, "can_id_master": CRO, "can_id_slave": DTO}},
-        "General": {"disable_error_handling": True}},  # an error packet raises XcpResponseError, no retries
-        log_level=logging.ERROR)
-    app.transport.layer = "CAN"
     try:
-        with Master("can", config=app, policy=policy) as master:
-            master.connect()
-            master.getCommModeInfo()
-            yield master, tcu, {"interface": "virtual", "channel": channel}
-            master.disconnect()
+        with pyxcp_master(config, policy) as master:
+            yield master, tcu, config
     finally:
         stop.set()
         thread.join()
@@ -248,6 +261,27 @@ def test_the_a2l_parses_with_pya2ldb_and_lists_the_memory_map(tmp_path):
     if_data = " ".join(i.raw for i in session.query(model.IfData).all())
     assert "CAN_ID_MASTER 0x123 CAN_ID_SLAVE 0x124" in if_data and '/begin EVENT "control period"' in if_data
     assert CAL_BASE == min(v.address for v in cal_values())
+
+
+def test_the_ecu_stub_process_serves_xcp_and_writes_its_a2l(tmp_path):
+    """``ecu-stub --xcp`` on udp_multicast with other IDs (its receive filters pass the master's): pyxcp connects
+    and reads a calibration value; ``ecu-stub --a2l`` writes the A2L of those IDs and exits 0."""
+    ids = "0x6F0,0x6F1"
+    a2l = tmp_path / "tcu.a2l"
+    assert subprocess.run([sys.executable, "-m", "ecu_stub", "--a2l", str(a2l), "--xcp-ids", ids],
+                          capture_output=True, timeout=60).returncode == 0
+    assert "CAN_ID_MASTER 0x6F0 CAN_ID_SLAVE 0x6F1" in a2l.read_text(encoding="latin-1")
+    bus = {"interface": UDP_MULTICAST, **fresh_udp_group()}
+    proc = subprocess.Popen([sys.executable, "-m", "ecu_stub", *bus_args(bus), "--xcp", "--xcp-ids", ids,
+                             "--duration", "60"], stderr=subprocess.PIPE, text=True)
+    try:
+        assert "XCP slave on CAN, master 0x6F0, slave 0x6F1" in "".join(proc.stderr.readline() for _ in range(2))
+        with pyxcp_master(bus, ids=(0x6F0, 0x6F1)) as master:
+            assert master.identifier(1) == "ecu_stub"
+            assert read_double(master, T_SAFE.address) == load_calibration().strategy.T_safe_c
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=30)
 
 
 # -- the slave's answers to bad requests (no bus)
