@@ -38,7 +38,7 @@ ADDRESS = {m.name: m.address for m in MEASUREMENTS}
 CAL = {v.name: v for v in cal_values()}
 DB = load_dbc()
 STATUS = DB.get_message_by_name("TCU_STATUS")
-STATES = {int(v): str(n) for v, n in STATUS.get_signal_by_name("State").choices.items()}
+STATES = {int(v): str(n) for v, n in (STATUS.get_signal_by_name("State").choices or {}).items()}
 T_SAFE = CAL["strategy.T_safe_c"]
 
 
