@@ -3,8 +3,8 @@
 
 * Calibration, from :data:`CAL_BASE` (0x10000): every scalar of the calibration file (sections strategy, speed,
   launch, vehicle, clutch.CL, clutch.CH; the friction map is not in it), one little-endian IEEE double each, 8 bytes
-  apart in the file's order. A write is taken once all 8 bytes of a value have come (in one DOWNLOAD block or
-  several), checked against the calibration's limits (the file's, :func:`ecu_stub.calibration.c`) and its cross
+  apart in the file's order. A write is taken once all 8 bytes of a value have come (on CAN a DOWNLOAD carries 6:
+  two of them), checked against the calibration's limits (the file's, :func:`ecu_stub.calibration.c`) and its cross
   checks, and handed to the controller (:meth:`ecu_stub.controller.CreepController.recalibrate`): the next control
   period runs with it. Values the runner's plausibility checks take at start-up too (:data:`READ_ONLY`) are read
   only: changed in the controller alone, the two would disagree.
