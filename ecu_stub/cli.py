@@ -15,15 +15,17 @@ import threading
 from collections.abc import Mapping
 from contextlib import ExitStack
 from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 from dsg_hil.common.cli import run_main, signals_held
 from dsg_hil.common.errors import InputError
 from dsg_hil.common.files import check_output_path
 
-__all__ = ["EXAMPLE_FAULTS", "by_cause", "main", "version"]
+__all__ = ["EXAMPLE_FAULTS", "XCP_IDS", "by_cause", "main", "version", "xcp_ids"]
 
 EXAMPLE_FAULTS = ("drop:TCU_CMD@10-12", "stuck:TCU_STATUS.T_CL_Pred@5-8,value=20")  # --help: the TCU's own frames
+XCP_IDS = (0x7D0, 0x7D1)  # --xcp-ids default: CRO, DTO (ecu_stub.xcp.DEFAULT_IDS; not imported for --help)
 
 
 def version() -> str:
@@ -32,6 +34,25 @@ def version() -> str:
         return metadata.version("dsg-hil")
     except metadata.PackageNotFoundError:
         return "(dsg-hil not installed)"
+
+
+def xcp_ids(text: str) -> tuple[int, int]:
+    """``--xcp-ids``: 'CRO,DTO', two different 11-bit CAN IDs (decimal or 0x hex); else a usage error."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"give two CAN IDs as CRO,DTO (e.g. 0x7D0,0x7D1), got {text!r}")
+    ids = []
+    for part in parts:
+        try:
+            value = int(part.strip(), 0)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {part!r} (decimal or 0x hex)") from None
+        if not 0 <= value <= 0x7FF:
+            raise argparse.ArgumentTypeError(f"an 11-bit CAN ID must be 0x0-0x7FF, got {part.strip()}")
+        ids.append(value)
+    if ids[0] == ids[1]:
+        raise argparse.ArgumentTypeError(f"CRO and DTO must differ, got {text}")
+    return ids[0], ids[1]
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -57,6 +78,15 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="record the frames the TCU took and sent (first transmissions; lockstep: stamped "
                              "with simulated time), in python-can's format for the extension: .log (candump -L), "
                              ".asc, .blf, .csv ...")
+    parser.add_argument("--xcp", action="store_true",
+                        help="serve XCP on CAN as well (ASAM MCD-1 XCP: measure the TCU's internals by DAQ each "
+                             "control period, change calibration values at run time; the A2L: --a2l)")
+    parser.add_argument("--xcp-ids", type=xcp_ids, metavar="CRO,DTO",
+                        help="the XCP master's and the TCU's CAN IDs (default: 0x7D0,0x7D1); neither may be "
+                             "a DBC message's or a diagnostic ID")
+    parser.add_argument("--a2l", metavar="FILE",
+                        help="write the A2L file of the XCP slave (its calibration values, measurements, DAQ "
+                             "event and CAN IDs) and exit")
     parser.add_argument("--idle-exit", type=float, metavar="S",
                         help="stop when the plant has been silent for S seconds after having been heard")
     loudness = parser.add_mutually_exclusive_group()  # as dsg-hil's -v/-q
@@ -82,6 +112,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _serve(args: argparse.Namespace, stop: threading.Event) -> None:
+    if args.a2l is not None:
+        _write_a2l(args)
+        return
     with ExitStack() as stack:
         with signals_held():  # set up whole (imports, DBC, bus, log): a signal now acts once the TCU is ready
             tcu, config = _set_up(args, stack)
@@ -91,7 +124,40 @@ def _serve(args: argparse.Namespace, stop: threading.Event) -> None:
             print(f"ecu-stub: listening on {bus_name(config)}", file=sys.stderr, flush=True)
             if warning := per_process_warning(config):
                 print(f"ecu-stub: warning: {warning}", file=sys.stderr, flush=True)
+            if tcu.xcp is not None:
+                cro, dto = tcu.xcp.request_id, tcu.xcp.response_id
+                print(f"ecu-stub: XCP slave on CAN, master 0x{cro:X}, slave 0x{dto:X}", file=sys.stderr, flush=True)
         tcu.run(duration=args.duration, idle_timeout=args.idle_exit, should_stop=stop.is_set)
+
+
+def _checked_xcp_ids(args: argparse.Namespace, db: Any) -> tuple[int, int]:
+    """--xcp-ids (or the default), checked against the DBC's messages and diagnostic IDs."""
+    from dsg_hil.protocol.diag import diag_ids  # noqa: PLC0415
+
+    ids = args.xcp_ids or XCP_IDS
+    taken = {m.frame_id: f"the ID of {m.name} in the DBC" for m in db.messages}
+    if db.dbc is not None and "DiagRequestId" in db.dbc.attributes:
+        request, response = diag_ids(db)
+        taken.update({request: "the DBC's diagnostic request ID", response: "the DBC's diagnostic response ID"})
+    option = "--xcp-ids" + (f" 0x{ids[0]:X},0x{ids[1]:X}" if args.xcp_ids else f" (default 0x{ids[0]:X},0x{ids[1]:X})")
+    for frame_id in ids:
+        if frame_id in taken:
+            raise InputError(f"{option}: 0x{frame_id:X} is {taken[frame_id]}")
+    return ids
+
+
+def _write_a2l(args: argparse.Namespace) -> None:
+    """--a2l FILE: the A2L of the slave on the checked IDs, written whole (nothing written on bad input)."""
+    from dsg_hil.protocol import load_dbc  # noqa: PLC0415
+
+    from .xcp.a2l import a2l_text  # noqa: PLC0415
+
+    check_output_path("--a2l", args.a2l)
+    cro, dto = _checked_xcp_ids(args, load_dbc(args.dbc))
+    path = Path(args.a2l)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(a2l_text(cro, dto, version(), path.stem if path.stem.isidentifier() else "ecu_stub"),
+                    encoding="latin-1")
 
 
 def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, Any]]:
@@ -113,25 +179,36 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         if value is not None and not 0.0 < value < float("inf"):
             raise InputError(f"--{option.replace('_', '-')}: must be a positive number of seconds, got {value}")
     check_output_path("--log", args.log)
+    if args.xcp_ids is not None and not args.xcp:
+        raise InputError("--xcp-ids: serves nothing without --xcp (or --a2l)")
     controller = CreepController(load_calibration(args.calibration))
     config = bus_config(args)
     db = load_dbc(args.dbc)
     codec = Codec(db, TCU_USES)
+    xcp = _checked_xcp_ids(args, db) if args.xcp else None
     faults = check_faults(faults_from_args(args), db)
     if faults["plant"]:
         raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                          f"side=tcu")
     inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
-    if db.dbc is not None and "DiagRequestId" in db.dbc.attributes:  # and UDS requests (ecu_stub.diag)
-        inner.set_filters([*receive_filters(db.get_message_by_name(name) for name in TCU_RX),
-                           {"can_id": diag_ids(db)[0], "can_mask": 0x7FF, "extended": False}])
+    requests = [diag_ids(db)[0]] if db.dbc is not None and "DiagRequestId" in db.dbc.attributes else []
+    requests += [xcp[0]] if xcp is not None else []
+    if requests:  # and UDS requests (ecu_stub.diag), XCP commands (ecu_stub.xcp)
+        filters: list[Any] = [*receive_filters(db.get_message_by_name(name) for name in TCU_RX)]
+        filters += [{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in requests]
+        inner.set_filters(filters)
     tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
     bus, injector = with_faults(inner, db, faults["tcu"], args.fault_seed, lambda: tcu_side[0].now)
     stack.callback(bus.shutdown)
     record = FrameLog(args.log, log_channel(config)) if args.log else None
     if record is not None:
         stack.callback(record.stop)
-    tcu = TcuRunner(codec, bus, controller, (record,) if record else ())
+    slave = None
+    if xcp is not None:
+        from .xcp import xcp_slave  # noqa: PLC0415
+
+        slave = xcp_slave(*xcp)
+    tcu = TcuRunner(codec, bus, controller, (record,) if record else (), slave)
     tcu_side.append(tcu)
     stack.callback(_print_counts, tcu, injector)  # first when the stack closes, then the log and the bus
     return tcu, config

@@ -197,6 +197,16 @@ class CreepController:
         self.stalled_since: float | None = None  # CREEP at the clutch's capacity under half the target (_stalled)
         self.pedal_overrun = False  # the driver's pedal pressed but not holding the vehicle (_idle)
 
+    def recalibrate(self, cal: TcuCalibration) -> None:
+        """Run on with ``cal`` from the next cycle (a calibration value changed at run time, :mod:`ecu_stub.xcp`),
+        keeping the state, the plate estimates and the integral: the speed controller's gains, limits and rate,
+        and the thermal monitor, from the new values; everything else reads them each cycle."""
+        self.cal = cal
+        s, pid = cal.speed, self.pid
+        pid.kp, pid.ki, pid.rate_limit = s.kp_n_per_mps, s.ki_n_per_m, s.force_rate_n_per_s
+        pid.out_min = -cal.vehicle.m_kg * s.decel_max_mps2
+        self.monitor = ThermalMonitor(cal)
+
     # ---- the clutch model ------------------------------------------------------------------------------------
     def observed_plate_c(self, clutch: str, inp: TcuInputs) -> float:
         """Plate temperature from the oil balance of the pack (start-up observer, see the module docstring)."""

@@ -16,7 +16,7 @@ from dsg_hil.protocol.frame import FrameListener
 if TYPE_CHECKING:  # the runtime does not need them: the protocols are structural
     from .controller import TcuInputs, TcuOutputs
 
-__all__ = ["FrameListener", "TcuController"]
+__all__ = ["FrameListener", "SidePort", "TcuController"]
 
 
 @runtime_checkable
@@ -33,3 +33,16 @@ class TcuController(Protocol):
     def cal(self) -> Any: ...
 
     def update(self, inputs: TcuInputs, now: float) -> TcuOutputs: ...
+
+
+class SidePort(Protocol):
+    """A service beside the control loop on frames of its own (ecu-stub's XCP slave, :mod:`ecu_stub.xcp`): the
+    runner hands it each classic frame on ``request_id`` (:meth:`take`) and calls :meth:`period` after each control
+    period with the TCU's time [s]; it sends through the function it was built with."""
+
+    @property
+    def request_id(self) -> int: ...
+
+    def take(self, data: bytes) -> None: ...
+
+    def period(self, now: float) -> None: ...

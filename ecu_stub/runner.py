@@ -49,7 +49,7 @@ from .calibration import TcuCalibration
 from .controller import CreepController, TcuInputs, TcuOutputs
 from .diag import DiagServer
 from .diag.server import response_frame
-from .interface import TcuController
+from .interface import SidePort, TcuController
 from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, SensorChecks
 
@@ -93,7 +93,8 @@ class TcuRunner:
     transmit schedule ``tx``) runs the control step per tick; in real time :meth:`run` does, on its own clock."""
 
     def __init__(self, codec: Codec, bus: can.BusABC, controller: TcuController | None = None,
-                 listeners: Sequence[FrameListener] = ()) -> None:
+                 listeners: Sequence[FrameListener] = (),
+                 xcp: Callable[[Any, Callable[[int, bytes], None]], SidePort] | None = None) -> None:
         for name in TCU_USES:
             codec.message(name)
         self.codec, self.bus = codec, bus
@@ -158,6 +159,8 @@ class TcuRunner:
             self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, self.states,
                                    self.clutches, cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
                                    else math.nan, repr(cal))
+        # XCP on its own IDs (ecu_stub.xcp): ``xcp(runner, send)`` builds the slave; None: no XCP
+        self.xcp: SidePort | None = xcp(self, self._send_diag) if xcp is not None else None
         self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
                                       send=self._send_one, recv=self._diag_recv(recv),
                                       on_taken=self._taken if listeners else None)
@@ -258,6 +261,8 @@ class TcuRunner:
         if self.diag is not None:
             self.diag.period(self.now, now, self.rx, self.implausible, inp, out,
                              getattr(self.controller, "held_untrusted", False) is True)
+        if self.xcp is not None:
+            self.xcp.period(self.now)
         if out.brake_request:  # (the speed vote's step check: any deceleration, _brake_mps2)
             self._braked_at = now
         self._decel_mps2.add(now, out.decel_request_mps2)
@@ -318,22 +323,28 @@ class TcuRunner:
         if self.diag is not None and frame_id == self.diag.request_id:
             self.diag.take(data)
             return False
+        if self.xcp is not None and frame_id == self.xcp.request_id:
+            self.xcp.take(data)
+            return False
         return self.link.handle_data(frame_id, data, now)
 
     def _is_diag(self, item: object) -> bool:
-        """Whether ``item`` (a can.Message, or (ID, data) from the in-process bus) is a diagnostic request; it is
-        handed to :attr:`diag` then."""
-        diag = self.diag
-        if diag is None:
-            return False
+        """Whether ``item`` (a can.Message, or (ID, data) from the in-process bus) is a diagnostic request or an XCP
+        command; it is handed to :attr:`diag` or :attr:`xcp` then."""
+        diag, xcp = self.diag, self.xcp
         if isinstance(item, can.Message):
-            if item.arbitration_id != diag.request_id or item.is_extended_id or item.is_remote_frame \
-                    or item.is_error_frame:
+            frame_id = item.arbitration_id
+            if item.is_extended_id or item.is_remote_frame or item.is_error_frame:
                 return False
-            diag.take(bytes(item.data))
+        elif isinstance(item, tuple):
+            frame_id = item[0]
+        else:
+            return False
+        if diag is not None and frame_id == diag.request_id:
+            diag.take(bytes(item.data if isinstance(item, can.Message) else item[1]))
             return True
-        if isinstance(item, tuple) and item[0] == diag.request_id:
-            diag.take(bytes(item[1]))
+        if xcp is not None and frame_id == xcp.request_id:
+            xcp.take(bytes(item.data if isinstance(item, can.Message) else item[1]))
             return True
         return False
 
@@ -344,10 +355,10 @@ class TcuRunner:
                 item = recv(timeout)
                 if item is None or not self._is_diag(item):
                     return item
-        return take if self.diag is not None else recv
+        return take if self.diag is not None or self.xcp is not None else recv
 
     def _send_diag(self, frame_id: int, data: bytes) -> None:
-        """A diagnostic response frame: classic, or CAN FD beyond 8 bytes (not counted in :attr:`sent`)."""
+        """A diagnostic or XCP response frame: classic, or CAN FD beyond 8 bytes (not counted in :attr:`sent`)."""
         if len(data) <= 8:
             self._send_frame(frame_id, data)
         else:

@@ -255,6 +255,19 @@ CASES = [
      "nodid.toml: did[0]: id must be an integer 0-65535, not None"),
     ("dsg-hil", ["diag", "dtc", *BUS, "--dbc", "small.dbc"], "file", ERROR,
      "small.dbc: no network attribute DiagRequestId"),
+    # ecu-stub's XCP slave: its IDs checked before the bus opens or the A2L is written
+    ("ecu-stub", [*BUS, "--xcp", "--xcp-ids", "0x7D0", "--log", "t.log"], "option", USAGE,
+     "argument --xcp-ids: give two CAN IDs as CRO,DTO (e.g. 0x7D0,0x7D1), got '0x7D0'"),
+    ("ecu-stub", [*BUS, "--xcp", "--xcp-ids", "0x7D0,0x800", "--log", "t.log"], "option", USAGE,
+     "argument --xcp-ids: an 11-bit CAN ID must be 0x0-0x7FF, got 0x800"),
+    ("ecu-stub", [*BUS, "--xcp", "--xcp-ids", "0x200,0x7D1", "--log", "t.log"], "option", ERROR,
+     "--xcp-ids 0x200,0x7D1: 0x200 is the ID of TCU_CMD in the DBC"),
+    ("ecu-stub", [*BUS, "--xcp-ids", "0x7D2,0x7D3", "--log", "t.log"], "option", ERROR,
+     "--xcp-ids: serves nothing without --xcp (or --a2l)"),
+    ("ecu-stub", ["--a2l", "t.a2l", "--xcp-ids", "0x7D0,0x7E9"], "option", ERROR,
+     "--xcp-ids 0x7D0,0x7E9: 0x7E9 is the DBC's diagnostic response ID"),
+    ("ecu-stub", ["--a2l", "afile/t.a2l"], "option", ERROR, "--a2l afile/t.a2l: afile is not a writable directory"),
+    ("ecu-stub", ["--a2l", "t.a2l", "--dbc", "nosuch.dbc"], "file", ERROR, "nosuch.dbc: DBC file not found"),
 ]
 
 
