@@ -47,6 +47,7 @@ class Strategy:
 
     T_safe_c: float = c("degC", 100.0, 400.0)  # clutch safety temperature (paper, Section V.A)
     prediction_error_k: float = c("K", 0.0, 30.0)  # worst truth-minus-prediction over the identification runs
+    oil_accuracy_k: float = c("K", 0.0, 30.0)  # an oil sensor's error no check can see (present from start-up)
     takeover_headroom_k: float = c("K", 0.0, 50.0)  # the on-coming clutch needs this much below its threshold
     handover_time_s: float = c("s", 0.05, 5.0)  # torque crossover duration
     hydraulic_lag_s: float = c("s", 0.0, 1.0)  # pressure follows the command with this lag (for the margin)

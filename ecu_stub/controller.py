@@ -74,6 +74,8 @@ from .calibration import TcuCalibration, load_calibration
 from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque, slip_filter_weight
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
+from .plausibility import REL_TOL
+from .sensor_checks import N_REL, OIL_FALL_K, OIL_FRAME_S, P_ABS_MPA, P_REL
 
 __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "STALL_FRACTION",
            "STALL_S", "TcuInputs", "TcuOutputs"]
@@ -91,6 +93,8 @@ RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (iss
 STALL_FRACTION = 0.5  # stalled: under half the target speed with the wheel force at the clutch's capacity ...
 STALL_S = 1.0  # ... for this long (10 time constants of the speed loop, 1/9.7 rad/s: not a transient)
 SATURATED_FRACTION = 0.98  # the wheel force at its limit: within 2 % of the capacity (which moves with the slip)
+SPEED_Q_MPS = 0.0005  # half a DBC step of VehicleSpeed [m/s] (margin_k: an output speed's error the vote lets through)
+SHAFT_Q_RPM = 0.1  # half a DBC step of a clutch output speed and of ClutchInputSpeed, 0.05 r/min each [r/min]
 
 
 @dataclass(slots=True)  # not frozen: built every control period, a frozen one costs several times more
@@ -196,6 +200,8 @@ class CreepController:
         self.slip_mean: dict[str, float] | None = None  # the clutches' slips low-passed [r/min] (mean_slip_rpm)
         self.stalled_since: float | None = None  # CREEP at the clutch's capacity under half the target (_stalled)
         self.pedal_overrun = False  # the driver's pedal pressed but not holding the vehicle (_idle)
+        self.heat_max = {"CL": 0.0, "CH": 0.0}  # the largest friction power since start-up, its error added [W]
+        self.heat_error_k = {"CL": 0.0, "CH": 0.0}  # the prediction's error from undetected heat errors [K] (margin_k)
 
     def recalibrate(self, cal: TcuCalibration) -> None:
         """Run on with ``cal`` from the next cycle (a calibration value changed at run time, :mod:`ecu_stub.xcp`),
@@ -223,6 +229,14 @@ class CreepController:
         """True while the plate estimates still come from the start-up observer."""
         return self.first_seen is None or now - self.first_seen < self.cal.strategy.startup_observer_s
 
+    def input_rpm(self, inp: TcuInputs) -> float:
+        """The clutch input speed [r/min] of the thermal model (the prediction's heat, the monitor's and the handover
+        limit's): the larger of ``ClutchInputSpeed`` and ``EngineSpeed`` / i_a (``vehicle.input_ratio``), the larger
+        slip. The input speed check (:mod:`ecu_stub.sensor_checks`) lets ClutchInputSpeed read up to 40 r/min low,
+        a third of a creep's heat; the engine's speed covers that (docs/safety.md, section 6)."""
+        n_in, via_engine = inp.clutch_in_rpm, inp.engine_speed_rpm / self.cal.vehicle.input_ratio
+        return n_in if n_in > via_engine else via_engine
+
     def _predict(self, inp: TcuInputs, dt: float, now: float, mean: dict[str, float]) -> None:
         """Advance both plate estimates, mu at the low-passed slips ``mean`` (:meth:`_filter_slip`, this cycle's
         included); at start-up, take them from the observer."""
@@ -231,7 +245,8 @@ class CreepController:
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
-        T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, inp.clutch_in_rpm
+        T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, self.input_rpm(inp)
+        heat_max, heat_error = self.heat_max, self.heat_error_k
         mu_of = mu_lookup(cal.friction)
         for c, clutch, out_rpm, P, T_oil in (("CL", cal.CL, inp.cl_out_rpm, inp.P_CL_mpa, inp.T_oil_CL_c),
                                              ("CH", cal.CH, inp.ch_out_rpm, inp.P_CH_mpa, inp.T_oil_CH_c)):
@@ -239,9 +254,15 @@ class CreepController:
             # low-passed slip, the heat at the measured one
             T, P, slip = T_pred[c], max(P, 0.0), abs(clutch_in - out_rpm)
             Q = heat[c] = heat_w(mu_of(T, abs(mean[c]), P), clutch, P, slip)
+            dQ = self.heat_error_fraction(c, inp, P, slip) * Q  # the heat's undetected error (margin_k)
+            if Q + dQ > heat_max[c]:
+                heat_max[c] = Q + dQ
             K = clutch.K_plate_oil_w_k
             T_inf = T_oil + Q / K
-            T_pred[c] = T_inf + (T - T_inf) * math.exp(-K * dt / clutch.C_plate_j_k)
+            decay = math.exp(-K * dt / clutch.C_plate_j_k)
+            T_pred[c] = T_inf + (T - T_inf) * decay
+            e_inf = dQ / K  # the same model driven by the heat's undetected error (margin_k)
+            heat_error[c] = e_inf + (heat_error[c] - e_inf) * decay
 
     def mean_slip_rpm(self, clutch: str, inp: TcuInputs) -> float:
         """|Slip| [r/min] of the clutch low-passed over ``SLIP_FILTER_S`` (:meth:`_filter_slip`), for the
@@ -306,7 +327,8 @@ class CreepController:
             P = P_meas
         if P < 0.0:
             P = 0.0
-        slip, n_in = abs(inp.slip_rpm(clutch)), abs(inp.clutch_in_rpm)
+        n_in = self.input_rpm(inp)
+        slip, n_in = abs(n_in - (inp.cl_out_rpm if clutch == "CL" else inp.ch_out_rpm)), abs(n_in)
         slip = abs(n_in if n_in > slip else slip)
         return heat_w(mu_lookup(cal.friction)(T, slip, P), c, P, slip)
 
@@ -316,7 +338,8 @@ class CreepController:
         slip of the vehicle at its desired speed (or the present slip, if smaller)."""
         inp = self.inp
         P = max(self.P_cmd[clutch], inp.pressure_mpa(clutch), 0.0)
-        return crossover_heat_w(self.cal, clutch, self._T_pred[clutch], inp.slip_rpm(clutch), inp.clutch_in_rpm,
+        n_in = self.input_rpm(inp)
+        return crossover_heat_w(self.cal, clutch, self._T_pred[clutch], self.thermal_slip_rpm(clutch), n_in,
                                 inp.desired_speed_mps, P)
 
     def crossover_rise_k(self, clutch: str, heat_w: float, worst_w: float | None = None) -> float:
@@ -333,15 +356,62 @@ class CreepController:
         return max(heat_w * (0.5 * s.handover_time_s + s.hydraulic_lag_s + self.dt),
                    worst * release_time_s(self.cal, self.dt)) / C
 
+    def slip_error_rpm(self, clutch: str, inp: TcuInputs) -> float:
+        """Largest error [r/min] of the clutch's |slip| that the plausibility checks let through: its output speed
+        within the speed vote's tolerance (:data:`~ecu_stub.plausibility.REL_TOL` of the vehicle speed and half DBC
+        steps; an output speed beyond it is out-voted and replaced by the runner), the input speed within
+        :data:`~ecu_stub.sensor_checks.N_REL` of itself (:meth:`input_rpm`: an input speed reading low is covered by
+        the engine's) and half steps."""
+        return ((REL_TOL * abs(inp.v_mps) + SPEED_Q_MPS) / (self.cal.clutch(clutch).speed_ratio_m * _RPM_TO_RAD_S)
+                + N_REL * abs(self.input_rpm(inp)) + SHAFT_Q_RPM)
+
+    def thermal_slip_rpm(self, clutch: str) -> float:
+        """The clutch's slip [r/min] of the thermal model: :meth:`input_rpm` minus its output speed."""
+        inp = self.inp
+        return self.input_rpm(inp) - (inp.cl_out_rpm if clutch == "CL" else inp.ch_out_rpm)
+
+    def heat_error_fraction(self, clutch: str, inp: TcuInputs, P_mpa: float, slip_rpm: float) -> float:
+        """Largest relative error of a friction power mu k_geom P |slip| at pressure ``P_mpa`` and slip ``slip_rpm``
+        that the plausibility checks let through: the pressure's :data:`~ecu_stub.sensor_checks.P_REL` +
+        :data:`~ecu_stub.sensor_checks.P_ABS_MPA` / P and the slip's :meth:`slip_error_rpm` / |slip| (at most 1);
+        0 at no pressure (no heat)."""
+        if P_mpa <= 0.0:
+            return 0.0
+        dn, slip = self.slip_error_rpm(clutch, inp), abs(slip_rpm)
+        return P_REL + P_ABS_MPA / P_mpa + dn / (slip if slip > dn else dn)
+
+    def heat_scale(self, clutch: str) -> float:
+        """Factor on the clutch's monitor and crossover powers for the undetected errors of their inputs:
+        1 + :meth:`heat_error_fraction` at the larger of command and measured pressure (the monitor's) and the
+        thermal slip."""
+        inp = self.inp
+        P = max(self.P_cmd[clutch], inp.pressure_mpa(clutch))
+        return 1.0 + self.heat_error_fraction(clutch, inp, P, self.thermal_slip_rpm(clutch))
+
+    def margin_k(self, clutch: str) -> float:
+        """The thermal margin's error term ``e`` of the clutch [K] (docs/safety.md, section 6): the predictor's
+        identified error ``strategy.prediction_error_k``; an oil sensor's unobservable error
+        ``strategy.oil_accuracy_k`` (an offset present from start-up); the largest oil step the fall check lets
+        through, :data:`~ecu_stub.sensor_checks.OIL_FALL_K` plus the plate's rise over one oil frame
+        (:data:`~ecu_stub.sensor_checks.OIL_FRAME_S`) at the largest heat since start-up (its undetected error
+        added), in which a step hides; and :attr:`heat_error_k`, the prediction's own model driven by the heat's
+        undetected error (:meth:`heat_error_fraction` x Q): C de/dt = dQ - K e, at most dQ / K."""
+        s, c = self.cal.strategy, self.cal.clutch(clutch)
+        return (s.prediction_error_k + s.oil_accuracy_k + OIL_FALL_K
+                + self.heat_max[clutch] / c.C_plate_j_k * OIL_FRAME_S
+                + self.heat_error_k[clutch])
+
     def limit(self, clutch: str, heat_w: float | None = None, worst_w: float | None = None) -> float:
-        """Predicted plate temperature at which the clutch must start handing over [degC]: T_safe - worst prediction
-        error - :meth:`crossover_rise_k` (default: :meth:`crossover_heat` and :meth:`worst_heat`). Not the power
-        of the decision instant: in a launch the clutch passes the launch's transient power (a vehicle still at
-        rest slips the whole input speed), which the crossover, carried to the desired speed, does not see."""
+        """Predicted plate temperature at which the clutch must start handing over [degC]: T_safe - :meth:`margin_k`
+        - :meth:`crossover_rise_k` x :meth:`heat_scale` (default: :meth:`crossover_heat` and :meth:`worst_heat`).
+        Not the power of the decision instant: in a launch the clutch passes the launch's transient power (a vehicle
+        still at rest slips the whole input speed), which the crossover, carried to the desired speed, does not
+        see."""
         s = self.cal.strategy
         if heat_w is None:
             heat_w, worst_w = self.crossover_heat(clutch), self.worst_heat(clutch) if worst_w is None else worst_w
-        return s.T_safe_c - s.prediction_error_k - self.crossover_rise_k(clutch, heat_w, worst_w)
+        return (s.T_safe_c - self.margin_k(clutch)
+                - self.heat_scale(clutch) * self.crossover_rise_k(clutch, heat_w, worst_w))
 
     def takeover_heat(self, clutch: str) -> tuple[float, float]:
         """Friction powers [W] the clutch would have once it carries the vehicle, (4) as torque times slip: the
@@ -354,7 +424,7 @@ class CreepController:
         inp, cal = self.inp, self.cal
         force = self.F_cmd if self.F_cmd > 0.0 else self.prefill_force()
         torque_rad = force * cal.clutch(clutch).speed_ratio_m / cal.vehicle.eta * _RPM_TO_RAD_S
-        slip, clutch_in = inp.slip_rpm(clutch), inp.clutch_in_rpm
+        slip, clutch_in = self.thermal_slip_rpm(clutch), self.input_rpm(inp)
         return (torque_rad * crossover_slip_rpm(cal, clutch, slip, clutch_in, inp.desired_speed_mps),
                 torque_rad * worst_slip_rpm(slip, clutch_in))
 
@@ -502,10 +572,13 @@ class CreepController:
         """The outputs after the thermal monitor (:mod:`ecu_stub.monitor`): pressures limited where its bound
         would pass T_safe, and a stop if the clutch that carries the vehicle had to be limited."""
         carrying = "NONE" if self.state == "STOPPED_OVERHEAT" else self.active
-        clutch_in = inp.clutch_in_rpm  # (slip_rpm and pressure_mpa of each clutch, written out)
+        clutch_in = self.input_rpm(inp)  # (thermal_slip_rpm and pressure_mpa of each clutch, written out)
         P_meas = {"CL": inp.P_CL_mpa, "CH": inp.P_CH_mpa}
         slips = {"CL": clutch_in - inp.cl_out_rpm, "CH": clutch_in - inp.ch_out_rpm}
-        verdict = self.monitor.check(self._T_pred, slips, clutch_in, self.P_cmd, P_meas, carrying, self.dt)
+        error_k = {"CL": self.margin_k("CL"), "CH": self.margin_k("CH")}
+        scale = {"CL": self.heat_scale("CL"), "CH": self.heat_scale("CH")}
+        verdict = self.monitor.check(self._T_pred, slips, clutch_in, self.P_cmd, P_meas, carrying, self.dt, error_k,
+                                     scale)
         off = self.handover_from
         if self.state == "HANDOVER" and off in verdict.P_limit_mpa and not verdict.stop:
             # the off-going clutch released faster than its share: the on-coming one takes the rest of the wheel
@@ -515,7 +588,8 @@ class CreepController:
             rest = self.F_cmd - self.force_at(off, P_off, inp)
             self.P_cmd[off] = P_off
             self.P_cmd[carrying] = max(self.P_cmd[carrying], self.pressure_for(carrying, rest, inp))
-            verdict = self.monitor.check(self._T_pred, slips, clutch_in, self.P_cmd, P_meas, carrying, self.dt)
+            verdict = self.monitor.check(self._T_pred, slips, clutch_in, self.P_cmd, P_meas, carrying, self.dt,
+                                         error_k, scale)
         covered = self.ramp_covered if self.state == "STOPPED_OVERHEAT" else "NONE"
         proposed = self.P_cmd[carrying] if carrying != "NONE" else 0.0
         for c, P in verdict.P_limit_mpa.items():

@@ -98,20 +98,24 @@ class ThermalMonitor:
         self.cal = cal
 
     def bound_c(self, clutch: str, T_pred_c: float, slip_rpm: float, clutch_in_rpm: float, P_mpa: float,
-                dt: float) -> float:
-        """B_c [degC] if the clutch may see pressure ``P_mpa`` until a release that starts now."""
+                dt: float, error_k: float | None = None, heat_scale: float = 1.0) -> float:
+        """B_c [degC] if the clutch may see pressure ``P_mpa`` until a release that starts now; ``error_k``: ``e``
+        (default ``strategy.prediction_error_k``), ``heat_scale``: Q_w's factor for its undetected error."""
         s, C = self.cal.strategy, self.cal.clutch(clutch).C_plate_j_k
-        Q = worst_heat_w(self.cal, clutch, T_pred_c, slip_rpm, clutch_in_rpm, P_mpa)
-        return T_pred_c + s.prediction_error_k + Q * release_time_s(self.cal, dt) / C
+        Q = worst_heat_w(self.cal, clutch, T_pred_c, slip_rpm, clutch_in_rpm, P_mpa) * heat_scale
+        return T_pred_c + (s.prediction_error_k if error_k is None else error_k) + Q * release_time_s(self.cal, dt) / C
 
     def check(self, T_pred: dict[str, float], slip_rpm: dict[str, float], clutch_in_rpm: float,
-              P_cmd: dict[str, float], P_meas: dict[str, float], carrying: str, dt: float) -> MonitorVerdict:
+              P_cmd: dict[str, float], P_meas: dict[str, float], carrying: str, dt: float,
+              error_k: dict[str, float] | None = None, heat_scale: dict[str, float] | None = None) -> MonitorVerdict:
         """Judge the commands ``P_cmd`` [MPa] (``P_meas``: measured [MPa]; ``carrying``: the clutch that holds the
         vehicle, or "NONE"). Limits a command where its bound passes ``T_safe`` (to zero if even the measured
-        pressure alone passes it: the release starts at once); a stop if that is the carrying clutch."""
+        pressure alone passes it: the release starts at once); a stop if that is the carrying clutch. ``error_k``,
+        ``heat_scale``: each clutch's ``e`` and Q_w's factor (:meth:`bound_c`; the strategy's margin for the
+        sensor errors its checks let through, ``CreepController.margin_k``)."""
         cal = self.cal
         s = cal.strategy
-        T_safe, error_k, mu_of = s.T_safe_c, s.prediction_error_k, mu_lookup(cal.friction)
+        T_safe, mu_of = s.T_safe_c, mu_lookup(cal.friction)
         tau = 0.5 * s.stop_release_s + s.hydraulic_lag_s + dt  # release_time_s
         bounds, limits, stop = {}, {}, False
         for c, clutch in (("CL", cal.CL), ("CH", cal.CH)):
@@ -123,11 +127,13 @@ class ThermalMonitor:
             if P < 0.0:
                 P = 0.0
             slip = abs(n_in if n_in > slip else slip)
-            Q = mu_of(T, slip, P) * clutch.k_geom_m3 * _MPA_TO_PA * P * slip * _RPM_TO_RAD_S
-            B = T + error_k + Q * tau / clutch.C_plate_j_k
+            e = s.prediction_error_k if error_k is None else error_k[c]
+            scale = 1.0 if heat_scale is None else heat_scale[c]
+            Q = mu_of(T, slip, P) * clutch.k_geom_m3 * _MPA_TO_PA * P * slip * _RPM_TO_RAD_S * scale
+            B = T + e + Q * tau / clutch.C_plate_j_k
             if B > T_safe:
-                def bound(P: float, c: str = c) -> float:
-                    return self.bound_c(c, T_pred[c], slip_rpm[c], clutch_in_rpm, max(P, P_meas[c]), dt)
+                def bound(P: float, c: str = c, e: float = e, scale: float = scale) -> float:
+                    return self.bound_c(c, T_pred[c], slip_rpm[c], clutch_in_rpm, max(P, P_meas[c]), dt, e, scale)
                 limits[c] = P = self._largest_safe(bound, P_cmd[c], T_safe)
                 B = bound(P)
                 stop = stop or c == carrying

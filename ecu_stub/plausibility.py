@@ -255,6 +255,7 @@ class SpeedVoter:
     pairs: tuple[PairCheck, PairCheck, PairCheck] = field(init=False)  # (v, CL), (v, CH), (CL, CH)
     last_v: tuple[float, int, float] | None = None  # the last VehicleSpeed taken: (value, frame counter, time)
     stepped_at: float | None = None  # when VehicleSpeed last made an impossible step (:func:`plausible_step`)
+    outvoted: str = ""  # "CL" / "CH": that output speed disagrees with VehicleSpeed and the other, which agree
 
     def __post_init__(self) -> None:
         self.reset()
@@ -265,6 +266,7 @@ class SpeedVoter:
         q_v, q_cl, q_ch = 0.5 * self.v_step_mps, half * self.speed_ratio_cl_m, half * self.speed_ratio_ch_m
         self.pairs = (PairCheck(q_v, q_cl), PairCheck(q_v, q_ch), PairCheck(q_cl, q_ch))
         self.verdict, self.last_now, self.last_v, self.stepped_at = Verdict.OK, None, None, None
+        self.outvoted = ""
 
     def _stepped(self, v_mps: float, counter: int | None, now: float, brake_mps2: float) -> bool:
         """True if VehicleSpeed stepped impossibly since its last frame (:func:`plausible_step`): the span is the
@@ -300,6 +302,8 @@ class SpeedVoter:
         with_cl, with_ch, shafts = self.pairs
         off_cl, off_ch = with_cl.update(v_mps, v_cl, dt, now), with_ch.update(v_mps, v_ch, dt, now)
         off_shafts = shafts.update(v_cl, v_ch, dt, now)
+        self.outvoted = "CL" if off_cl and off_shafts and not off_ch else \
+            "CH" if off_ch and off_shafts and not off_cl else ""
         if not (off_cl and off_ch):
             stepped = self.stepped_at
             if stepped is not None:  # an impossible step, not yet judged by the vote: the shafts' speed if they agree

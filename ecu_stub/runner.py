@@ -51,7 +51,7 @@ from .diag import DiagServer
 from .diag.server import response_frame
 from .interface import SidePort, TcuController
 from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
-from .sensor_checks import CHECKED, SensorChecks
+from .sensor_checks import CHECKED, FALL_START_TAU, SensorChecks
 
 __all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
 
@@ -149,9 +149,13 @@ class TcuRunner:
                 cal.vehicle.input_ratio,
                 0.5 * (scale("PLANT_SPEEDS", "ClutchInputSpeed") + scale("PLANT_ENGINE", "EngineSpeed")
                        / cal.vehicle.input_ratio),
-                {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))})
+                {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))},
+                {c: k.K_plate_oil_w_k * k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) / k.C_plate_j_k
+                 for c, k in (("CL", cal.CL), ("CH", cal.CH))},
+                FALL_START_TAU * cal.strategy.startup_observer_s / 5.0)
         # cycles whose thermal input a check replaced, by signal (ecu_stub.sensor_checks)
-        self.implausible = {"VehicleSpeed": 0, "speeds": 0, **dict.fromkeys(CHECKED, 0)}
+        self.implausible = {"VehicleSpeed": 0, "speeds": 0, "CLOutputSpeed": 0, "CHOutputSpeed": 0,
+                            **dict.fromkeys(CHECKED, 0)}
         # UDS on the DBC's diagnostic IDs (ecu_stub.diag): requests taken before the lock-step end sees a frame
         self.diag: DiagServer | None = None
         if codec.db.dbc is not None and "DiagRequestId" in codec.db.dbc.attributes:
@@ -215,6 +219,15 @@ class TcuRunner:
                 return TcuInputs(plant_valid=False, fault_bits=faults)  # FAULT: clutches open, brake requested
             self.implausible["VehicleSpeed"] += 1
         clutch_in, P_CL, P_CH, T_CL, T_CH = s["ClutchInputSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"]
+        cl_out, ch_out = s["CLOutputSpeed"], s["CHOutputSpeed"]
+        if vote is not None and vote.outvoted:  # an output speed out-voted: the vehicle's, through its ratio (the slip)
+            faults |= FAULT_IMPLAUSIBLE
+            if vote.outvoted == "CL":
+                cl_out, self.implausible["CLOutputSpeed"] = v_mps / vote.speed_ratio_cl_m / CV.RPM_TO_RAD_S, \
+                    self.implausible["CLOutputSpeed"] + 1
+            else:
+                ch_out, self.implausible["CHOutputSpeed"] = v_mps / vote.speed_ratio_ch_m / CV.RPM_TO_RAD_S, \
+                    self.implausible["CHOutputSpeed"] + 1
         trusted = True
         if (checks := self.sensor_checks) is not None:
             P_CL, P_CH, clutch_in, T_CL, T_CH, failing = checks.check(
@@ -225,7 +238,7 @@ class TcuRunner:
                 for name in failing:
                     self.implausible[name] += 1
                 trusted = "P_CL" not in failing and "P_CH" not in failing
-        return TcuInputs(True, e["EngineSpeed"], clutch_in, s["CLOutputSpeed"], s["CHOutputSpeed"],
+        return TcuInputs(True, e["EngineSpeed"], clutch_in, cl_out, ch_out,
                          v_mps, P_CL, P_CH, T_CL, T_CH, o["T_Sump"],
                          d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults, trusted,
                          v["LongAccel"])

@@ -48,8 +48,8 @@ and two shafts (K_in, K_a1): omega_I = omega_e / i_a plus what the shafts twist.
   overshoot and x2 for a swing: 0.26 rad. Plus in real time PLANT_ENGINE and PLANT_SPEEDS held from frames one
   10-ms cycle apart: 10 ms x 20 rad/s of shaft-I speed change (an idle step of 1000 r/min at the engine): 0.2 rad.
   An input speed stuck at 0 at the 800-r/min idle (149 r/min at shaft I) passes it in about 0.05 s; one that reads
-  less than 40 r/min under the truth is not caught (the heat then under-predicted by up to 40 / 90 r/min of a creep
-  slip: left open).
+  less than 40 r/min under the truth is not caught here; the thermal model takes the larger of the two in every
+  cycle (:meth:`ecu_stub.controller.CreepController.input_rpm`), so it does not under-predict the heat by it.
 * Reaction: the larger of the two speeds (the larger slip: a clutch's input turns faster than its output while it
   drives the vehicle, so the heat predicted is the larger; an engine speed stuck high only makes the TCU stop
   early).
@@ -84,6 +84,33 @@ hazard); hotter is on the safe side.
   the plate estimate itself, the largest (with the plate's own estimate the plate exchanges no heat: an adiabatic,
   conservative prediction).
 
+**4. The oil's fall vs the plate's fastest passive cooling** (:class:`OilCheck`, ``cooling_per_s``). Check 3
+compares the reading with a balance built from the TCU's own plate estimate, which follows the reading (CL's
+plate-oil time constant 1.5 s): an offset from an onset passed it up to 16 K on CL, 12 K on CH (docs/safety.md,
+section 6). But the oil leaving a pack sits at its balance with the plate (CL: 99.6 % plate), and without friction
+heat a plate cools at most at K_eff (T - T_sump) / C, K_eff = K cooling / (K + cooling) (the balance eliminated:
+CL 3.4 W/K over 1,378 J/K, 0.37 K/s at 150 K over the sump; CH 69 W/K over 6,908 J/K, 1.5 K/s); with heat, slower.
+So a reading that falls faster has stepped: a one-sided CUSUM of the reading's fall beyond ``FALL_GAIN`` x that
+rate (at the plate estimate), failing once it passes ``OIL_FALL_K``.
+
+* ``FALL_GAIN`` = 2: what the calibration's K_eff / C leaves out (losses of plates and pack to the housing, the
+  oil's own capacity; CL cooled 1.3 times as fast as K_eff / C says in the default scenario, 205-243 degC):
+  with 1 the largest fall's CUSUM without a sensor fault was 4.8 K (the default scenario), with 2, 0.18 K over it and
+  the 89 identification runs.
+* ``OIL_FALL_K`` = 0.5 K: two DBC steps (0.2 K; the largest value without a sensor fault, 0.18 K, is one step
+  rounded each way) and 0.3 K for a real sensor's noise (assumed).
+* It starts ``FALL_START_TAU`` = 8 oil time constants (1.6 s) after the first cycle: a cold pack in hot oil settles
+  from the sump's temperature to its plate's within the start-up observer's five (e^-5 of 110 K is 0.7 K, of the
+  eighth 0.04 K).
+* Reaction: the reading is not trusted again until the TCU restarts (a latched fault: a step does not come back,
+  so healing on agreement would trust the offset reading 2 s later); the hottest credible value as in 3 (the
+  plate's own estimate: no cooling assumed).
+
+What it does not see: a step within ``OIL_FALL_K`` plus the plate's rise over one PLANT_OIL_TEMP frame (100 ms; a
+step during a fast heating hides in it), a drift slower than ``FALL_GAIN`` x the passive cooling, and an offset
+present when it starts. The strategy's margin budgets the first and the last
+(:meth:`ecu_stub.controller.CreepController.margin_k`); the drift stays assumed away (docs/safety.md, section 6).
+
 Not covered: a value stuck at what the redundant information says (a sensor frozen at its last value while nothing
 changes), and, for the oil, a sensor already wrong when the TCU starts (the start-up observer takes the plate from
 it). There is no FAULT reaction here: each check has a conservative substitute that needs no other sensor.
@@ -96,8 +123,9 @@ from dataclasses import dataclass, field
 
 from .plausibility import MAX_DT_S, Sustained
 
-__all__ = ["ANGLE_RAD", "CHECKED", "InputSpeedCheck", "N_ABS_RPM", "N_REL", "OIL_KS", "OIL_TOL_K", "OilCheck",
-           "P_ABS_MPA", "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "SensorChecks"]
+__all__ = ["ANGLE_RAD", "CHECKED", "FALL_GAIN", "FALL_START_TAU", "InputSpeedCheck", "N_ABS_RPM", "N_REL", "OIL_FALL_K",
+           "OIL_FRAME_S", "OIL_KS", "OIL_TOL_K", "OilCheck", "P_ABS_MPA", "P_IMPULSE_MPA_S", "P_REL", "PressureCheck",
+           "SensorChecks"]
 
 P_ABS_MPA = 0.02  # pressure sensor accuracy: 1 % of the DBC's 2-MPa range [MPa]
 P_REL = 0.05  # the valve's gain [1]
@@ -107,6 +135,10 @@ N_ABS_RPM = 40.0  # a ringing shaft's aliased speed at shaft I (23.3 r/min measu
 ANGLE_RAD = 0.5  # shaft twist 4 x 0.065 rad + real-time skew 10 ms x 20 rad/s, at shaft I [rad]
 OIL_TOL_K = 10.0  # oil leaving a clutch below its balance with plate estimate and sump, without a sensor fault [K]
 OIL_KS = 2.0  # integral of the oil's deficit beyond OIL_TOL_K [K s]
+OIL_FALL_K = 0.5  # a reading's fall beyond FALL_GAIN x the plate's passive cooling: two DBC steps + 0.3 K noise [K]
+FALL_GAIN = 2.0  # the plate's passive cooling K_eff (T - T_sump) / C by the calibration, x2 for what it leaves out [1]
+FALL_START_TAU = 8.0  # the fall check starts 8 oil time constants (startup_observer_s / 5 each) after the first cycle
+OIL_FRAME_S = 0.1  # PLANT_OIL_TEMP's cycle time (DBC): a step hides in the plate's rise over one frame [s]
 _RPM_TO_RAD_S = math.pi / 30.0
 CHECKED = ("P_CL", "P_CH", "ClutchInputSpeed", "T_OilCL", "T_OilCH")  # the signals checked, in this order
 
@@ -156,17 +188,40 @@ class InputSpeedCheck:
 
 @dataclass(slots=True)
 class OilCheck:
-    """The oil leaving one clutch vs its balance with the plate estimate and the sump (module docstring, 3); degC.
-    ``sump_share``: cooling / (K + cooling) of that clutch's calibration."""
+    """The oil leaving one clutch vs its balance with the plate estimate and the sump, and its fall vs the plate's
+    fastest passive cooling (module docstring, 3 and 4); degC. ``sump_share``: cooling / (K + cooling) of that
+    clutch's calibration; ``cooling_per_s``: K cooling / (K + cooling) / C (0: no fall check); ``fall_from_s``:
+    the fall check's start after the first cycle [s]."""
 
     sump_share: float
+    cooling_per_s: float = 0.0
+    fall_from_s: float = 0.0
     check: Sustained = field(default_factory=lambda: Sustained(OIL_KS, one_sided=True))
+    first_now: float | None = None  # the first cycle [s]
+    last_oil: float | None = None  # the reading of the last cycle [degC]
+    fall_k: float = 0.0  # the reading's fall beyond FALL_GAIN x the passive cooling, a one-sided CUSUM [K]
+    largest_fall_k: float = 0.0  # its largest value (how close a run without a sensor fault came)
+    fell_at: float | None = None  # when it passed OIL_FALL_K: the reading is not trusted again (a latched fault)
 
     def update(self, oil: float, sump: float, plate: float | None, dt: float, now: float) -> tuple[bool, float]:
         """(failing, the oil temperature to use [degC]); ``plate``: the TCU's estimate, None before it has one (then
         nothing is checked)."""
         balance = oil if plate is None else plate + self.sump_share * (sump - plate)
         failing = self.check.update(balance - oil, OIL_TOL_K, dt, now)
+        if plate is not None and self.cooling_per_s > 0.0:
+            if self.first_now is None:
+                self.first_now = now
+            last, self.last_oil = self.last_oil, oil
+            if last is not None and now - self.first_now >= self.fall_from_s:
+                above = plate - sump  # the plate's passive cooling, max() written out
+                fall = self.fall_k + (last - oil) - FALL_GAIN * self.cooling_per_s * (above if above > 0.0 else 0.0) \
+                    * dt
+                self.fall_k = fall = fall if fall > 0.0 else 0.0
+                if fall > self.largest_fall_k:
+                    self.largest_fall_k = fall
+                if fall > OIL_FALL_K and self.fell_at is None:
+                    self.fell_at = now
+            failing = failing or self.fell_at is not None
         return failing, max(oil, sump, plate if plate is not None else sump) if failing else oil
 
 
@@ -180,6 +235,8 @@ class SensorChecks:
     input_ratio: float
     q_n_rpm: float
     sump_share: dict[str, float]  # by clutch: cooling / (K + cooling) of the calibration
+    cooling_per_s: dict[str, float] = field(default_factory=dict)  # by clutch: K_eff / C (none: no fall check)
+    fall_from_s: float = 0.0  # the fall check's start after the first cycle [s]
     last_now: float | None = None
     cmd_mpa: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
     pressure: dict[str, PressureCheck] = field(init=False)
@@ -193,7 +250,8 @@ class SensorChecks:
         """Forget the history (a restarted run)."""
         self.pressure = {c: PressureCheck(self.lag_s, self.q_p_mpa) for c in ("CL", "CH")}
         self.speed = InputSpeedCheck(self.input_ratio, self.q_n_rpm)
-        self.oil = {c: OilCheck(self.sump_share[c]) for c in ("CL", "CH")}
+        self.oil = {c: OilCheck(self.sump_share[c], self.cooling_per_s.get(c, 0.0), self.fall_from_s)
+                    for c in ("CL", "CH")}
         self.last_now, self.cmd_mpa = None, {"CL": 0.0, "CH": 0.0}
 
     def commanded(self, P_CL_mpa: float, P_CH_mpa: float) -> None:

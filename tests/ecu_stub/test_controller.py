@@ -15,6 +15,7 @@ from ecu_stub.clutch_model import SLIP_FILTER_S, friction_coefficient, friction_
 from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
 from ecu_stub.monitor import MonitorVerdict
 from ecu_stub.pid import PID
+from ecu_stub.sensor_checks import OIL_FALL_K
 
 from ..source import definition
 
@@ -182,8 +183,11 @@ def test_limit_is_t_safe_minus_prediction_error_minus_crossover_rise():
     Q_w = 0.07 * FLAT.CL.k_geom_m3 * P * 1e6 * 150.0 * 2 * math.pi / 60
     rise = max(Q_x * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT),  # the crossover, share 1 -> 0 linearly
                Q_w * (s.stop_release_s / 2 + s.hydraulic_lag_s + DT)) / FLAT.CL.C_plate_j_k  # the monitor's release
-    assert ctrl.limit("CL") == pytest.approx(s.T_safe_c - s.prediction_error_k - rise, rel=1e-9)
-    assert 0.0 < s.prediction_error_k + rise < 15.0  # no giving up early: the hotter clutch used to within 15 K
+    # the margin for the errors the checks let through (margin_k, test_margin_budgets_...), and the rise scaled by
+    # the undetected heat error
+    e = ctrl.margin_k("CL")
+    assert ctrl.limit("CL") == pytest.approx(s.T_safe_c - e - ctrl.heat_scale("CL") * rise, rel=1e-9)
+    assert 0.0 < e + ctrl.heat_scale("CL") * rise < 15.0  # no giving up early: the hotter clutch used to within 15 K
 
 
 def test_the_margin_of_a_launch_budgets_the_crossover_not_the_launch():
@@ -205,8 +209,9 @@ def test_the_margin_of_a_launch_budgets_the_crossover_not_the_launch():
     assert ctrl.worst_heat("CL") == pytest.approx(Q_now, rel=1e-9)  # the monitor keeps the worst slip
     T = ctrl.T_pred["CL"]
     assert ctrl.limit("CL") == pytest.approx(
-        s.T_safe_c - s.prediction_error_k - max(Q_x * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT),
-                                                Q_now * (s.stop_release_s / 2 + s.hydraulic_lag_s + DT)) / C,
+        s.T_safe_c - ctrl.margin_k("CL")
+        - ctrl.heat_scale("CL") * max(Q_x * (s.handover_time_s / 2 + s.hydraulic_lag_s + DT),
+                                      Q_now * (s.stop_release_s / 2 + s.hydraulic_lag_s + DT)) / C,
         rel=1e-9)
     assert ctrl.T_pred["CL"] == T
     # a vehicle over its target: the present (smaller) slip
@@ -345,7 +350,8 @@ def test_stops_when_neither_can_take_over_but_not_before_the_hotter_is_near_its_
     ctrl, clock = creeping()
     inp = replace(CREEP, clutch_in_rpm=50.0, cl_out_rpm=50.0, ch_out_rpm=50.0, v_mps=0.2, P_CL_mpa=0.6)
     limit = ctrl.limit("CL", 0.0)
-    hot_CH = limit - FLAT.strategy.takeover_headroom_k + 1.0  # CH cannot take over
+    # CH cannot take over: 1 K over its limit at no heat (margin_k of its own) less the headroom
+    hot_CH = FLAT.strategy.T_safe_c - ctrl.margin_k("CH") - FLAT.strategy.takeover_headroom_k + 1.0
     out = hold_at(ctrl, clock, inp, FLAT.strategy.T_safe_c - 15.0, hot_CH)
     assert out.state == "CREEP" and not out.brake_request  # 15 K under T_safe: keeps creeping on CL
     P0 = out.P_CL_cmd_mpa
@@ -506,3 +512,43 @@ def test_a_pedal_overrun_ends_with_the_launch_that_follows_it():
     ctrl.update(replace(firm, v_mps=0.19), clock.tick())
     out = ctrl.update(replace(firm, v_mps=0.18), clock.tick())  # slowing under his pedal
     assert out.state == "IDLE" and not out.brake_request
+
+
+def test_the_thermal_input_speed_is_the_larger_of_the_input_and_the_engine_speed():
+    ctrl, clock = creeping()
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2, engine_speed_rpm=1000.0)  # 1000 / 5.3585 = 186.6 r/min
+    ctrl.update(inp, clock.tick())
+    assert ctrl.input_rpm(inp) == pytest.approx(1000.0 / FLAT.vehicle.input_ratio, rel=1e-12)
+    assert ctrl.thermal_slip_rpm("CL") == pytest.approx(1000.0 / FLAT.vehicle.input_ratio - 50.0, rel=1e-12)
+    Q = 0.07 * FLAT.CL.k_geom_m3 * 0.6e6 * (1000.0 / FLAT.vehicle.input_ratio - 50.0) * 2 * math.pi / 60
+    assert ctrl.heat["CL"] == pytest.approx(Q, rel=1e-9)  # the heat at the larger slip
+    assert ctrl.input_rpm(replace(inp, engine_speed_rpm=700.0)) == 150.0  # 130.6 r/min: the input speed's
+
+
+def test_the_margin_budgets_the_errors_the_checks_let_through_by_hand():
+    """On the flat map, CL at 0.6 MPa, 150 r/min in, 50 out (100 r/min of slip), 0.2 m/s: the heat's undetected
+    error fraction is P_REL + P_ABS / P + dn / slip, dn = (3 % x 0.2 m/s + 0.5 mm/s) / r_CL + 1 % x 150 r/min
+    + 0.1 r/min; in steady state (20 s, 13 plate time constants) the prediction's error from it is f Q / K (the
+    model's own gain); after one cycle from none, f Q dt / C (the energy over the capacity). The margin adds the
+    identified error, the oil sensors' accuracy, the fall check's step and the plate's rise over one oil frame at
+    the largest heat seen."""
+    ctrl, clock = creeping()
+    inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
+    ctrl.heat_error_k["CL"] = 0.0
+    ctrl.update(inp, clock.tick())
+    rpm, s, c = 2 * math.pi / 60, FLAT.strategy, FLAT.CL
+    Q = 0.07 * c.k_geom_m3 * 0.6e6 * 100.0 * rpm
+    dn = (0.03 * 0.2 + 0.0005) / (c.speed_ratio_m * rpm) + 0.01 * 150.0 + 0.1
+    assert ctrl.slip_error_rpm("CL", inp) == pytest.approx(dn, rel=1e-12) and 3.3 < dn < 3.5
+    f = 0.05 + 0.02 / 0.6 + dn / 100.0
+    assert ctrl.heat_error_fraction("CL", inp, 0.6, 100.0) == pytest.approx(f, rel=1e-12)
+    assert ctrl.heat_error_k["CL"] == pytest.approx(f * Q * DT / c.C_plate_j_k, rel=1e-2)  # energy balance
+    run(ctrl, clock, inp, 20.0)
+    assert ctrl.heat_error_k["CL"] == pytest.approx(f * Q / c.K_plate_oil_w_k, rel=1e-4)  # steady state
+    assert ctrl.heat_max["CL"] >= Q * (1.0 + f) * (1.0 - 1e-9)
+    assert ctrl.margin_k("CL") == pytest.approx(
+        s.prediction_error_k + s.oil_accuracy_k + OIL_FALL_K + ctrl.heat_max["CL"] / c.C_plate_j_k * 0.1
+        + f * Q / c.K_plate_oil_w_k, rel=1e-4)
+    # and the monitor's and crossover's powers scaled by the same fraction, at the command's pressure
+    P = max(ctrl.P_cmd["CL"], 0.6)
+    assert ctrl.heat_scale("CL") == pytest.approx(1.0 + 0.05 + 0.02 / P + dn / 100.0, rel=1e-12)

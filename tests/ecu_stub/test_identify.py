@@ -14,6 +14,7 @@ from dsg_hil.physics.friction import mean_friction_radius
 from dsg_hil.physics.params import load_params
 from dsg_hil.testing import run_plant
 from dsg_hil.common.errors import LogError
+from ecu_stub.sensor_checks import OIL_FALL_K
 from ecu_stub.calibration import DEFAULT_CALIBRATION, load_calibration, torque_falls
 from ecu_stub.identify import EXIT_STALE, check, main
 from tests.sim.test_closed_loop import closed_loop, creep_scenario
@@ -26,7 +27,9 @@ def recorded(tmp_path_factory):
     shipped e (with e 3.5 K, T_safe 140 degC left CL, at 128 degC, no takeover headroom: CH alone crept)."""
     path = tmp_path_factory.mktemp("identify") / "run.log"
     shipped = load_calibration()
-    low = replace(shipped, strategy=replace(shipped.strategy, T_safe_c=139.0 + shipped.strategy.prediction_error_k))
+    # (the margin's constant terms added: prediction error, oil sensor accuracy, the oil fall check's step)
+    margin = shipped.strategy.prediction_error_k + shipped.strategy.oil_accuracy_k + OIL_FALL_K
+    low = replace(shipped, strategy=replace(shipped.strategy, T_safe_c=139.0 + margin))
     _, _, frames = closed_loop(creep_scenario(12.0, T_oil=120.0, T_plates=(128.0, 100.0)), cal=low)
     with can.Logger(str(path)) as log:
         for t, frame_id, data in frames:

@@ -73,7 +73,7 @@ def test_controller_stops_when_the_monitor_limits_the_clutch_that_carries_the_ve
     # take over (hot for the monitor)
     T_safe = S.T_safe_c - 30.0
     ctrl.monitor = ThermalMonitor(replace(FLAT, strategy=replace(S, T_safe_c=T_safe)))
-    T = T_safe - S.prediction_error_k - 0.5
+    T = T_safe - ctrl.margin_k("CL") - 0.5  # (the strategy's margin, which it hands the monitor)
     ctrl.T_pred = {"CL": T, "CH": T_safe - 5.0}
     ctrl.near_limit_since = None
     assert T < ctrl.limit("CL")  # the strategy alone keeps creeping on CL
@@ -91,7 +91,7 @@ def test_controller_releases_the_off_going_clutch_faster_when_its_bound_would_pa
     out = ctrl.update(replace(still, T_oil_CL_c=ctrl.T_pred["CL"], T_oil_CH_c=150.0), clock.tick())
     assert out.state == "HANDOVER" and out.active_clutch == "CH"
     # a brake drags the vehicle down during the crossover: the strategy asks CL for more, the monitor refuses
-    T = S.T_safe_c - S.prediction_error_k - 0.3
+    T = S.T_safe_c - ctrl.margin_k("CL") - 0.3  # (the strategy's margin, which it hands the monitor)
     ctrl.T_pred["CL"] = T
     out = ctrl.update(replace(inp, v_mps=0.05, P_CL_mpa=0.0, T_oil_CL_c=T), clock.tick())
     assert out.state == "HANDOVER" and not out.brake_request
@@ -112,7 +112,7 @@ def test_the_on_coming_clutch_takes_the_force_the_monitor_takes_off_the_off_goin
     ctrl.T_pred = {"CL": ctrl.limit("CL", 0.0) + 0.05, "CH": 150.0}
     out = ctrl.update(replace(still, T_oil_CL_c=ctrl.T_pred["CL"], T_oil_CH_c=150.0), clock.tick())
     assert out.state == "HANDOVER"
-    T = S.T_safe_c - S.prediction_error_k - 0.3
+    T = S.T_safe_c - ctrl.margin_k("CL") - 0.3  # (the strategy's margin, which it hands the monitor)
     ctrl.T_pred["CL"] = T
     hot = replace(inp, v_mps=0.05, P_CL_mpa=0.0, T_oil_CL_c=T)
     out = ctrl.update(hot, clock.tick())

@@ -394,3 +394,20 @@ def test_the_speed_vote_counts_frames_with_the_profiles_counter_range(bus):
     default = TcuRunner(Codec(load_dbc(), TCU_USES), bus)
     assert tcu.speed_vote is not None and default.speed_vote is not None
     assert (tcu.speed_vote.counter_modulus, default.speed_vote.counter_modulus) == (15, 16)
+
+
+def test_an_output_speed_off_both_others_is_out_voted_for_the_slip():
+    """CL's output speed alone off (VehicleSpeed and CH agree): VehicleSpeed stays in use and CL's output speed is
+    named out-voted (the runner then takes v / r_CL for CL's slip); VehicleSpeed off (the shafts agree): none."""
+    check = voter()
+    out = run(check, [(0.3, 0.0, 0.3)] * 300)
+    assert all(r == (Verdict.OK, 0.3) for r in out) and check.outvoted == "CL"
+    check = voter()
+    run(check, [(0.2, 0.2, 0.3)] * 300)
+    assert check.outvoted == "CH"
+    check = voter()
+    out = run(check, [(0.0, 0.3, 0.3)] * 300)
+    assert out[-1][0] is Verdict.SUBSTITUTED and check.outvoted == ""
+    check = voter()
+    run(check, [(0.3, 0.3 * 1.02, 0.3)] * 300)  # within the 3 % tolerance: never
+    assert check.outvoted == ""
