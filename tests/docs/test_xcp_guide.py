@@ -1,6 +1,6 @@
-"""The XCP guide (docs/how-to/xcp.md): its script runs as a user runs it (ecu-stub --xcp as a process on
-udp_multicast, pyxcp as the master, pya2ldb reading the A2L) and prints what the guide shows, but the machine's
-count of samples; its tables name every measurement and read-only value of the memory map. Skipped without a
+"""The XCP guide (docs/how-to/xcp.md): its script runs as a user runs it (ecu-stub's TCU and XCP slave in a thread
+on python-can's virtual bus, pyxcp as the master, pya2ldb reading the A2L) and prints what the guide shows, but the
+machine's count of samples; its tables name every measurement and read-only value of the memory map. Skipped without a
 checkout."""
 
 from __future__ import annotations
