@@ -14,7 +14,7 @@ from dsg_hil.common.units import CV
 from dsg_hil.physics.params import load_params
 from dsg_hil.physics.plant import Plant
 from dsg_hil.protocol import Codec, load_dbc
-from dsg_hil.protocol.binding import DEFAULT_BINDING, BindingError, conversion, load_binding
+from dsg_hil.protocol.binding import DEFAULT_BINDING, BindingError, check_binding, conversion, load_binding
 from dsg_hil.sim.plant_io import SHIPPED, PlantIO, from_binding
 from dsg_hil.sim.runner import PlantRunner
 from dsg_hil.sim.scenario import load_scenario
@@ -154,10 +154,12 @@ def test_a_bad_binding_fails_naming_the_file_and_key(tmp_path: Path, change, mes
         text = text.replace(old, new, 1)
     path = tmp_path / "bad.binding.toml"
     path.write_text(text, encoding="utf-8")
+    binding, problems = check_binding(path)
+    assert binding is None and any(message in line for line in problems), problems
+    assert all(line.startswith(f"{path}: ") and "\n" not in line for line in problems), problems
     with pytest.raises(BindingError) as caught:
         load_binding(path)
-    text = str(caught.value)
-    assert text.startswith(f"{path}: ") and message in text and "\n" not in text, text
+    assert str(caught.value) == problems[0]
 
 
 def test_a_missing_binding_file(tmp_path: Path):
