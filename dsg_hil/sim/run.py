@@ -221,6 +221,7 @@ class Run:
         self.bus_config, direct = self._bus_config()
         self.interface = bus_name(self.bus_config)
         process = self._tcu_process()
+        self._check_bundled_tcu()
         self._check_paths()
         # nothing was opened or written up to here: bad input fails before this line
         plant_bus, tcu_bus = self._open_buses(direct)
@@ -256,6 +257,24 @@ class Run:
             return SHIPPED, {}
         binding = load_binding(self.config.binding, db=self.db)
         return from_binding(binding), binding.protection
+
+    def _check_bundled_tcu(self) -> None:
+        """The bundled TCU (ecu-stub) reads and sends the shipped DBC's messages and signals by name: a DBC without
+        them (another ECU's matrix, with its binding) fails here, naming the DBC, before anything is opened."""
+        if self.config.tcu != ECU_STUB:
+            return
+        from ecu_stub.runner import TCU_USES  # noqa: PLC0415 - the TCU's, when it is the bundled one
+
+        for message_name, signals in TCU_USES.items():
+            try:
+                message = self.db.get_message_by_name(message_name)
+                for signal in signals:
+                    message.get_signal_by_name(signal)
+            except KeyError:
+                name = "the DBC given" if isinstance(self.config.dbc, Database) else self.config.dbc
+                raise InputError(f"{name}: ecu-stub, the bundled TCU, speaks the shipped DBC's messages and signals "
+                                 f"by name, and this DBC has no {message_name} with them: run your ECU on the other "
+                                 f"end (dsg-hil plant)") from None
 
     def _plant_codec(self) -> Codec:
         """The plant's codec: a DBC without a message or signal the plant sends or reads (the TCU's among them)
