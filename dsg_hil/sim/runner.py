@@ -147,8 +147,10 @@ class PlantRunner:
         return self.plant.state.t if self._running else -1.0
 
     def inject(self, specs: Iterable[FaultSpec], seed: int = 0) -> None:
-        """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock."""
-        self.bus, self.injectors["plant"] = with_faults(self.bus, self.codec.db, specs, seed, self.clock)
+        """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock; a
+        frame it changes is sealed again with its message's protection (the codec's: a binding's profile)."""
+        self.bus, self.injectors["plant"] = with_faults(self.bus, self.codec.db, specs, seed, self.clock,
+                                                        self.codec.protections())
         self.fault_seed = seed
         self._bind_bus()
 
