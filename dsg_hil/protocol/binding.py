@@ -17,6 +17,7 @@ The file::
 
     [messages.TCU_CMD]                  # optional, per message: the database's cycle time overridden, protection
     cycle_time_ms = 10
+    timeout_ms = 30                     # a message the plant reads: its receive timeout (default 3 cycle times)
     protection = { profile = "dsg-hil" }   # none, dsg-hil, P01, P02, P05, P11 (:mod:`.profiles`)
 
 A quantity's value is the signal's physical value (the database's scaling) in the signal's unit, converted to the
@@ -156,7 +157,8 @@ class Binding:
     * ``tx``/``rx``: by message the plant sends/reads (``send``'s order), its signals used, in the database's order;
     * ``signals``: (message, signal) -> (quantity, factor); ``offsets``: the ones with an offset (K to degC);
     * ``sync``: (message, signal) of the lock-step tick; ``echo``: of the TCU's echo of it;
-    * ``cycle_times_ms``: the overridden cycle times; ``protection``: by message, its protection table;
+    * ``cycle_times_ms``: the overridden cycle times; ``timeouts_ms``: the receive timeouts given (messages read);
+      ``protection``: by message, its protection table;
     * ``units``: by quantity mapped, the signal's unit.
     """
 
@@ -171,6 +173,7 @@ class Binding:
     cycle_times_ms: dict[str, int]
     protection: dict[str, dict[str, object]]
     units: dict[str, str]
+    timeouts_ms: dict[str, int] = field(default_factory=dict)
 
     @property
     def uses(self) -> dict[str, tuple[str, ...]]:
@@ -309,7 +312,8 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
             if carrier is not None and quantity in where and where[quantity] != carrier:
                 problem(f"quantities.{quantity}: must be in {carrier}, with "
                         f"{'the lock-step echo' if group is COMMAND else 'tcu_state'}")
-    cycle_times, protection = _messages(name, data.get("messages", {}), [*send, sync[0], *read], db, problems)
+    cycle_times, protection, timeouts = _messages(name, data.get("messages", {}), [*send, sync[0], *read], read, db,
+                                                  problems)
     for message_name in (*send, sync[0], *read):
         carrier_message = db.get_message_by_name(message_name)
         if message_name not in cycle_times and (carrier_message.cycle_time is None or carrier_message.cycle_time <= 0):
@@ -334,7 +338,7 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
     order = [(m, s) for table in (tx, rx) for m, signals in table.items() for s in signals if (m, s) in mapped]
     return Binding(name, db, tx, rx, {key: mapped[key][:2] for key in order},
                    {key: mapped[key][2] for key in order if mapped[key][2] != 0.0}, sync, echo, cycle_times,
-                   protection, units), []
+                   protection, units, timeouts), []
 
 
 def _num(value: float) -> str:
@@ -370,28 +374,35 @@ def _quantity(path: str, quantity: str, entry: object, db: Database, send: list[
     return key, (message, signal, unit, *converted)
 
 
-def _messages(path: str, table: object, known: list[str], db: Database, problems: list[str]
-              ) -> tuple[dict[str, int], dict[str, dict[str, object]]]:
-    """The ``messages`` table: cycle times and protection by message; its problems appended to ``problems``."""
+def _messages(path: str, table: object, known: list[str], read: list[str], db: Database, problems: list[str]
+              ) -> tuple[dict[str, int], dict[str, dict[str, object]], dict[str, int]]:
+    """The ``messages`` table: cycle times, protection and timeouts by message; its problems appended to
+    ``problems``."""
     cycle_times: dict[str, int] = {}
     protection: dict[str, dict[str, object]] = {}
+    timeouts: dict[str, int] = {}
     if not isinstance(table, dict):
         problems.append(f"{path}: messages must be a table of tables, by message name")
-        return cycle_times, protection
+        return cycle_times, protection, timeouts
     for message, entry in table.items():
         key = f"messages.{message}"
         if message not in known:
             problems.append(f"{path}: {key}: not a message the plant sends or reads")
             continue
-        if not isinstance(entry, dict) or set(entry) - {"cycle_time_ms", "protection"}:
-            problems.append(f"{path}: {key} may give cycle_time_ms and protection only")
+        if not isinstance(entry, dict) or set(entry) - {"cycle_time_ms", "timeout_ms", "protection"}:
+            problems.append(f"{path}: {key} may give cycle_time_ms, timeout_ms and protection only")
             continue
-        if "cycle_time_ms" in entry:
-            value = entry["cycle_time_ms"]
+        for field_name, values in (("cycle_time_ms", cycle_times), ("timeout_ms", timeouts)):
+            if field_name not in entry:
+                continue
+            value = entry[field_name]
             if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-                problems.append(f"{path}: {key}.cycle_time_ms must be a whole number of ms above 0, got {value!r}")
+                problems.append(f"{path}: {key}.{field_name} must be a whole number of ms above 0, got {value!r}")
+            elif field_name == "timeout_ms" and message not in read:
+                problems.append(f"{path}: {key}.timeout_ms: the plant does not read {message} (a timeout is "
+                                f"the receiver's)")
             else:
-                cycle_times[message] = value
+                values[message] = value
         if "protection" in entry:
             if not isinstance(entry["protection"], dict):
                 problems.append(f"{path}: {key}.protection must be a table with a profile key")
@@ -401,4 +412,4 @@ def _messages(path: str, table: object, known: list[str], db: Database, problems
                 protection_for(db.get_message_by_name(message), protection[message])
             except ProtectionError as exc:
                 problems.append(f"{path}: {key}.protection: {exc}")
-    return cycle_times, protection
+    return cycle_times, protection, timeouts

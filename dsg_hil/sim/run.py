@@ -209,7 +209,7 @@ class Run:
         self.scenario = resolve_scenario(config.scenario, config.duration)
         self.params = resolve_params(config.params)
         self.db = config.dbc if isinstance(config.dbc, Database) else load_dbc(config.dbc)
-        self.io, self._protection = self._binding()
+        self.io, self._protection, self._timeouts = self._binding()
         codec = self._plant_codec()
         self.frames: list[can.Message] = []
         self._truth: list[tuple[float, PlantOutputs]] = []
@@ -250,13 +250,14 @@ class Run:
                              ("tcu_output", self.config.tcu_output)):
             check_output_path(option, None if path is None else str(path))
 
-    def _binding(self) -> tuple[PlantIO, dict[str, dict[str, object]]]:
-        """The plant's messages and signals on the DBC, and their protection: the binding's (checked against the
-        DBC: :class:`dsg_hil.protocol.binding.BindingError` naming the file), else the shipped DBC's."""
+    def _binding(self) -> tuple[PlantIO, dict[str, dict[str, object]], dict[str, float]]:
+        """The plant's messages and signals on the DBC, their protection and receive timeouts [s]: the binding's
+        (checked against the DBC: :class:`dsg_hil.protocol.binding.BindingError` naming the file), else the shipped
+        DBC's."""
         if self.config.binding is None:
-            return SHIPPED, {}
+            return SHIPPED, {}, {}
         binding = load_binding(self.config.binding, db=self.db)
-        return from_binding(binding), binding.protection
+        return from_binding(binding), binding.protection, {m: ms / 1000 for m, ms in binding.timeouts_ms.items()}
 
     def _check_bundled_tcu(self) -> None:
         """The bundled TCU (ecu-stub) reads and sends the shipped DBC's messages and signals by name: a DBC without
@@ -280,7 +281,8 @@ class Run:
         """The plant's codec: a DBC without a message or signal the plant sends or reads (the TCU's among them)
         fails here, naming the file, before anything is opened or written."""
         try:
-            return Codec(self.db, self.io.uses, reference=self.config.reference_codec, protection=self._protection)
+            return Codec(self.db, self.io.uses, reference=self.config.reference_codec, protection=self._protection,
+                         timeouts=self._timeouts)
         except ProtocolError as exc:
             name = "the DBC given" if isinstance(self.config.dbc, Database) else self.config.dbc or "the shipped DBC"
             raise ProtocolError(f"{name}: {exc}") from None

@@ -13,7 +13,7 @@ import pytest
 from dsg_hil.common.units import CV
 from dsg_hil.physics.params import load_params
 from dsg_hil.physics.plant import Plant
-from dsg_hil.protocol import Codec, load_dbc
+from dsg_hil.protocol import Codec, RxMonitor, load_dbc
 from dsg_hil.protocol.binding import DEFAULT_BINDING, BindingError, check_binding, conversion, load_binding
 from dsg_hil.sim.plant_io import SHIPPED, PlantIO, from_binding
 from dsg_hil.sim.runner import PlantRunner
@@ -142,6 +142,10 @@ SHIPPED_TEXT = DEFAULT_BINDING.read_text(encoding="utf-8")
      "messages.TCU_CMD.cycle_time_ms must be a whole number of ms above 0, got 0"),
     (('[quantities]', '[messages.TCU_CMD]\nprotection = { profile = "P05" }\n[quantities]'),
      "messages.TCU_CMD.protection: TCU_CMD: protection data_id is missing"),
+    (('[quantities]', '[messages.PLANT_ENGINE]\ntimeout_ms = 30\n[quantities]'),
+     "messages.PLANT_ENGINE.timeout_ms: the plant does not read PLANT_ENGINE"),
+    (('[quantities]', '[messages.TCU_CMD]\ntimeout_ms = 2.5\n[quantities]'),
+     "messages.TCU_CMD.timeout_ms must be a whole number of ms above 0, got 2.5"),
     (('[quantities]', '[messages.NOPE]\ncycle_time_ms = 10\n[quantities]'),
      "messages.NOPE: not a message the plant sends or reads"),
     (('send = [', 'send = ["NOPE", '), "send: message NOPE is not in the database"),
@@ -170,10 +174,12 @@ def test_a_missing_binding_file(tmp_path: Path):
 def test_the_binding_overrides_cycle_times_and_gives_protection(tmp_path: Path):
     path = tmp_path / "b.toml"
     path.write_text(SHIPPED_TEXT + '\n[messages.PLANT_OIL_TEMP]\ncycle_time_ms = 50\n'
-                    '[messages.TCU_STATUS]\nprotection = { profile = "none" }\n', encoding="utf-8")
+                    '[messages.TCU_STATUS]\nprotection = { profile = "none" }\ntimeout_ms = 250\n', encoding="utf-8")
     binding = load_binding(path)
-    assert binding.cycle_times_ms == {"PLANT_OIL_TEMP": 50}
+    assert binding.cycle_times_ms == {"PLANT_OIL_TEMP": 50} and binding.timeouts_ms == {"TCU_STATUS": 250}
     assert binding.db.get_message_by_name("PLANT_OIL_TEMP").cycle_time == 50
-    codec = Codec(binding.db, binding.uses, protection=binding.protection)
+    codec = Codec(binding.db, binding.uses, protection=binding.protection, timeouts={"TCU_STATUS": 0.25})
     assert codec.cycle_time_ms("PLANT_OIL_TEMP") == 50 and codec.protection("TCU_STATUS").profile == "none"
+    monitor = RxMonitor(codec, list(binding.rx))
+    assert monitor.states["TCU_STATUS"].deadline == 0.25 and monitor.states["TCU_CMD"].deadline == 0.03
     assert load_dbc().get_message_by_name("PLANT_OIL_TEMP").cycle_time == 100  # the file's DBC unchanged

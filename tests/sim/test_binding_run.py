@@ -189,3 +189,18 @@ def test_the_creep_on_the_renamed_matrix_is_the_shipped_one(runs):
         assert b["max_predicted_temp_c"][clutch] == pytest.approx(a["max_predicted_temp_c"][clutch], abs=0.11)
     assert a["max_predicted_temp_c"]["CL"] > 120.0  # the TCU's status was read (it predicts the heating)
     assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0 and b["frames"]["received"] > 800
+
+
+@pytest.mark.parametrize("timeout_ms, events", [(None, 1), (50, 0)])
+def test_a_binding_s_timeout_is_the_command_s_deadline(tmp_path, timeout_ms, events):
+    """TCU_CMD lost for 4 control periods (40 ms): past the default deadline (3 cycle times, 30 ms) the hydraulics
+    fall back; with the binding's 50 ms they hold the last command."""
+    binding = None
+    if timeout_ms is not None:
+        binding = tmp_path / "timeout.binding.toml"
+        binding.write_text(DEFAULT_BINDING.read_text(encoding="utf-8")
+                           + f"\n[messages.TCU_CMD]\ntimeout_ms = {timeout_ms}\n", encoding="utf-8")
+    with open_run(RunConfig(duration=2.0, binding=binding, faults=["drop:TCU_CMD@1-1.04"])) as run:
+        summary = run.run().as_json()
+    assert summary["frames"]["unanswered_ticks"] == 4
+    assert summary["command_fallback"]["events"] == events
