@@ -183,3 +183,20 @@ def test_the_binding_overrides_cycle_times_and_gives_protection(tmp_path: Path):
     monitor = RxMonitor(codec, list(binding.rx))
     assert monitor.states["TCU_STATUS"].deadline == 0.25 and monitor.states["TCU_CMD"].deadline == 0.03
     assert load_dbc().get_message_by_name("PLANT_OIL_TEMP").cycle_time == 100  # the file's DBC unchanged
+
+
+def test_the_plant_reads_a_command_in_the_unit_of_its_signal(tmp_path: Path):
+    """TCU_CMD's pressures in kPa (the same raw values, scale 0.1): the plant's commanded pressures in Pa."""
+    text = load_dbc_text().replace(' SG_ P_CL_Cmd : 0|16@1+ (0.0001,0) [0|1.5] "MPa" PLANT',
+                                   ' SG_ P_CL_Cmd : 0|16@1+ (0.1,0) [0|1500] "kPa" PLANT')
+    dbc = tmp_path / "kpa.dbc"
+    dbc.write_text(text, encoding="utf-8")
+    io = from_binding(load_binding(dbc=dbc))
+    assert io.commanded_pressures({"P_CL_Cmd": 557.0, "P_CH_Cmd": 0.25, "SyncEcho": 3.0}) == (557e3, 0.25e6)
+    assert SHIPPED.commanded_pressures({"P_CL_Cmd": 0.557, "P_CH_Cmd": 0.25, "SyncEcho": 3.0}) == (0.557e6, 0.25e6)
+
+
+def load_dbc_text() -> str:
+    from dsg_hil.protocol.codec import DEFAULT_DBC
+
+    return DEFAULT_DBC.read_text(encoding="utf-8")
