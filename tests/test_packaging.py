@@ -18,6 +18,7 @@ import pytest
 import dsg_hil
 from dsg_hil.protocol.codec import DEFAULT_DBC
 from dsg_hil.e2e.vcan import ENV_REQUIRE
+from dsg_hil.protocol.binding import DEFAULT_BINDING
 from dsg_hil.common.build import COMPILED, EXPECT_ENV, build, compiled_modules as loaded_modules
 from dsg_hil.sweep.code import CODE_PACKAGES, digest_of
 
@@ -38,6 +39,12 @@ def test_dbc_resource_is_a_real_file_loadable_as_a_resource():
 def test_dbc_resource_is_identical_to_the_top_level_dbc():
     assert DEFAULT_DBC.read_bytes() == TOP_DBC.read_bytes(), \
         "dsg_hil/data/dsg_hil.dbc and dbc/dsg_hil.dbc differ: copy one onto the other"
+
+
+@pytest.mark.skipif(not TOP_DBC.exists(), reason="dbc/ is in the source tree only")
+def test_binding_resource_is_identical_to_the_top_level_binding():
+    assert DEFAULT_BINDING.read_bytes() == (ROOT / "dbc" / "dsg_hil.binding.toml").read_bytes(), \
+        "dsg_hil/data/dsg_hil.binding.toml and dbc/dsg_hil.binding.toml differ: copy one onto the other"
 
 
 def test_typed_packages():
@@ -98,6 +105,7 @@ def test_wheel_ships_the_dbc_typing_license_and_extras(wheel):
     with zipfile.ZipFile(wheel) as zf:
         names = set(zf.namelist())
         assert zf.read("dsg_hil/data/dsg_hil.dbc") == TOP_DBC.read_bytes()
+        assert zf.read("dsg_hil/data/dsg_hil.binding.toml") == DEFAULT_BINDING.read_bytes()
         info = f"dsg_hil-{dsg_hil.__version__}.dist-info"
         meta = zf.read(f"{info}/METADATA").decode()
     assert {"dsg_hil/py.typed", "ecu_stub/py.typed", "dsg_hil/data/params.toml", "dsg_hil/data/creep.toml",

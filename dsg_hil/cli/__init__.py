@@ -29,6 +29,7 @@ COMMANDS = {  # command: (module, one-line help), in the order of 'dsg-hil --hel
     "bridge": ("bridge_cmd", "forward frames between two buses, injecting faults into one direction"),
     "diag": ("diag_cmd", "read an ECU's DTCs (status, freeze frames) and DIDs over UDS, or clear them (extra diag)"),
     "dbc": ("dbc_cmd", "list the DBC's messages and the bus load they imply"),
+    "binding": ("binding_cmd", "check a binding (plant quantities -> the DBC's signals) and print it as a table"),
     "vcan": ("vcan_cmd", "run the vcan end-to-end tests (or a command) natively or in a throw-away VM"),
     "validate": ("validate", "run the paper's single-clutch validation (Section III.C)"),
     "calibrate": ("calibrate", "re-run the calibrations of the 'calibrated' parameters"),

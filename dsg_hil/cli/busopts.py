@@ -36,6 +36,10 @@ def add_bus_options(parser: argparse.ArgumentParser, default_mode: str) -> None:
     parser.add_argument("--scenario", metavar="FILE", help="scenario TOML (default: the shipped creep scenario)")
     parser.add_argument("--duration", type=float, metavar="S", help="override the scenario's duration [s]")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: dbc/dsg_hil.dbc shipped with dsg-hil)")
+    parser.add_argument("--binding", metavar="FILE",
+                        help="binding TOML: which signal of the DBC carries each quantity of the plant, in which "
+                             "unit (default: dbc/dsg_hil.binding.toml, the shipped DBC's; check one with "
+                             "'dsg-hil binding check')")
     parser.add_argument("--log", metavar="FILE",
                         help="write the bus traffic: .log = candump -L (canplayer, cantools), .asc, .blf, .mf4 "
                              "(ASAM MDF4: the 'mf4' extra) ... by extension through python-can's writers. "
@@ -85,7 +89,7 @@ def run_config(args: argparse.Namespace, **fields: Any) -> RunConfig:
     scenario = load_scenario(args.scenario)
     if args.duration is not None:
         scenario = scenario.with_duration(args.duration)
-    return RunConfig(scenario=scenario, params=params, dbc=args.dbc, mode=args.mode,
+    return RunConfig(scenario=scenario, params=params, dbc=args.dbc, binding=args.binding, mode=args.mode,
                      bus=bus_config(args, fresh_udp=True), faults=[*scenario.faults, *faults_from_args(args)],
                      fault_seed=getattr(args, "fault_seed", 0), log=args.log, summary=getattr(args, "summary", None),
                      reply_timeout=args.reply_timeout, startup_timeout=args.startup_timeout, progress=progress,

@@ -39,6 +39,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--scenario", metavar="FILE", help="creep scenario TOML (default: the shipped one)")
     parser.add_argument("--duration", type=float, metavar="S", help="override the scenario's duration [s]")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: dbc/dsg_hil.dbc shipped with dsg-hil)")
+    parser.add_argument("--binding", metavar="FILE",
+                        help="binding TOML of the DBC: which signal carries each quantity of the plant (default: "
+                             "dbc/dsg_hil.binding.toml, the shipped DBC's)")
     add_verbosity_options(parser)
     add_params_option(parser)
     parser.set_defaults(func=_do_report)
@@ -88,6 +91,8 @@ def _do_report(args: argparse.Namespace) -> int:
     from ..paper.report import Comparison, write_report  # noqa: PLC0415
     from ..paper.report.log import read_log  # noqa: PLC0415
     from ..protocol import load_dbc  # noqa: PLC0415
+    from ..protocol.binding import load_binding  # noqa: PLC0415
+    from ..sim.plant_io import from_binding  # noqa: PLC0415
     from ..protocol.bus import VIRTUAL_CHANNEL  # noqa: PLC0415
     from ..sim.run import RunConfig, resolve_scenario  # noqa: PLC0415
 
@@ -96,11 +101,12 @@ def _do_report(args: argparse.Namespace) -> int:
     setup_logging(args.verbose, args.quiet)
     require_matplotlib()
     db = load_dbc(args.dbc)
+    io = None if args.binding is None else from_binding(load_binding(args.binding, db=db))
     params = params_from(args)
-    record = read_log(args.from_log, db) if args.from_log else None
+    record = read_log(args.from_log, db, io) if args.from_log else None
     scenario = resolve_scenario(args.scenario, args.duration)
     runs = {} if record is not None else {  # the given configuration, then Table I's (DIR/table1/)
-        name: RunConfig(scenario=scenario, params=config, dbc=db, bus={"interface": "virtual",
+        name: RunConfig(scenario=scenario, params=config, dbc=db, binding=args.binding, bus={"interface": "virtual",
                         "channel": f"{VIRTUAL_CHANNEL}_report{suffix}"}, log=where / CREEP_LOG,
                         summary=where / "summary.json", progress=progress)
         for name, config, where, suffix in (("main", params, out, ""), (TABLE1_DIR, TABLE1_DIR, out / TABLE1_DIR,
@@ -110,9 +116,9 @@ def _do_report(args: argparse.Namespace) -> int:
     checks = model_checks(params, scenario, progress=progress)
     table1 = None
     if record is None:
-        record = read_log(_run_creep(runs["main"]), db)
+        record = read_log(_run_creep(runs["main"]), db, io)
         (out / TABLE1_DIR).mkdir(exist_ok=True)
-        table1 = read_log(_run_creep(runs[TABLE1_DIR]), db)
+        table1 = read_log(_run_creep(runs[TABLE1_DIR]), db, io)
     progress(f"creep: decoded {record.frames['decoded']} frames of {record.source}")
     name = "fitted" if args.params in (None, "fitted") else Path(args.params).name
     comparison = Comparison(checks, table1, params, scenario, name + (" + --set" if args.set else ""))

@@ -85,12 +85,15 @@ class Codec:
     and values; by default where the plans run compiled (the mypyc build, :data:`.plan.COMPILED`), faster there
     than the generated source, slower run by the interpreter. ``protection``: a message's protection as a table
     or :class:`.profiles.ProtectionSpec` (e.g. ``{"TCU_CMD": {"profile": "P05", "data_id": 0x1234}}``); a message
-    not named there has the ARXML's E2E data, if any, else the dsg-hil scheme on its Counter and CRC signals."""
+    not named there has the ARXML's E2E data, if any, else the dsg-hil scheme on its Counter and CRC signals.
+    ``timeouts``: receive timeouts [s] by message, where not the receiver's default (:meth:`timeout`)."""
 
     def __init__(self, db: Database, uses: Mapping[str, Sequence[str]], *, reference: bool = False,
                  plans: bool | None = None,
-                 protection: Mapping[str, ProtectionSpec | Mapping[str, object]] | None = None) -> None:
+                 protection: Mapping[str, ProtectionSpec | Mapping[str, object]] | None = None,
+                 timeouts: Mapping[str, float] | None = None) -> None:
         self.db = db
+        self._timeouts = dict(timeouts or {})
         self.reference = reference
         self._plans: dict[str, MessagePlan] = {}
         use_plans = PLANS_COMPILED if plans is None else plans
@@ -162,6 +165,11 @@ class Codec:
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
         return self.cycle_time_ms(name) / CV.S_TO_MS
+
+    def timeout(self, name: str) -> float | None:
+        """The receive timeout [s] given for ``name`` (``timeouts``: a binding's), else None (the receiver's
+        default: :data:`.validity.TIMEOUT_CYCLES` cycle times)."""
+        return self._timeouts.get(name)
 
     def cycle_time_ms(self, name: str) -> int:
         """The message's GenMsgCycleTime [ms], a whole number (for schedules counted in integers)."""

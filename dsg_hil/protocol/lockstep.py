@@ -58,12 +58,12 @@ def choices(codec: Codec, message: str, signal: str) -> dict[str, int]:
     return {str(name): int(value) for value, name in (table or {}).items()}
 
 
-def probe_tick(codec: Codec) -> int:
-    """The SIM_SYNC Tick of the presence probe: the DBC's value named ``PROBE``."""
+def probe_tick(codec: Codec, sync: str = SYNC, tick: str = TICK) -> int:
+    """The SIM_SYNC Tick (``sync``.``tick``) of the presence probe: the DBC's value named ``PROBE``."""
     try:
-        return choices(codec, SYNC, TICK)[PROBE]
+        return choices(codec, sync, tick)[PROBE]
     except KeyError:
-        raise ProtocolError(f"DBC {SYNC}.{TICK} lacks the VAL_ entry {PROBE!r} (the lock-step presence probe)") \
+        raise ProtocolError(f"DBC {sync}.{tick} lacks the VAL_ entry {PROBE!r} (the lock-step presence probe)") \
             from None
 
 
@@ -99,18 +99,22 @@ class LockstepMaster:
 
     def __init__(self, codec: Codec, receives: Iterable[str], send: Callable[[int, bytes, float], object],
                  recv: Callable[[float], Received | None], use: Callable[[DecodedFrame, Received, float], None],
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 names: tuple[str, str, str, str, str] = (SYNC, TICK, CMD, ECHO, STATUS)) -> None:
         self.codec = codec
+        self._sync_name, self._tick_name, self._cmd_name, self._echo_name, self._status_name = names
         self._receives = list(receives)
         self.send, self.recv = send, recv  # re-bound by the node when its bus changes
         self._use, self._clock = use, clock
         self.rx = RxMonitor(codec, self._receives)
-        self.sync = TxScheduler(codec, [SYNC])
-        self._tick_encoder = codec.expression_encoder(SYNC, ("tick",), {TICK: "tick"})  # (tick, counter)
-        self.probe = probe_tick(codec)
-        self.sync_id, self._cmd_id = codec.frame_id(SYNC), codec.frame_id(CMD)
-        self.period = codec.cycle_time(CMD)
-        self._status_every = round(codec.cycle_time_ms(STATUS) / codec.cycle_time_ms(CMD))  # in control periods
+        sync_name, cmd_name = self._sync_name, self._cmd_name
+        self.sync = TxScheduler(codec, [sync_name])
+        self._tick_encoder = codec.expression_encoder(sync_name, ("tick",), {self._tick_name: "tick"})  # (tick, ctr)
+        self.probe = probe_tick(codec, sync_name, self._tick_name)
+        self.sync_id, self._cmd_id = codec.frame_id(sync_name), codec.frame_id(cmd_name)
+        self.period = codec.cycle_time(cmd_name)
+        # in control periods:
+        self._status_every = round(codec.cycle_time_ms(self._status_name) / codec.cycle_time_ms(cmd_name))
         self.retry_first_s, self.retry_max_s, self.retries_per_tick = RETRY_FIRST_S, RETRY_MAX_S, RETRIES_PER_TICK
         self.tick = 0
         self.probes = 0  # presence probes sent before tick 0 (not logged)
@@ -139,7 +143,7 @@ class LockstepMaster:
                 self.notify(f"lock-step: waiting for a TCU to answer ({now - started:.0f} of {timeout:g} s): start "
                             f"ecu-stub (or your TCU) on the same bus")
                 notice_at = now + WAITING_NOTICE_S
-            self.send(self.sync_id, self.sync.data(SYNC, {TICK: self.probe}), 0.0)
+            self.send(self.sync_id, self.sync.data(self._sync_name, {self._tick_name: self.probe}), 0.0)
             self.probes += 1
             if pump is not None:
                 pump()
@@ -150,11 +154,12 @@ class LockstepMaster:
                     continue
                 msg = data_frame(*item) if isinstance(item, tuple) else item
                 frame = self.rx.receive(msg, 0.0)
-                if frame is not None and frame.name == CMD and int(frame.values[ECHO]) == self.probe & 0xFF:
+                if frame is not None and frame.name == self._cmd_name \
+                        and int(frame.values[self._echo_name]) == self.probe & 0xFF:
                     self.rx = RxMonitor(self.codec, self._receives)
                     self.rx.prime(msg)
-                    self.rx.require(CMD, "echo", self._answers_tick)
-                    self.sync = TxScheduler(self.codec, [SYNC])
+                    self.rx.require(self._cmd_name, "echo", self._answers_tick)
+                    self.sync = TxScheduler(self.codec, [self._sync_name])
                     self._status_tick = None
                     return
         raise PeerTimeout(f"no TCU answered the lock-step presence probe within {timeout:g} s: is the TCU "
@@ -176,7 +181,7 @@ class LockstepMaster:
 
     def tick_data(self) -> bytes:
         """The data of this period's SIM_SYNC tick (counter advanced); the node sends it last, ID ``sync_id``."""
-        return self._tick_encoder(self.tick, self.sync.next_counter(SYNC))  # sync.data of {Tick: tick}, fused
+        return self._tick_encoder(self.tick, self.sync.next_counter(self._sync_name))  # sync.data of {Tick: tick}
 
     def excuse(self, excused: Callable[[float], bool]) -> None:
         """Ticks whose answer a known, injected fault may lose (``excused(t)`` of the period time ``t``, the TCU's
@@ -222,6 +227,7 @@ class LockstepMaster:
         """:meth:`answer`'s wait. What already waits is read first, with no clock read: in-process the whole answer
         is there; the schedule of the waits and re-sends is set up only when the queue runs dry (``waiting``)."""
         clock, recv, rx, cmd_id = self._clock, self.recv, self.rx, self._cmd_id
+        cmd_name, echo_name, status_name = self._cmd_name, self._echo_name, self._status_name
         waiting = retry_now = have_cmd = False  # retry_now: re-send at once when the queue runs dry
         since = first_wait = next_retry = silent_at = 0.0
         retries = status_retries = max_retries = 0
@@ -259,12 +265,12 @@ class LockstepMaster:
                         retry_now, next_retry = True, clock() if waiting else 0.0  # failed its checks: ask again
                     elif status == NEW and frame is not None:
                         taken.append((frame, item))
-                        if frame.name == CMD and int(frame.values[ECHO]) == self.tick & 0xFF:
+                        if frame.name == cmd_name and int(frame.values[echo_name]) == self.tick & 0xFF:
                             have_cmd = True
                             if not self._status_expected():
                                 return True
                             retry_now, next_retry = True, clock() if waiting else 0.0  # its TCU_STATUS was lost
-                        elif frame.name == STATUS:
+                        elif frame.name == status_name:
                             self._status_tick = self.tick
                             if have_cmd:
                                 return True
@@ -294,7 +300,7 @@ class LockstepMaster:
                         pump()
         finally:
             if len(taken) > 1:
-                taken.sort(key=lambda taken_frame: taken_frame[0].name == CMD)
+                taken.sort(key=lambda taken_frame: taken_frame[0].name == cmd_name)
             for frame, item in taken:
                 self._use(frame, item, t)
 
@@ -302,7 +308,7 @@ class LockstepMaster:
         """A TCU_CMD is taken only as the answer to the present tick (its SyncEcho the tick's low byte) or, late,
         to one of the ticks given up just before it (at most as many as a command stays valid, 3 cycle times);
         another (an old answer, a random frame that passed CRC and counter) is rejected ("echo")."""
-        echo = int(frame.values[ECHO])
+        echo = int(frame.values[self._echo_name])
         late = (self.tick - echo) % 256
         if late == 0 or late <= min(self._given_up, int(TIMEOUT_CYCLES)):
             return None

@@ -49,6 +49,7 @@ class RxState:
     counter_modulus: int = 16
     max_delta: int = MAX_DELTA
     counted: bool = True
+    timeout: float | None = None  # [s]: the deadline if given (a binding's), else TIMEOUT_CYCLES cycle times
     last_time: float | None = None
     last_counter: int | None = None
     values: dict[str, float] = field(default_factory=dict)
@@ -62,7 +63,7 @@ class RxState:
     deadline_ns: int = field(init=False)  # the same in whole ns
 
     def __post_init__(self) -> None:
-        self.deadline = TIMEOUT_CYCLES * self.cycle_time
+        self.deadline = TIMEOUT_CYCLES * self.cycle_time if self.timeout is None else self.timeout
         self.deadline_ns = to_ns(self.deadline)
 
     def update(self, now: float, frame: DecodedFrame, data: bytes = b"") -> str | None:
@@ -119,7 +120,8 @@ class RxMonitor:
         for name in names:
             protection = codec.protection(name)
             modulus = protection.counter_modulus
-            self.states[name] = RxState(name, codec.cycle_time(name), modulus or 1, protection.max_delta, modulus > 0)
+            self.states[name] = RxState(name, codec.cycle_time(name), modulus or 1, protection.max_delta, modulus > 0,
+                                        codec.timeout(name))
         self._ids = {codec.frame_id(name): name for name in names}
         self._by_id: dict[int, tuple[RxState, Callable[[bytes], DecodedFrame], dict[bytes, DecodedFrame]]] = {
             frame_id: (self.states[name], codec.decoder(frame_id), {})  # take: one look-up per frame

@@ -43,6 +43,7 @@ from ..common.files import check_output_path
 from ..physics.params import Params, load_params, with_overrides
 from ..physics.plant import PlantOutputs
 from ..protocol import Codec, load_dbc
+from ..protocol.binding import load_binding
 from ..protocol.codec import ProtocolError
 from ..protocol.bus import FrameLog, bus_args, bus_name, log_channel, open_bus
 from ..protocol.frame import FrameListener
@@ -54,7 +55,7 @@ from ..results.summary import RunSummary
 from ..physics.thermal import NODES
 from ..physics.plant import Plant
 from .operating_range import outside_range
-from .plant_io import PLANT_RX, PLANT_USES
+from .plant_io import SHIPPED, PlantIO, from_binding
 from .runner import PeerLost, PeerTimeout, PlantRunner
 from .scenario import Scenario, load_scenario
 
@@ -131,7 +132,9 @@ class RunConfig:
       ``duration`` [s] overrides its duration.
     * ``params``: a :class:`~dsg_hil.physics.params.Params`, a parameter TOML, or overrides of the shipped
       parameters by dotted key (``{"vehicle.m": 1900.0}``, SI as ``dsg-hil params`` lists them).
-    * ``dbc``: a DBC file or a loaded cantools database (None: the shipped one).
+    * ``dbc``: a DBC file or a loaded cantools database (None: the shipped one). ``binding``: the binding file
+      that says which of its signals carry the plant's quantities (:mod:`dsg_hil.protocol.binding`; None: the
+      shipped DBC's), checked against the DBC at start; its cycle times overridden in the database.
     * ``mode``: ``lockstep`` (the plant is the time master; bit-for-bit reproducible) or ``realtime``.
     * ``bus``: a python-can configuration (``{"interface": "socketcan", "channel": "vcan0"}``); None: a direct
       in-process bus (:mod:`dsg_hil.protocol.local`). ``direct``: an in-process TCU in lockstep on python-can's
@@ -158,6 +161,7 @@ class RunConfig:
     duration: float | None = None
     params: Params | str | Path | Mapping[str, float] | None = None
     dbc: Database | str | Path | None = None
+    binding: str | Path | None = None
     mode: Mode = "lockstep"
     bus: Mapping[str, Any] | None = None
     direct: bool = True
@@ -205,6 +209,7 @@ class Run:
         self.scenario = resolve_scenario(config.scenario, config.duration)
         self.params = resolve_params(config.params)
         self.db = config.dbc if isinstance(config.dbc, Database) else load_dbc(config.dbc)
+        self.io, self._protection, self._timeouts = self._binding()
         codec = self._plant_codec()
         self.frames: list[can.Message] = []
         self._truth: list[tuple[float, PlantOutputs]] = []
@@ -216,12 +221,13 @@ class Run:
         self.bus_config, direct = self._bus_config()
         self.interface = bus_name(self.bus_config)
         process = self._tcu_process()
+        self._check_bundled_tcu()
         self._check_paths()
         # nothing was opened or written up to here: bad input fails before this line
         plant_bus, tcu_bus = self._open_buses(direct)
         listeners = self._listeners()
         self.runner = PlantRunner(plant_for(self.scenario, self.params), self.scenario, codec, plant_bus,
-                                  listeners, config.progress)
+                                  listeners, config.progress, self.io)
         self.runner.link.notify = config.progress  # "waiting for a TCU", while the lock-step handshake waits
         periodic = [f for f in (config.on_period, self._record_truth if config.truth else None) if f is not None]
         if periodic:  # called by the runner as it sends each tick (not a listener: that would cost each frame)
@@ -244,11 +250,39 @@ class Run:
                              ("tcu_output", self.config.tcu_output)):
             check_output_path(option, None if path is None else str(path))
 
+    def _binding(self) -> tuple[PlantIO, dict[str, dict[str, object]], dict[str, float]]:
+        """The plant's messages and signals on the DBC, their protection and receive timeouts [s]: the binding's
+        (checked against the DBC: :class:`dsg_hil.protocol.binding.BindingError` naming the file), else the shipped
+        DBC's."""
+        if self.config.binding is None:
+            return SHIPPED, {}, {}
+        binding = load_binding(self.config.binding, db=self.db)
+        return from_binding(binding), binding.protection, {m: ms / 1000 for m, ms in binding.timeouts_ms.items()}
+
+    def _check_bundled_tcu(self) -> None:
+        """The bundled TCU (ecu-stub) reads and sends the shipped DBC's messages and signals by name: a DBC without
+        them (another ECU's matrix, with its binding) fails here, naming the DBC, before anything is opened."""
+        if self.config.tcu != ECU_STUB:
+            return
+        from ecu_stub.runner import TCU_USES  # noqa: PLC0415 - the TCU's, when it is the bundled one
+
+        for message_name, signals in TCU_USES.items():
+            try:
+                message = self.db.get_message_by_name(message_name)
+                for signal in signals:
+                    message.get_signal_by_name(signal)
+            except KeyError:
+                name = "the DBC given" if isinstance(self.config.dbc, Database) else self.config.dbc
+                raise InputError(f"{name}: ecu-stub, the bundled TCU, speaks the shipped DBC's messages and signals "
+                                 f"by name, and this DBC has no {message_name} with them: run your ECU on the other "
+                                 f"end (dsg-hil plant)") from None
+
     def _plant_codec(self) -> Codec:
         """The plant's codec: a DBC without a message or signal the plant sends or reads (the TCU's among them)
         fails here, naming the file, before anything is opened or written."""
         try:
-            return Codec(self.db, PLANT_USES, reference=self.config.reference_codec)
+            return Codec(self.db, self.io.uses, reference=self.config.reference_codec, protection=self._protection,
+                         timeouts=self._timeouts)
         except ProtocolError as exc:
             name = "the DBC given" if isinstance(self.config.dbc, Database) else self.config.dbc or "the shipped DBC"
             raise ProtocolError(f"{name}: {exc}") from None
@@ -293,7 +327,7 @@ class Run:
             for end in pair:
                 self._stack.callback(end.shutdown)
             return pair
-        plant_bus = open_bus(self.bus_config, receive=[self.db.get_message_by_name(name) for name in PLANT_RX])
+        plant_bus = open_bus(self.bus_config, receive=[self.db.get_message_by_name(name) for name in self.io.rx])
         self._stack.callback(plant_bus.shutdown)
         if self._tcu_in_process():
             tcu_bus = open_bus(self.bus_config)

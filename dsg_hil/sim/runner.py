@@ -29,7 +29,7 @@ import numpy as np
 from ..common.units import CV
 from ..physics.plant import N_OUT, Plant, PlantInputs, PlantOutputs
 from ..physics.powertrain import brake_for_decel
-from .plant_io import PLANT_RX, PLANT_TX, PLANT_USES, commanded_decel, commanded_pressures, frame_encoder
+from .plant_io import SHIPPED, PlantIO
 from ..protocol import Codec, DecodedFrame, RxMonitor, TxScheduler
 from ..protocol.faults import FaultInjector, FaultSpec, fault_counts, with_faults
 from ..protocol.frame import FrameListener, data_frame
@@ -47,29 +47,32 @@ __all__ = ["PeerLost", "PeerTimeout", "PlantRunner"]  # the errors (common.error
 class PlantRunner:
     def __init__(self, plant: Plant, scenario: Scenario, codec: Codec, bus: can.BusABC,
                  listeners: Sequence[FrameListener] = (),
-                 progress: Callable[[str], None] | None = None) -> None:
-        for name in PLANT_USES:  # resolved at start-up by the codec; fail here if not
+                 progress: Callable[[str], None] | None = None, io: PlantIO | None = None) -> None:
+        self.io = io = io if io is not None else SHIPPED  # the messages and signals (a binding's)
+        for name in io.uses:  # resolved at start-up by the codec; fail here if not
             codec.message(name)
+        self._cmd_name, self._status_name = io.command, io.status
         self.plant, self.scenario, self.codec, self.bus = plant, scenario, codec, bus
         self.on_tick: Callable[[], object] | None = None  # lock-step: called as each tick is sent (RunConfig.on_period)
         self.listeners = tuple(listeners)
         self.progress = progress
-        self.period = codec.cycle_time("TCU_CMD")
-        self.period_ms = codec.cycle_time_ms("TCU_CMD")
+        self.period = codec.cycle_time(io.command)
+        self.period_ms = codec.cycle_time_ms(io.command)
         self.steps_per_period = max(1, round(self.period_ms * NS_PER_MS / plant.dt_ns))
-        self.tx = TxScheduler(codec, list(PLANT_TX))
-        self._frame_data = {name: frame_encoder(codec, name) for name in PLANT_TX}  # (out, driver, counter) -> data
+        self.tx = TxScheduler(codec, list(io.tx))
+        self._frame_data = {name: io.frame_encoder(codec, name) for name in io.tx}  # (out, driver, counter) -> data
         self.summary = RunSummary(plant.dt)
         self.out: PlantOutputs = plant.outputs()
         self.command_valid = False
         self.P_cmd = (0.0, 0.0)
         self.decel_cmd = 0.0  # TCU_CMD.DecelRequest [m/s^2]: the brakes' deceleration, while the command is valid
         self.sent = 0
-        self._names = {codec.frame_id(name): name for name in PLANT_USES}
+        self._names = {codec.frame_id(name): name for name in io.uses}
         self._sent_by_id = dict.fromkeys(self._names, 0)  # frames sent (first transmissions, the ones logged)
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
         self._send_all: Callable[[list[tuple[int, bytes]]], None] | None = None  # ... (a batch of send_data)
-        self.link = LockstepMaster(codec, PLANT_RX, self._send, bus.recv, self._use_stamped)  # lock-step protocol
+        self.link = LockstepMaster(codec, io.rx, self._send, bus.recv, self._use_stamped,
+                                   names=(io.sync, io.tick, io.command, io.echo, io.status))  # lock-step protocol
         self._keep: Callable[[int, bytes, float], None] | None = None  # lock-step: the period's frames, re-sent
         self._cmd_on_bus: float | None = None
         self._checked_at = 0.0  # when TCU_CMD's validity was last checked (_check_command)
@@ -144,8 +147,10 @@ class PlantRunner:
         return self.plant.state.t if self._running else -1.0
 
     def inject(self, specs: Iterable[FaultSpec], seed: int = 0) -> None:
-        """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock."""
-        self.bus, self.injectors["plant"] = with_faults(self.bus, self.codec.db, specs, seed, self.clock)
+        """Send the plant's frames through an injector of ``specs`` (plant-side faults), on the plant's clock; a
+        frame it changes is sealed again with its message's protection (the codec's: a binding's profile)."""
+        self.bus, self.injectors["plant"] = with_faults(self.bus, self.codec.db, specs, seed, self.clock,
+                                                        self.codec.protections())
         self.fault_seed = seed
         self._bind_bus()
 
@@ -247,10 +252,11 @@ class PlantRunner:
     def _use_stamped(self, frame: DecodedFrame, item: Received, stamp: float) -> None:
         """:meth:`_use` of a new frame of a lock-step answer (from the master), logged with ``stamp``."""
         if not self.listeners:  # _use, written out: every period
-            if frame.name == "TCU_CMD":
-                self.P_cmd, self.decel_cmd = commanded_pressures(frame.values), commanded_decel(frame.values)
-            elif frame.name == "TCU_STATUS":
-                self.summary.on_status(self.plant.state.t, frame.values, self.out)
+            if frame.name == self._cmd_name:
+                self.P_cmd, self.decel_cmd = self.io.commanded_pressures(frame.values), \
+                    self.io.commanded_decel(frame.values)
+            elif frame.name == self._status_name:
+                self.summary.on_status(self.plant.state.t, self.io.status_values(frame.values), self.out)
         elif isinstance(item, tuple):
             self._use(frame, data_frame(item[0], item[1], stamp, self._channel, True))
         else:
@@ -261,16 +267,17 @@ class PlantRunner:
         """A new frame from the TCU: logged (``msg``: None with no listeners), its values used."""
         if msg is not None and self.listeners:
             self._log(msg)
-        if frame.name == "TCU_CMD":
-            self.P_cmd, self.decel_cmd = commanded_pressures(frame.values), commanded_decel(frame.values)
-        elif frame.name == "TCU_STATUS":
-            self.summary.on_status(self.plant.state.t, frame.values, self.out)
+        if frame.name == self._cmd_name:
+            io = self.io
+            self.P_cmd, self.decel_cmd = io.commanded_pressures(frame.values), io.commanded_decel(frame.values)
+        elif frame.name == self._status_name:
+            self.summary.on_status(self.plant.state.t, self.io.status_values(frame.values), self.out)
 
     def _check_command(self, now: float) -> None:
         """Whether TCU_CMD is valid at ``now``, the time frames are judged on (real time: the clock; lock-step:
         the tick); a change is logged, a fallback with the silence it measured and the time since its previous
         check (on a busy machine a check comes late: the silence is the limit plus at most that)."""
-        state = self.link.rx.states["TCU_CMD"]
+        state = self.link.rx.states[self._cmd_name]
         valid = state.valid(now)  # (rx.valid, a look-up less: every period)
         if not valid and not self.command_valid and state.last_time is None and now >= state.deadline \
                 and not self.summary.fallback_events:  # never a command by its deadline: a fallback from the start
@@ -292,8 +299,8 @@ class PlantRunner:
     def _inputs(self, driver: DriverInput, now: float) -> PlantInputs:
         """Plant inputs from the driver and the TCU's frames; ``now`` is the time frames are judged on. The last
         inputs again when nothing changed (most periods: a held command), else new ones."""
-        status = self.link.rx.states["TCU_STATUS"]
-        brake_request = status.values.get("BrakeRequest", 0.0) if status.valid(now) else 0.0
+        status = self.link.rx.states[self._status_name]
+        brake_request = self.io.brake_request(status.values) if status.valid(now) else 0.0
         P_CL, P_CH = self.P_cmd if self.command_valid else (0.0, 0.0)
         brake = max(driver.brake, brake_request)
         if self.decel_cmd > 0.0 and self.command_valid:  # the brakes as a brake controller takes a deceleration
@@ -409,7 +416,7 @@ class PlantRunner:
             while (msg := self.bus.recv(timeout=max(deadline - clock(), 0.0))) is not None:
                 on_bus = msg.timestamp  # until this step's deadline: take what arrives
                 status, frame = self._take(msg, clock() - start, stamp=start + t)
-                if status == NEW and frame is not None and frame.name == "TCU_CMD":
+                if status == NEW and frame is not None and frame.name == self._cmd_name:
                     self._cmd_on_bus = on_bus
             now = clock() - start
             self._check_command(now)
@@ -436,7 +443,7 @@ class PlantRunner:
         probes it took to find the TCU."""
         rx, retries, sent_by = self.rx.counts(), self.retries, self.sent_by
         by_message = {}
-        for name in PLANT_USES:
+        for name in self.io.uses:
             got = rx.get(name, {"received": 0, "taken": 0, "rejected": {}, "lost": 0, "duplicates": 0})
             by_message[name] = {"sent": sent_by[name], "retries": retries[name], **got}
         return {"sent": self.sent, "received": self.rx.received, "rejected": self.rx.rejected_total,

@@ -94,7 +94,8 @@ def run_plant(controller: ControllerLike = None, *, scenario: Scenario | str | P
               duration: float | None = None, params: Params | str | Path | Mapping[str, float] | None = None,
               faults: Iterable[FaultSpec | str] | None = None, fault_seed: int = 0,
               out_dir: str | Path | None = None, log: str | None = "run.asc", reply_timeout: float = 5.0,
-              startup_timeout: float = 60.0) -> PlantRun:
+              startup_timeout: float = 60.0, dbc: str | Path | None = None,
+              binding: str | Path | None = None) -> PlantRun:
     """Run ``scenario`` (default: the shipped creep scenario; a path to a scenario TOML or a
     :class:`~dsg_hil.sim.scenario.Scenario`) for ``duration`` s (default: the scenario's) with ``controller`` in
     lockstep.
@@ -104,7 +105,9 @@ def run_plant(controller: ControllerLike = None, *, scenario: Scenario | str | P
     specs or ``--fault`` strings (``"drop:TCU_CMD@2-2.1"``), default the scenario's ``[[fault]]`` tables; a
     process controller takes plant-side faults only (give it its own). ``out_dir``: where the log
     (``log``, by extension: ``.asc``, ``.blf``, ``.log`` ..., None for none) and the controller process's
-    output go (needed for a log). Raises :class:`~dsg_hil.sim.runner.PeerTimeout` when the controller never answers
+    output go (needed for a log). ``dbc``, ``binding``: the communication matrix and which of its signals carry the
+    plant's quantities (None: the shipped pair; the bundled ecu-stub speaks the shipped DBC only). Raises
+    :class:`~dsg_hil.sim.runner.PeerTimeout` when the controller never answers
     the presence probe, :class:`~dsg_hil.sim.runner.PeerLost` when it falls silent for ``reply_timeout`` s."""
     out = Path(out_dir) if out_dir is not None else None
     if log is not None and out is None:
@@ -112,7 +115,8 @@ def run_plant(controller: ControllerLike = None, *, scenario: Scenario | str | P
     process = controller if isinstance(controller, ControllerProcess) else \
         ControllerProcess(list(controller)) if _is_command(controller) else None
     output = out / "controller.out" if process is not None and out is not None else None
-    config = RunConfig(scenario=scenario, duration=duration, params=params, fault_seed=fault_seed,
+    config = RunConfig(scenario=scenario, duration=duration, params=params, dbc=dbc, binding=binding,
+                       fault_seed=fault_seed,
                        faults=None if faults is None else list(faults),
                        log=None if log is None or out is None else out / log, tcu_output=output,
                        bus={"interface": UDP_MULTICAST, **fresh_udp_group()} if process is not None else None,

@@ -22,8 +22,8 @@ __all__ = ["dsg_hil_run"]
 @pytest.fixture(scope="session")
 def dsg_hil_run(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., PlantRun]:
     """Run the plant in lockstep against a controller: ``dsg_hil_run(controller=None, *, scenario=None,
-    duration=None, params=None, faults=None, fault_seed=0, log="run.asc", out_dir=None)`` returns a
-    :class:`dsg_hil.testing.PlantRun` (``summary``, ``signals``, ``truth``, ``frames``, ``log``).
+    duration=None, params=None, faults=None, fault_seed=0, log="run.asc", out_dir=None, dbc=None, binding=None)``
+    returns a :class:`dsg_hil.testing.PlantRun` (``summary``, ``signals``, ``truth``, ``frames``, ``log``).
 
     ``controller``: ``None`` the bundled ecu-stub in process; a command line (list of str, ``"{bus_args}"`` for
     the bus options) started as a process on a udp_multicast group of the run's own; or an object with

@@ -14,9 +14,12 @@ import pytest
 from dsg_hil.cli import COMMANDS, main
 from dsg_hil.physics.params import DEFAULT_PARAMS_PATH, ParameterError, parse_params
 from dsg_hil.protocol import Codec, load_dbc
+from dsg_hil.protocol.binding import DEFAULT_BINDING
 from dsg_hil.protocol.codec import DEFAULT_DBC, signal_range
 from dsg_hil.sim.scenario import ScenarioError, load_scenario
 from ecu_stub.cli import main as ecu_stub_main
+
+from ..sim.test_binding_run import write_renamed_pair
 
 SCENARIO = "duration_s = 1.0\n[[driver]]\nt_s = 0.0\n"
 
@@ -158,7 +161,9 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # (program, argv, bad: 'option' or 'file', form, needle). In the directory: bad.toml (not TOML), garbage.log,
 # notblf.blf (text), short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty
 # directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
-# (bad ones), nodid.toml (a diagnostic description whose DID lacks its id).
+# (bad ones), nodid.toml (a diagnostic description whose DID lacks its id), nocmd.binding.toml (the shipped
+# binding without a quantity the plant needs), renamed.dbc and renamed.binding.toml (another matrix and its
+# binding: tests/sim/test_binding_run.py).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -233,6 +238,22 @@ CASES = [
      "small.dbc: message PLANT_ENGINE is not in the DBC"),
     ("dsg-hil", ["plant", *BUS, "--dbc", "small.dbc", *OUT], "file", ERROR,
      "small.dbc: message PLANT_ENGINE is not in the DBC"),
+    ("dsg-hil", ["run", *BUS, "--binding", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: binding file not found"),
+    ("dsg-hil", ["plant", *BUS, "--binding", "bad.toml", *OUT], "file", ERROR, "bad.toml: not TOML"),
+    ("dsg-hil", ["run", *BUS, "--binding", "nocmd.binding.toml", *OUT], "file", ERROR,
+     "nocmd.binding.toml: quantities: P_CL_cmd is not mapped (the plant needs it)"),
+    ("dsg-hil", ["plant", *BUS, "--dbc", "small.dbc", "--binding", "nocmd.binding.toml", *OUT], "file", ERROR,
+     "nocmd.binding.toml: send: message PLANT_ENGINE is not in the database"),
+    ("dsg-hil", ["report", "--binding", "nosuch.toml", "--out", "outdir"], "file", ERROR,
+     "nosuch.toml: binding file not found"),
+    ("dsg-hil", ["run", *BUS, "--dbc", "renamed.dbc", "--binding", "renamed.binding.toml", *OUT], "file", ERROR,
+     "renamed.dbc: ecu-stub, the bundled TCU, speaks the shipped DBC's messages and signals by name"),
+    ("dsg-hil", ["binding", "check", "nosuch.dbc", "nocmd.binding.toml"], "file", ERROR,
+     "nosuch.dbc: DBC file not found"),
+    ("dsg-hil", ["binding", "check", "small.dbc", "nosuch.toml"], "file", ERROR,
+     "nosuch.toml: binding file not found"),
+    ("dsg-hil", ["binding", "list", "small.dbc", "nosuch.toml"], "option", USAGE,
+     "argument action: invalid choice: 'list'"),
     ("dsg-hil", ["run", "-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=abc", *OUT], "option",
      ERROR, "--bus-kwargs port=abc: Port config must be a number!"),
     ("dsg-hil", ["plant", "-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=99999999", *OUT],
@@ -279,6 +300,9 @@ def write_inputs(where: Path) -> None:
     (where / "outdir").mkdir()
     (where / "small.dbc").write_text('VERSION ""\n\nBU_: A\n\nBO_ 100 X: 8 A\n SG_ S : 0|8@1+ (1,0) [0|255] "" A\n',
                                      encoding="utf-8")  # a DBC, without the plant's messages
+    write_renamed_pair(where)  # renamed.dbc, renamed.binding.toml: another matrix, the plant bound to it
+    (where / "nocmd.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
+        'P_CL_cmd = "TCU_CMD.P_CL_Cmd"\n', ""), encoding="utf-8")  # the shipped binding without a command
     space = 'name = "t"\nn = 2\nduration_s = 1.0\n[inputs]\ngrade_rad = {uniform = [-0.15, 0.1]}\n'
     (where / "space.toml").write_text(space, encoding="utf-8")  # a good sweep space
     (where / "badkey.toml").write_text(space + '"params.vehicle.mass" = {uniform = [1000.0, 2000.0]}\n',

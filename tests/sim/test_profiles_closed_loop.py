@@ -34,3 +34,37 @@ def test_a_lockstep_run_on_e2e_profiles_has_no_rejects():
         assert plant_codec.protection(name).profile == table["profile"] and plant_codec.protection(name).cause(data) \
             is None, name
         assert not Protection.of(db.get_message_by_name(name)).check(data), name  # (lock-step: the same frames always)
+
+
+def test_a_binding_s_protection_reaches_the_plant_s_frames_and_its_faults(tmp_path):
+    """The same profiles given per message in a binding file (the plant's side) run the creep with no reject, and a
+    plant-side fault re-seals its frames with the message's profile: a frozen counter reaches the TCU as repeated
+    counters, never as CRC errors."""
+    import json
+
+    from dsg_hil.protocol.binding import DEFAULT_BINDING
+    from dsg_hil.sim.run import RunConfig, open_run
+    from ecu_stub.runner import TcuRunner
+
+    def inline(table):  # a TOML inline table
+        return "{ " + ", ".join(f"{key} = {json.dumps(value)}" for key, value in table.items()) + " }"
+
+    tables = "".join(f"\n[messages.{name}]\nprotection = {inline(table)}\n" for name, table in PROTECTION.items())
+    binding = tmp_path / "e2e.binding.toml"
+    binding.write_text(DEFAULT_BINDING.read_text(encoding="utf-8") + tables, encoding="utf-8")
+    tcus = []
+
+    def tcu(db, bus):
+        tcus.append(TcuRunner(Codec(db, TCU_USES, protection={n: t for n, t in PROTECTION.items() if n in TCU_USES}),
+                              bus))
+        return tcus[-1]
+
+    with open_run(RunConfig(duration=3.0, binding=binding, tcu=tcu, faults=["freeze_counter:PLANT_SPEEDS@1-1.1"],
+                            capture=True)) as run:
+        summary = run.run().as_json()
+    assert run.runner.codec.protection("PLANT_SPEEDS").profile == "P01"
+    rx = tcus[0].rx.counts()["PLANT_SPEEDS"]
+    assert summary["faults"]["injected"]["freeze_counter:PLANT_SPEEDS@1-1.1"] >= 9
+    assert set(rx["rejected"]) == {"counter"} and rx["rejected"]["counter"] >= 9, rx  # (re-sealed by the dsg-hil
+    # scheme instead: the CRC fails, {"crc": 30})
+    assert summary["frames"]["rejected"] == 0

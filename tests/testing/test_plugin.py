@@ -131,3 +131,18 @@ def test_the_plugin_imports_nothing_heavy_and_is_declared():
         assert declared == {"dsg_hil": "dsg_hil.testing.plugin"}
     for entry in metadata.entry_points(group="pytest11", name="dsg_hil"):  # installed
         assert entry.value == "dsg_hil.testing.plugin"
+
+
+def test_the_fixture_takes_a_dbc_and_its_binding(bundled, dsg_hil_run, tmp_path):
+    """The shipped pair given by path runs the frames of the default, bit for bit; a binding the DBC cannot carry
+    fails at start, naming the file."""
+    from dsg_hil.protocol.binding import DEFAULT_BINDING, BindingError
+    from dsg_hil.protocol.codec import DEFAULT_DBC
+
+    given = dsg_hil_run(duration=3.0, dbc=str(DEFAULT_DBC), binding=str(DEFAULT_BINDING), log=None)
+    assert frame_tuples(given.frames) == frame_tuples(bundled.frames)
+    bad = tmp_path / "bad.binding.toml"
+    bad.write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace('v = "PLANT_VEHICLE.VehicleSpeed"',
+                                                                       'v = "PLANT_VEHICLE.Speed"'), encoding="utf-8")
+    with pytest.raises(BindingError, match="bad.binding.toml: quantities.v: signal PLANT_VEHICLE.Speed"):
+        dsg_hil_run(duration=1.0, binding=bad, log=None)

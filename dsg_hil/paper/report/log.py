@@ -22,7 +22,7 @@ from cantools.database.can import Database
 from ...protocol.logs import decoded_frames, log_codec
 from ...common.errors import LogError
 from ...results.summary import CreepMetrics
-from ...sim.plant_io import SIGNALS as PLANT_SIGNALS
+from ...sim.plant_io import SHIPPED, PlantIO
 
 __all__ = ["GRID_MESSAGE", "SIGNALS", "STATUS", "TRUTH", "CreepRecord", "LogError", "LogSample", "read_log"]
 
@@ -61,11 +61,17 @@ class LogSample(NamedTuple):
 INDEX = {name: i for i, name in enumerate(LogSample._fields)}
 # (message, signal) -> (index in LogSample, factor to SI): the plant's table (dsg_hil.sim.plant_io.SIGNALS) for the
 # signals whose quantity is a LogSample field
-SIGNALS: dict[tuple[str, str], tuple[int, float]] = {key: (INDEX[name], factor) for key, (name, factor)
-                                                     in PLANT_SIGNALS.items() if name in INDEX}
-STATUS = "TCU_STATUS"
-TRUTH = frozenset(index for (message, _), (index, _) in SIGNALS.items() if message.startswith("SIM_"))
-GRID_MESSAGE = "TCU_CMD"  # the sampling period: the control period of the DBC
+_TRUTH = frozenset(("T_CL", "T_CH", "mu_CL", "mu_CH", "M_CL", "M_CH", "Q_CL", "Q_CH", "Q_diss_CL", "Q_diss_CH"))
+
+
+def _signals(io: PlantIO) -> dict[tuple[str, str], tuple[int, float]]:
+    return {key: (INDEX[name], factor) for key, (name, factor) in io.signals.items() if name in INDEX}
+
+
+SIGNALS = _signals(SHIPPED)  # of the shipped binding
+STATUS = SHIPPED.status
+TRUTH = frozenset(INDEX[name] for name in _TRUTH)  # the simulation's truth (SIM_* frames): interpolated
+GRID_MESSAGE = SHIPPED.command  # the sampling period: the control period of the DBC
 
 
 @dataclass(frozen=True)
@@ -82,11 +88,14 @@ class CreepRecord:
         return self.columns[name]
 
 
-def read_log(path: str | Path, db: Database) -> CreepRecord:
-    """Decode the log at ``path`` with ``db`` and compute its creep numbers (one pass, in time order)."""
+def read_log(path: str | Path, db: Database, io: PlantIO | None = None) -> CreepRecord:
+    """Decode the log at ``path`` with ``db`` and compute its creep numbers (one pass, in time order); ``io``: the
+    plant's messages and signals on ``db`` (its binding's; None: the shipped DBC's)."""
     path = Path(path)
+    io = io if io is not None else SHIPPED
+    signals, offsets = (SIGNALS, {}) if io is SHIPPED else (_signals(io), io.offsets)
     codec = log_codec(db)
-    period = codec.cycle_time(GRID_MESSAGE)
+    period = codec.cycle_time(io.command)
     row = [NAN] * len(LogSample._fields)
     events: list[tuple[float, dict | None, list[float]]] = []  # (t, TCU_STATUS values or None: a grid sample, row)
     truth: dict[int, tuple[list[float], list[float]]] = {i: ([], []) for i in TRUTH}  # frame times, values
@@ -103,14 +112,14 @@ def read_log(path: str | Path, db: Database) -> CreepRecord:
         if frame is None:
             continue
         for signal, value in frame.values.items():
-            if (frame.name, signal) in SIGNALS:
-                index, factor = SIGNALS[frame.name, signal]
-                row[index] = value * factor
+            if (frame.name, signal) in signals:
+                index, factor = signals[frame.name, signal]
+                row[index] = value * factor + offsets.get((frame.name, signal), 0.0) if offsets else value * factor
                 if index in truth:
                     truth[index][0].append(timestamp - t0)
-                    truth[index][1].append(value * factor)
-        if frame.name == STATUS:
-            events.append((timestamp - t0, frame.values, row.copy()))
+                    truth[index][1].append(row[index])
+        if frame.name == io.status:
+            events.append((timestamp - t0, io.status_values(frame.values), row.copy()))
     if counts["decoded"] == 0:
         raise LogError(f"{path}: no frame of the DBC in the log ({counts['rejected']} rejected, "
                        f"{counts['unknown']} with unknown IDs)")

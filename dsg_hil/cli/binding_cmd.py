@@ -1,0 +1,72 @@
+"""``dsg-hil binding check DBC BINDING``: a binding checked against its database before anything runs."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import TYPE_CHECKING
+
+from . import command_help
+
+if TYPE_CHECKING:
+    from ..protocol.binding import Binding
+
+__all__ = ["add_subparser", "mapping_rows"]
+
+
+def add_subparser(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("binding", help=command_help("binding"),
+                            description="check: read the binding (which signal of the DBC carries each quantity "
+                                        "of the plant, in which unit; the shipped one is dbc/dsg_hil.binding.toml) "
+                                        "with its DBC (or ARXML) and print every problem, one line each, exit 2: "
+                                        "a message or signal not in the database, a unit that does not convert, "
+                                        "a range or resolution that cannot carry the quantity's, a quantity the "
+                                        "plant needs unmapped, a message without a cycle time, a protection that "
+                                        "does not fit its frame. With none, print the mapping as a table.")
+    parser.add_argument("action", choices=("check",), help="check: the binding against the database")
+    parser.add_argument("dbc", metavar="DBC", help="the communication matrix (DBC, or ARXML through cantools)")
+    parser.add_argument("binding", metavar="BINDING", help="the binding TOML")
+    parser.set_defaults(func=_do_binding)
+
+
+def mapping_rows(binding: Binding) -> list[tuple[str, ...]]:
+    """(quantity, direction, message.signal, unit, resolution, cycle ms, protection) of each signal the plant
+    uses, the lock-step tick and echo included (their quantity in brackets)."""
+    from ..protocol.profiles import protection_for  # noqa: PLC0415 - cantools at run time only
+
+    db = binding.db
+    roles = {**{key: (quantity, binding.units[quantity]) for key, (quantity, _) in binding.signals.items()},
+             binding.sync: ("(lock-step tick)", None), binding.echo: ("(lock-step echo)", None)}
+    rows: list[tuple[str, ...]] = []
+    for direction, table in (("send", binding.tx), ("send", {binding.sync[0]: (binding.sync[1],)}),
+                             ("read", binding.rx)):
+        for message_name, signals in table.items():
+            message = db.get_message_by_name(message_name)
+            protection = protection_for(message, binding.protection.get(message_name)).profile
+            for signal_name in signals:
+                signal = message.get_signal_by_name(signal_name)
+                quantity, unit = roles[message_name, signal_name]
+                rows.append((quantity, direction, f"{message_name}.{signal_name}",
+                             unit if unit is not None else signal.unit or "-", f"{signal.scale:g}",
+                             str(message.cycle_time), protection))
+    return rows
+
+
+def _do_binding(args: argparse.Namespace) -> int:
+    from ..protocol import load_dbc  # noqa: PLC0415 - cantools at run time only
+    from ..protocol.binding import BindingError, check_binding  # noqa: PLC0415
+
+    db = load_dbc(args.dbc)
+    binding, problems = check_binding(args.binding, db)
+    if binding is None:
+        for line in problems[:-1]:
+            print(f"error: {line}", file=sys.stderr)
+        raise BindingError(problems[-1])
+    header = ("quantity", "dir", "message.signal", "unit", "resolution", "cycle ms", "protection")
+    rows: list[tuple[str, ...]] = [header, *mapping_rows(binding)]
+    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
+    for row in rows:
+        print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+    print(f"{args.binding}: {len(binding.signals)} quantities on {len(binding.tx) + 1} messages sent, "
+          f"{len(binding.rx)} read: no problem")
+    return 0
