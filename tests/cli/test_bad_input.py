@@ -255,6 +255,9 @@ CASES = [
      "nodid.toml: did[0]: id must be an integer 0-65535, not None"),
     ("dsg-hil", ["diag", "dtc", *BUS, "--dbc", "small.dbc"], "file", ERROR,
      "small.dbc: no network attribute DiagRequestId"),
+    # the gain fault: a factor no frame can carry, refused before the run
+    ("dsg-hil", ["run", *BUS, "--fault", "gain:PLANT_SPEEDS.ClutchInputSpeed@0-,value=1e6", *OUT], "option", ERROR,
+     "gain value 1e+06 cannot be encoded in PLANT_SPEEDS.ClutchInputSpeed"),
 ]
 
 
