@@ -16,6 +16,7 @@ from ..physics.params import load_params
 from .code import code_digest, code_note
 from .engine import SweepResult
 from .space import Space
+from .verdict import latent_counts
 
 __all__ = ["HANDOVER_DRIVABLE_PCT", "ROLLBACK_DRIVABLE_MPS", "drivability_lines", "params_toml", "repro_files",
            "write_page"]
@@ -94,6 +95,10 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
     outside = [r for r in rows if r.get("verdict") == "outside_range"]
     lines += [f"**Verdict: {len(violating)} violating run(s)**, {len(errors)} failed run(s), {len(outside)} run(s) "
               "outside the operating range without a violation (not covered by the claim).", ""]
+    if latent_counts(rows):  # the space draws latent sensor faults: which runs had them
+        lines += [f"Latent sensor faults: of the {len(rows)} runs, {latent_counts(rows)}"
+                  + (f"; of the violating ones, {latent_counts(violating) or 'none had one'}" if violating else "")
+                  + ".", ""]
     if result.search:
         lines += ["## Search", "", *(f"- {k}: {_fmt(v)}" for k, v in result.search.items()), ""]
     if violating:
