@@ -2,9 +2,12 @@
 ``[latent]`` section draws 0-2 offsets or gains per run on the TCU's inputs, 0.1-2.5 times each one's detection
 threshold, :mod:`dsg_hil.sweep.latent`), judged on the plant's truth; prints the violations split by the runs'
 latent faults (beyond a threshold, all within, none), the hottest true plate of each group, and for every run above
-the plate limit its latent faults (each with its multiple of the threshold) and frame fault.
+the plate limit its latent faults (each with its multiple of the threshold) and frame fault. ``--without-latent``
+runs each of those again in this process with the same inputs but no latent fault (its frame fault kept): the
+plate it then reaches says whether the latent fault made the violation.
 
-    python bench/latent_findings.py [--n 300] [--workers 1] [--seed 1] [--out DIR] [--json FILE]
+    python bench/latent_findings.py [--n 300] [--workers 1] [--seed 1] [--out DIR [--resume]] [--without-latent]
+                                    [--json FILE]
 
 A thin call of :func:`dsg_hil.sweep.run_sweep` (pip install 'dsg-hil[sweep]'); the same runs as
 ``dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n N --workers 1`` (a Latin hypercube: the same N draws the same
@@ -23,8 +26,10 @@ from typing import Any
 
 from dsg_hil.sweep import load_space, run_sweep
 from dsg_hil.sweep.latent import latent_faults, multiple, thresholds
+from dsg_hil.sweep.results import ResultStore
 from dsg_hil.sweep.space import SAFETY_SPACE, SpaceError
 from dsg_hil.sweep.verdict import LATENT_CLASSES, latent_class
+from dsg_hil.sweep.worker import run_task, runs_quiet
 
 __all__ = ["findings", "main"]
 
@@ -61,7 +66,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=300, help="runs (default 300)")
     ap.add_argument("--workers", type=int, default=1, help="Dask workers (default 1: the machine may be shared)")
     ap.add_argument("--seed", type=int, help="the space's seed (default: the file's)")
-    ap.add_argument("--out", metavar="DIR", help="results directory (default: a temporary one); --resume-able")
+    ap.add_argument("--out", metavar="DIR", help="results directory (default: a temporary one)")
+    ap.add_argument("--resume", action="store_true", help="only the runs not yet in --out (all there: none run)")
+    ap.add_argument("--without-latent", action="store_true",
+                    help="run each violating or hot run again without its latent faults")
     ap.add_argument("--json", metavar="FILE", help="also write the findings as JSON")
     args = ap.parse_args(argv)
     space = load_space(SAFETY_SPACE)
@@ -69,10 +77,14 @@ def main(argv: list[str] | None = None) -> int:
         space = dataclasses.replace(space, seed=args.seed)
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            result = run_sweep(space, args.out or tmp, n=args.n, workers=args.workers, progress=print)
+            result = run_sweep(space, args.out or tmp, n=args.n, workers=args.workers, resume=args.resume,
+                               progress=print)
         except SpaceError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
+        store = ResultStore(args.out or tmp, resume=True)
+        tasks = {r["run_id"]: store.record(r["run_id"])["task"] for r in result.rows if r.get("verdict") == "violation"
+                 or (r.get("max_plate_temp_c") or 0.0) > space.limits["plate_temp_c"]}
     limit = space.limits["plate_temp_c"]
     found = findings(result.rows, limit)
     print(f"\n{found['runs']} runs of {space.origin} (seed {space.seed}) in {result.wall_s:.0f} s wall, "
@@ -85,6 +97,15 @@ def main(argv: list[str] | None = None) -> int:
         latent = "; ".join(f"{f} (x{x:g})" for f, x in hot["latent"]) or "no latent fault"
         print(f"{hot['run_id']} {hot['max_plate_temp_c']} degC {hot['violations'] or '-'} [{hot['behaviour']}] "
               f"{latent}" + (f" + frame fault {hot['fault']}" if hot["fault"] else ""))
+        if args.without_latent and hot["latent"]:
+            task = tasks[hot["run_id"]]
+            with runs_quiet():
+                again = run_task(space.task(task["index"], {k: v for k, v in task["inputs"].items()
+                                                            if k != "latent"}))
+            hot["without_latent"] = {"max_plate_temp_c": again["row"].get("max_plate_temp_c"),
+                                     "violations": again["row"].get("violations")}
+            print(f"    without its latent faults: {hot['without_latent']['max_plate_temp_c']} degC "
+                  f"{hot['without_latent']['violations'] or 'no violation'}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(found, fh, indent=1, default=str)
