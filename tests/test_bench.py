@@ -92,3 +92,17 @@ def test_judder_reference_the_fixed_step_plant_and_solve_ivp_judder_alike():
     assert steps["slip_CH_rpm"][0] < 5.0 and ref["slip_CH_rpm"][0] < 5.0
     assert abs(steps["fast_hz"] - ref["fast_hz"]) <= 3.0
     assert steps["fast_pp_pct"] == pytest.approx(ref["fast_pp_pct"], rel=0.1) and ref["fast_pp_pct"] > 5.0
+
+
+def test_latent_findings_counts_the_runs_by_their_latent_faults(tmp_path):
+    """Two runs of the shipped space: every run in one group, each group's counts and hottest plate."""
+    env = {key: value for key, value in os.environ.items() if key != "PYTHONSAFEPATH"}
+    out = tmp_path / "findings.json"
+    proc = subprocess.run([sys.executable, str(BENCH / "latent_findings.py"), "--n", "2", "--workers", "1",
+                           "--json", str(out)], capture_output=True, text=True, timeout=600, cwd=BENCH, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    found = json.loads(out.read_text(encoding="utf-8"))
+    assert found["runs"] == 2 and found["failed"] == 0 and positive(found["hottest_c"])
+    assert sum(group["runs"] for group in found["groups"].values()) == 2
+    assert set(found["groups"]) == {"beyond", "within", "none"}
+    assert "runs with a latent fault beyond its detection threshold" in proc.stdout

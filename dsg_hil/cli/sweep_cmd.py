@@ -54,6 +54,7 @@ def _do_sweep(args: argparse.Namespace) -> int:
     from ..sweep.controllers import check_importable  # noqa: PLC0415
     from ..sweep.engine import scheduler_address  # noqa: PLC0415
     from ..sweep.results import ResultStore  # noqa: PLC0415
+    from ..sweep.verdict import latent_counts  # noqa: PLC0415
 
     space = load_space(args.space)
     overrides = set_overrides(args)
@@ -77,9 +78,11 @@ def _do_sweep(args: argparse.Namespace) -> int:
     if (note := code_note(result.rows, code_digest())) is not None:
         progress(f"warning: {note}")
     violating, failed = result.violations, [r for r in result.rows if r.get("verdict") == "error"]
+    latent = latent_counts(violating) if violating else ""
     progress(f"verdict: {len(violating)} of {len(result.rows)} runs violate"
              + (f" ({', '.join(sorted({v for r in violating for v in r['violations'].split(',')}))})"
                 if violating else "")
+             + (f": {latent}" if latent else "")
              + (f"; {len(failed)} failed, not judged (first: {failed[0].get('error')})" if failed else "")
              + f"; {result.wall_s:.0f} s wall")
     if violating:

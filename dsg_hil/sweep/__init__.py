@@ -8,6 +8,7 @@ One entry point, :func:`run_sweep` (and :func:`run_search`), built on :func:`dsg
     engine.py      Dask: LocalCluster or --scheduler, as_completed, retries               results.py  Parquet + JSON
     page.py        sweep.md, figures, the reproducing commands                             search.py   Optuna
     code.py        which code made the runs (a digest per row and in sweep.json)
+    latent.py      latent sensor faults: offsets and gains on the TCU's inputs, sized by its checks' thresholds
 
 The names are imported when first used (PEP 562): importing this package loads neither Dask nor the plant.
 """

@@ -16,6 +16,7 @@ from ..physics.params import load_params
 from .code import code_digest, code_note
 from .engine import SweepResult
 from .space import Space
+from .verdict import latent_counts
 
 __all__ = ["HANDOVER_DRIVABLE_PCT", "ROLLBACK_DRIVABLE_MPS", "drivability_lines", "params_toml", "repro_files",
            "write_page"]
@@ -94,6 +95,7 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
     outside = [r for r in rows if r.get("verdict") == "outside_range"]
     lines += [f"**Verdict: {len(violating)} violating run(s)**, {len(errors)} failed run(s), {len(outside)} run(s) "
               "outside the operating range without a violation (not covered by the claim).", ""]
+    lines += latent_lines(rows, violating)
     if result.search:
         lines += ["## Search", "", *(f"- {k}: {_fmt(v)}" for k, v in result.search.items()), ""]
     if violating:
@@ -117,6 +119,16 @@ def write_page(space: Space, result: SweepResult, record: Callable[[str], Mappin
     page = out / "sweep.md"
     page.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return page
+
+
+def latent_lines(rows: Sequence[Mapping[str, Any]], violating: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The verdict's count of the runs by their latent sensor faults (:func:`~.verdict.latent_counts`), all and
+    violating; nothing if no run has one."""
+    if not latent_counts(rows):
+        return []
+    return [f"Latent sensor faults: of the {len(rows)} runs, {latent_counts(rows)}"
+            + (f"; of the {len(violating)} violating, {latent_counts(violating) or 'none has one'}" if violating
+               else "") + ".", ""]
 
 
 def drivability_lines(rows: Sequence[Mapping[str, Any]], inputs: list[str]) -> list[str]:

@@ -1,7 +1,8 @@
 """``dsg-hil sweep --search``: falsification. Instead of sampling, Optuna's TPE sampler (seeded with the space's
 seed) proposes runs from the same space to maximise the space's objective (``[search] objective``: the peak true
 plate temperature by default; :data:`dsg_hil.sweep.verdict.OBJECTIVES`), as many in flight as the Dask cluster has
-workers. It stops at the first violating run or after ``budget`` runs, and writes the counterexample as a runnable
+workers (a space's latent faults, :mod:`.latent`, are drawn per trial index, not proposed). It stops at the first
+violating run or after ``budget`` runs, and writes the counterexample as a runnable
 scenario (``OUT/counterexample/``: scenario, parameters, the ``dsg-hil run`` command)."""
 
 from __future__ import annotations
@@ -64,7 +65,7 @@ def run_search(space: Space, out: str | Path, *, budget: int | None = None, work
             def launch() -> Any:
                 nonlocal launched
                 trial = study.ask()
-                values = {k: suggest(trial, k, d) for k, d in space.inputs.items()}
+                values = space.with_latent(launched, {k: suggest(trial, k, d) for k, d in space.inputs.items()})
                 task = space.task(launched, values)
                 task["run_id"] = "s" + task["run_id"][1:]
                 launched += 1

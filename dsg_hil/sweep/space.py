@@ -27,10 +27,16 @@ plate_temp_c = 250.0
 
 [search]                    # dsg-hil sweep --search: Optuna maximises this (verdict.OBJECTIVES)
 objective = "max_plate_temp_c"
+
+[latent]                    # optional: offsets and gains on the TCU's inputs, sized by its checks (latent.py)
+per_run = [0, 2]
+scale = [0.1, 2.5]
 ```
 
 Every error is an :class:`SpaceError` (exit 2) naming the file and the key; nothing is run or written before.
-A sample is plain data (:class:`Sample`: the drawn inputs), made into a run's task by :meth:`Space.task`.
+A sample is plain data (:class:`Sample`: the drawn inputs), made into a run's task by :meth:`Space.task`. The latent
+faults are drawn apart from the sampler (its dimensions are those of ``[inputs]``), per run index, into the sample's
+``latent`` input (:meth:`Space.with_latent`).
 """
 
 from __future__ import annotations
@@ -51,6 +57,7 @@ from ..protocol.codec import load_dbc
 from ..protocol.faults import FaultError, check_against_dbc, parse_fault
 from ..sim.scenario import DEFAULT_SCENARIO, ScenarioError, parse_scenario
 from .drivers import BEHAVIOURS, SETTINGS, DriverError, scenario_tables, scenario_toml
+from .latent import LatentError, LatentSpace, latent_faults, parse_latent
 from .verdict import LIMITS, OBJECTIVES
 
 __all__ = ["CONTROLLERS", "FAULT_TIMING", "SAFETY_SPACE", "SAMPLERS", "SCENARIO_FIELDS", "Dist", "Space", "SpaceError",
@@ -62,7 +69,7 @@ CONTROLLERS = ("ecu-stub", "python", "command")
 FAULT_TIMING = ("fault_at_s", "fault_duration_s")  # the window of a fault written without one
 SCENARIO_FIELDS = ("grade_rad", "engine_speed_rpm", "duration_s", "initial.T_clutch_c", "initial.T_CL_c",
                    "initial.T_CH_c", "initial.T_oil_c", "initial.v_mps")
-_TOP = {"name", "seed", "n", "sampler", "scenario", "duration_s", "inputs", "controller", "limits", "search"}
+_TOP = {"name", "seed", "n", "sampler", "scenario", "duration_s", "inputs", "controller", "limits", "search", "latent"}
 
 
 class SpaceError(InputError):
@@ -139,6 +146,7 @@ class Space:
     limits: Mapping[str, float]
     objective: str
     defaults: Mapping[str, Any] = field(default_factory=dict)  # values of inputs left out (the base's)
+    latent: LatentSpace | None = None  # [latent]: sensor offsets and gains drawn per run (latent.py)
 
     @property
     def digest(self) -> str:
@@ -146,6 +154,8 @@ class Space:
         run for the same index."""
         what = [self.sampler, self.seed, self.base, {k: [d.kind, list(d.args)] for k, d in self.inputs.items()},
                 self.controller, self.limits]
+        if self.latent is not None:  # (a space without one keeps its digest)
+            what.append(self.latent.as_data())
         return hashlib.sha1(json.dumps(what, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
     @property
@@ -165,18 +175,29 @@ class Space:
         free = self.free
         units = _unit_points(self.sampler, len(free), n, self.seed) if free else [[] for _ in range(n)]
         out = []
-        for u in units:
+        for index, u in enumerate(units):
             values = {k: d.args[0] for k, d in self.inputs.items() if not d.free}
             values |= {k: _plain(self.inputs[k].at(float(x))) for k, x in zip(free, u)}
-            out.append({k: values[k] for k in self.inputs})
+            out.append(self.with_latent(index, {k: values[k] for k in self.inputs}))
         return out
+
+    def with_latent(self, index: int, values: Mapping[str, Any]) -> dict[str, Any]:
+        """``values`` with run ``index``'s latent faults as the input ``latent`` (a space without ``[latent]``:
+        unchanged): a function of the seed, the index and the run's duration only."""
+        if self.latent is None:
+            return dict(values)
+        duration = values.get("duration_s", self.base.get("duration_s"))
+        if not isinstance(duration, (int, float)):
+            duration = parse_scenario(scenario_toml(scenario_tables(self.base, {}))).duration_s
+        return {**values, "latent": self.latent.draw(self.seed, index, float(duration))}
 
     def task(self, index: int, values: Mapping[str, Any]) -> dict[str, Any]:
         """A run as plain data (what a worker gets): ``run_id``, ``inputs``, the scenario TOML text, the parameter
         overrides by dotted key, the ``--fault`` strings, the controller, the limits."""
         scenario = scenario_tables(self.base, values)
         params = {k.removeprefix("params."): float(v) for k, v in values.items() if k.startswith("params.")}
-        faults = [_timed(f, values) for f in _faults(values.get("fault", "")) if f]
+        faults = [_timed(f, values) for f in _faults(values.get("fault", "")) if f] + \
+            latent_faults(values.get("latent"))
         digest = hashlib.sha1(json.dumps([values, self.controller], sort_keys=True, default=str).encode())
         return {"run_id": f"r{index:05d}-{digest.hexdigest()[:8]}", "index": index, "inputs": dict(values),
                 "scenario": scenario_toml(scenario), "params": params, "faults": faults,
@@ -271,9 +292,15 @@ def parse_space(text: str, origin: str = "<string>", root: Path | None = None) -
     objective = search.get("objective", "max_plate_temp_c")
     if objective not in OBJECTIVES:
         raise SpaceError(f"{origin}: search.objective: {objective!r} is not one of {', '.join(OBJECTIVES)}")
+    latent = None
+    if "latent" in data:
+        try:
+            latent = parse_latent(_table(data, "latent", origin))
+        except LatentError as exc:
+            raise SpaceError(f"{origin}: {exc}") from exc
     space = Space(name=str(data.get("name", Path(origin).stem)), origin=origin,
                   seed=_whole(data, "seed", 0, origin), n=_whole(data, "n", 20, origin), sampler=sampler,
-                  base=base, inputs=inputs, controller=controller, limits=limits, objective=objective)
+                  base=base, inputs=inputs, controller=controller, limits=limits, objective=objective, latent=latent)
     _check_corners(space)
     return space
 

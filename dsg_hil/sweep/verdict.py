@@ -18,6 +18,11 @@ A run violates when (limits: :data:`LIMITS`, overridable in the space's ``[limit
   not begin in a fault window (``stop_in_fault_window``: holding the vehicle is the TCU's safe reaction to an
   injected fault, FAULT on missing plant frames or the hold on lost commands, judged there by roll-back and speed).
 
+A run with latent sensor faults (a space's ``[latent]``, :mod:`.latent`) is judged as any other; its row's
+``latent_x`` is the largest of their errors as a multiple of the signal's detection threshold, and
+:func:`latent_class` sorts it (``beyond``: some fault beyond its threshold; ``within``: all within, which the TCU
+cannot see; ``none``), so the verdict of a sweep says how many violating runs had which (:func:`latent_counts`).
+
 The summary's failure metrics (``max_speed_creep_mps``, ``overspeed_mps``, ``rollback_guarded_m``,
 ``fault_time_s``) are read into row columns by :data:`OPTIONAL` (None where a summary lacks one, e.g. one read
 back from an older sweep); the worker also measures the top speed itself from the truth (``v_max_mps``) and the
@@ -36,8 +41,8 @@ from ..protocol.faults import FaultSpec
 from ..protocol.validity import TIMEOUT_CYCLES
 from ..results.thresholds import SAFETY_TEMPERATURE_C
 
-__all__ = ["LIMITS", "OBJECTIVES", "OPTIONAL", "VIOLATIONS", "UnexplainedFault", "fault_windows", "in_windows",
-           "objective_value", "summary_row", "verdict", "violations"]
+__all__ = ["LATENT_CLASSES", "LIMITS", "OBJECTIVES", "OPTIONAL", "VIOLATIONS", "UnexplainedFault", "fault_windows",
+           "in_windows", "latent_class", "latent_counts", "objective_value", "summary_row", "verdict", "violations"]
 
 LIMITS: dict[str, float] = {"plate_temp_c": SAFETY_TEMPERATURE_C, "rollback_m": 0.05, "overspeed_mps": 0.5,
                             "fault_s": 0.0, "standstill_brake": 0.0}
@@ -149,6 +154,30 @@ def verdict(row: Mapping[str, Any], found: list[str]) -> str:
     if found:
         return "violation"
     return "outside_range" if row.get("outside_range") else "ok"
+
+
+LATENT_CLASSES = {"beyond": "with a latent fault beyond its detection threshold",
+                  "within": "with latent faults all within their thresholds", "none": "without a latent fault"}
+
+
+def latent_class(row: Mapping[str, Any]) -> str:
+    """A row's latent faults (column ``latent_x``, :data:`LATENT_CLASSES`): ``beyond`` if the largest is beyond its
+    signal's detection threshold (> 1), ``within`` if it is not, ``none`` without any (or an older sweep's row)."""
+    x = row.get("latent_x")
+    if not isinstance(x, (int, float)) or x != x:  # None, or NaN read back from the table
+        return "none"
+    return "beyond" if x > 1.0 else "within"
+
+
+def latent_counts(rows: Iterable[Mapping[str, Any]]) -> str:
+    """How many of ``rows`` are in each :data:`LATENT_CLASSES` (those with any), e.g. ``5 with a latent fault
+    beyond its detection threshold, 3 without a latent fault``; "" if none has a latent fault."""
+    counts = {key: 0 for key in LATENT_CLASSES}
+    for row in rows:
+        counts[latent_class(row)] += 1
+    if not counts["beyond"] and not counts["within"]:
+        return ""
+    return ", ".join(f"{n} {LATENT_CLASSES[key]}" for key, n in counts.items() if n)
 
 
 def objective_value(row: Mapping[str, Any], objective: str) -> float:

@@ -25,6 +25,7 @@ from ..results.thresholds import STOP_MIN_S
 from ..sim.scenario import Scenario, parse_scenario
 from .code import code_digest
 from .controllers import config_for
+from .latent import largest_multiple
 from .verdict import UnexplainedFault, fault_windows, in_windows, summary_row, verdict, violations
 
 __all__ = ["RUN_LOGGERS", "WARM_LOCK", "pedal_while_stopping", "run_task", "runs_quiet", "warm"]
@@ -135,7 +136,7 @@ def run_task(task: dict[str, Any], keep_log: bool = False) -> dict[str, Any]:
                     _run(task, log)
             return {"run_id": task["run_id"], "row": row, "summary": None, "log": _read(log),
                     "traceback": traceback.format_exc(), "task": task}
-        row = {**base, **summary_row(summary), **measured}
+        row = {**base, **summary_row(summary), **measured, "latent_x": largest_multiple(task["inputs"].get("latent"))}
         peak_T = row.get("max_plate_temp_c")
         row["margin_c"] = None if peak_T is None else task["limits"]["plate_temp_c"] - peak_T
         found = violations(row, task["limits"])

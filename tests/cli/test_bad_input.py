@@ -289,6 +289,11 @@ CASES = [
      "--xcp-ids 0x7D0,0x7E9: 0x7E9 is the DBC's diagnostic response ID"),
     ("ecu-stub", ["--a2l", "afile/t.a2l"], "option", ERROR, "--a2l afile/t.a2l: afile is not a writable directory"),
     ("ecu-stub", ["--a2l", "t.a2l", "--dbc", "nosuch.dbc"], "file", ERROR, "nosuch.dbc: DBC file not found"),
+    # the gain fault: a factor no frame can carry, refused before the run
+    ("dsg-hil", ["run", *BUS, "--fault", "gain:PLANT_SPEEDS.ClutchInputSpeed@0-,value=1e6", *OUT], "option", ERROR,
+     "gain value 1e+06 cannot be encoded in PLANT_SPEEDS.ClutchInputSpeed"),
+    ("dsg-hil", ["sweep", "badlatent.toml", "--out", "o"], "file", ERROR,  # a sweep's latent faults: the key named
+     "badlatent.toml: latent.per_run: must lie within 0-2, got [0, 3]"),
 ]
 
 
@@ -307,6 +312,7 @@ def write_inputs(where: Path) -> None:
     (where / "space.toml").write_text(space, encoding="utf-8")  # a good sweep space
     (where / "badkey.toml").write_text(space + '"params.vehicle.mass" = {uniform = [1000.0, 2000.0]}\n',
                                        encoding="utf-8")  # a sweep space drawing a parameter that is none
+    (where / "badlatent.toml").write_text(space + "[latent]\nper_run = [0, 3]\n", encoding="utf-8")  # 3 at once
     (where / "nodid.toml").write_text('[[did]]\nname = "x"\n', encoding="utf-8")  # a DID description without its id
     (where / "noctl.toml").write_text(space + '[controller]\nkind = "python"\ntarget = "nosuch_module:make"\n',
                                       encoding="utf-8")  # a controller that cannot be imported

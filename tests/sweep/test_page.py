@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dsg_hil.sweep.page import ROLLBACK_DRIVABLE_MPS, drivability_lines
+from dsg_hil.sweep.page import ROLLBACK_DRIVABLE_MPS, drivability_lines, latent_lines
 
 
 def row(run_id: str, rollback_mps: float | None) -> dict:
@@ -42,3 +42,14 @@ def test_drivability_lists_the_runs_whose_speed_left_the_band_through_a_handover
         in text
     assert "| a | 42.7 | 12 | 0.436 | 0.2 |" in text and "| c | 25.1 | 25.1 | 0.25 | 0.2 |" in text
     assert text.index("| a |") < text.index("| e |") < text.index("| c |") and "| b |" not in text
+
+
+def test_the_page_counts_the_violating_runs_by_their_latent_faults():
+    rows = [{"latent_x": 1.4, "verdict": "violation"}, {"latent_x": 0.9, "verdict": "violation"},
+            {"latent_x": None, "verdict": "ok"}, {"latent_x": 2.0, "verdict": "ok"}]
+    (line, _) = latent_lines(rows, rows[:2])
+    assert line == ("Latent sensor faults: of the 4 runs, 2 with a latent fault beyond its detection threshold, "
+                    "1 with latent faults all within their thresholds, 1 without a latent fault; of the 2 violating, "
+                    "1 with a latent fault beyond its detection threshold, 1 with latent faults all within their "
+                    "thresholds.")
+    assert latent_lines(rows[2:3], []) == []  # a space without latent faults: no line

@@ -156,12 +156,14 @@ class FaultInjector:
             values[spec.signal] = spec.value
         elif kind == "offset":
             values[spec.signal] = float(values[spec.signal]) + spec.value
+        elif kind == "gain":
+            values[spec.signal] = float(values[spec.signal]) * spec.value
         elif kind == "out_of_range":
             values[spec.signal] = outside_range(message.get_signal_by_name(spec.signal))
         try:
             return [_copy(msg, protection.seal(message.encode(values, scaling=True, strict=False),
                                                protection.counter(data)))]  # (no range check: a fault may leave it)
-        except (OverflowError, ValueError, EncodeError) as exc:  # e.g. an offset pushing the value off the bits
+        except (OverflowError, ValueError, EncodeError) as exc:  # e.g. an offset or gain pushing the value off the bits
             if not self.encode_errors[spec.describe()]:
                 log.warning("%s at t=%.3f s: %s cannot be encoded (%s): such frames are sent unchanged, counted",
                             spec.origin, t, spec.target, exc)

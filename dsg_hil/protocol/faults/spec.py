@@ -15,8 +15,9 @@ One fault is a :class:`FaultSpec`. It comes from a scenario TOML table, a comman
     --fault 'flood@5-15,rate=20,frame_id=0x5A5'
 
 Keys besides kind, target and the window: ``probability`` (all kinds), ``delay_s`` (delay), ``value`` (stuck: the
-value held; offset: what is added, in the signal's DBC unit), ``dlc`` (wrong_dlc, default 7), ``rate`` (flood:
-unknown-ID frames per frame the node sends, default 10), ``frame_id`` (flood, default 0x5A5; must not be in the DBC),
+value held; offset: what is added, in the signal's DBC unit; gain: the non-zero factor the physical value is
+multiplied by), ``dlc`` (wrong_dlc, default 7), ``rate`` (flood: unknown-ID frames per frame the node sends, default
+10), ``frame_id`` (flood, default 0x5A5; must not be in the DBC),
 ``side`` (the node whose sent frames are changed; default: the DBC sender of the target message, "plant" for flood).
 """
 
@@ -44,11 +45,12 @@ KINDS = {
                       "a counter)",
     "stuck": "the signal holds `value` (CRC and counter valid)",
     "offset": "`value` is added to the signal (CRC and counter valid)",
+    "gain": "the signal's physical value is multiplied by `value` (CRC and counter valid)",
     "out_of_range": "the signal is set just outside its DBC range (CRC and counter valid)",
     "wrong_dlc": "the frame is sent with `dlc` bytes",
     "flood": "each frame the node sends is followed by `rate` frames of an unknown ID with random data",
 }
-SIGNAL_KINDS = {"stuck", "offset", "out_of_range"}
+SIGNAL_KINDS = {"stuck", "offset", "gain", "out_of_range"}
 SIDES = {"PLANT": "plant", "TCU": "tcu"}  # DBC node -> side
 _ALIASES = {"p": "probability", "delay": "delay_s", "id": "frame_id", "start": "start_s", "end": "end_s"}
 
@@ -155,6 +157,9 @@ def fault_from_mapping(table: Mapping[str, Any], where: str = "fault") -> FaultS
     elif (kind in SIGNAL_KINDS) != ("." in target):
         raise FaultError(f"{where}: {kind} takes a {'MESSAGE.Signal' if kind in SIGNAL_KINDS else 'MESSAGE'} "
                          f"target, got {target!r}")
+    if kind == "gain" and spec.value == 0.0:
+        raise FaultError(f"{where}: gain needs a non-zero value, the factor (e.g. value=1.05); a signal held at 0 "
+                         f"is stuck,value=0")
     return spec
 
 
@@ -224,13 +229,14 @@ def check_against_dbc(spec: FaultSpec, db: Database, where: str = "fault") -> No
             signal = message.get_signal_by_name(spec.signal)
         except KeyError:
             raise FaultError(f"{where}: signal {spec.target!r} is not in the DBC") from None
-        if spec.kind in ("stuck", "offset"):
+        if spec.kind in ("stuck", "offset", "gain"):
             _check_encodable(spec, signal, where)
 
 
 def _check_encodable(spec: FaultSpec, signal: Signal, where: str) -> None:
-    """A ``stuck`` value the signal's bits cannot carry, or an ``offset`` wider than all they carry, is refused
-    before the run (not found mid-run by the sender's encoder). An offset that pushes some values out is
+    """A ``stuck`` value the signal's bits cannot carry, an ``offset`` wider than all they carry, or a ``gain`` that
+    takes the signal's smallest step beyond them is refused before the run (not found mid-run by the sender's
+    encoder). An offset or gain that pushes some values out is
     handled per frame (:class:`~dsg_hil.protocol.faults.injector.FaultInjector`: counted, the frame unchanged)."""
     from ..ranges import raw_range, signal_range  # noqa: PLC0415 - cantools, loaded with the DBC
 
@@ -241,5 +247,12 @@ def _check_encodable(spec: FaultSpec, signal: Signal, where: str) -> None:
         return
     if spec.kind == "offset" and abs(spec.value) <= hi - lo:
         return
+    if spec.kind == "gain":
+        step = abs(signal.scale)
+        if abs(spec.value) * step <= hi - lo:
+            return
+        raise FaultError(f"{where}: gain value {spec.value:g} cannot be encoded in {spec.target}: it takes one step "
+                         f"of {step:g}{unit} to {abs(spec.value) * step:g}{unit}, beyond all its bits carry "
+                         f"({lo:g} to {hi:g}{unit})")
     raise FaultError(f"{where}: {spec.kind} value {spec.value:g}{unit} cannot be encoded in {spec.target}: its "
                      f"bits carry {lo:g} to {hi:g}{unit} (DBC range {minimum:g} to {maximum:g}{unit})")

@@ -8,7 +8,8 @@ import pytest
 from dsg_hil.protocol.faults import FaultError, FaultInjector, FaultyBus, bridge_step, outside_range, parse_fault
 from dsg_hil.protocol import Codec, RxMonitor, TxScheduler, load_dbc
 
-USES = {"TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"), "PLANT_VEHICLE": ("VehicleSpeed", "TransOutputSpeed")}
+USES = {"TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho"), "PLANT_VEHICLE": ("VehicleSpeed", "TransOutputSpeed"),
+        "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH", "T_Sump"), "PLANT_SPEEDS": ("ClutchInputSpeed",)}
 
 
 @pytest.fixture(scope="module")
@@ -154,6 +155,34 @@ def test_stuck_and_offset_pass_protection_with_wrong_values(db, codec):
     assert all(f.values["TransOutputSpeed"] == pytest.approx(125.0) for f in accepted)
 
 
+def test_a_gain_multiplies_the_physical_value_and_passes_protection(db, codec):
+    """``value`` multiplies the physical value (not the raw bits: T_OilCL's DBC offset is -40 degC), frame by frame,
+    in the window only, with a valid CRC and counter."""
+    stream = frames(codec, "PLANT_OIL_TEMP", 2, {"T_OilCL": 200.0, "T_OilCH": 150.0, "T_Sump": 100.0}) + \
+        frames(codec, "PLANT_OIL_TEMP", 2, {"T_OilCL": 100.0, "T_OilCH": 150.0, "T_Sump": 100.0}, t0=1.0)
+    inj = FaultInjector(db, [parse_fault("gain:PLANT_OIL_TEMP.T_OilCL@0-1.05,value=0.9")])
+    rx, accepted = receive_all(codec, ["PLANT_OIL_TEMP"], through(inj, stream))
+    assert rx.rejected_total == 0 and len(accepted) == 4
+    assert [f.values["T_OilCL"] for f in accepted] == pytest.approx([180.0, 180.0, 90.0, 100.0])
+    assert all(f.values["T_OilCH"] == pytest.approx(150.0) for f in accepted)  # the other signals untouched
+    negative = FaultInjector(db, [parse_fault("gain:PLANT_SPEEDS.ClutchInputSpeed,value=-2")])
+    _, got = receive_all(codec, ["PLANT_SPEEDS"], through(negative, frames(codec, "PLANT_SPEEDS", 1,
+                                                                             {"ClutchInputSpeed": 150.0})))
+    assert got[0].values["ClutchInputSpeed"] == pytest.approx(-300.0)
+
+
+def test_a_gain_pushing_one_value_off_its_bits_is_counted_and_that_frame_sent_unchanged(db, codec):
+    stream = frames(codec, "PLANT_VEHICLE", 2, {"VehicleSpeed": 1.0}) + \
+        frames(codec, "PLANT_VEHICLE", 1, {"VehicleSpeed": 20.0}, t0=1.0)
+    spec = parse_fault("gain:PLANT_VEHICLE.VehicleSpeed,value=2")
+    inj = FaultInjector(db, [spec])
+    out = through(inj, stream)
+    assert out[2].data == stream[2][1].data
+    _, accepted = receive_all(codec, ["PLANT_VEHICLE"], out)
+    assert [f.values["VehicleSpeed"] for f in accepted] == pytest.approx([2.0, 2.0, 20.0])
+    assert inj.encode_errors[spec.describe()] == 1
+
+
 def test_flood_adds_unknown_ids_the_receiver_ignores(db, codec):
     inj = FaultInjector(db, [parse_fault("flood@0-1,rate=50")])
     out = through(inj, frames(codec, "TCU_CMD", 10, CMD))
@@ -196,6 +225,8 @@ def test_faulty_bus_and_bridge_on_virtual(db, codec):
      "PLANT_VEHICLE.VehicleSpeed: its bits carry -32.768 to 32.767 m/s (DBC range -30 to 30 m/s)"),
     ("offset:TCU_CMD.P_CL_Cmd@1-2,value=-7", "offset value -7 MPa cannot be encoded in TCU_CMD.P_CL_Cmd: its bits "
      "carry 0 to 6.5535 MPa"),
+    ("gain:PLANT_PRESSURE.P_CL,value=1e5", "gain value 100000 cannot be encoded in PLANT_PRESSURE.P_CL: it takes one "
+     "step of 0.0001 MPa to 10 MPa, beyond all its bits carry (0 to 6.5535 MPa)"),
 ])
 def test_a_value_the_dbc_cannot_encode_is_refused_before_any_frame(db, text, words):
     """Not at the first frame in the window, mid-run, with cantools' bare 'out of range' (issue 20, item 2)."""

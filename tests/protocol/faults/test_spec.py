@@ -23,6 +23,9 @@ def test_cli_syntax_round_trip():
 def test_toml_table_same_as_cli():
     table = {"kind": "offset", "target": "PLANT_OIL_TEMP.T_OilCL", "start_s": 1, "end_s": 2, "value": 20}
     assert fault_from_mapping(table) == parse_fault("offset:PLANT_OIL_TEMP.T_OilCL@1-2,value=20")
+    gain = {"kind": "gain", "target": "PLANT_SPEEDS.ClutchInputSpeed", "start_s": 0, "value": 0.95}
+    assert fault_from_mapping(gain) == parse_fault("gain:PLANT_SPEEDS.ClutchInputSpeed@0-,value=0.95")
+    assert parse_fault(parse_fault("gain:PLANT_SPEEDS.ClutchInputSpeed@0-,value=0.95").as_option()).value == 0.95
 
 
 @pytest.mark.parametrize("text, words", [
@@ -39,6 +42,8 @@ def test_toml_table_same_as_cli():
     ("wrong_dlc:TCU_CMD,dlc=9", "dlc"),
     ("flood:TCU_CMD", "flood takes no target"),
     ("flood,rate=1.5", "whole number"),
+    ("gain:PLANT_OIL_TEMP.T_OilCL", "gain needs a non-zero value"),  # the default value 0 would zero it
+    ("gain:PLANT_OIL_TEMP", "MESSAGE.Signal"),
 ])
 def test_bad_specs_say_what_is_wrong(text, words):
     with pytest.raises(FaultError, match=words):
