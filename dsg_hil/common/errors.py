@@ -9,6 +9,7 @@ share them; each class is defined where it belongs (the module in brackets) and 
          |   +-- ScenarioError        (sim.scenario)         a scenario file or a run's option
          |   +-- FaultError           (protocol.faults)      a [[fault]] table or --fault
          |   +-- ProtocolError        (protocol.codec)       the DBC: missing, unreadable, or lacks what is used
+         |   |   +-- BindingError     (protocol.binding)     a binding file: unreadable, or not fitting its DBC
          |   +-- ProtectionError      (protocol.e2e)         a message's E2E protection: bad table or no fit
          |   +-- FrameError           (protocol.codec)       a received frame (dlc, crc, data_id, range, ...): rejected
          |   +-- LogError             (common.errors)        a recorded log: unreadable, not of the DBC, no data
@@ -16,6 +17,7 @@ share them; each class is defined where it belongs (the module in brackets) and 
          |   +-- FmuError             (fmi.controller)       a controller FMU: unreadable, or a variable no DBC signal
          |   +-- FmuCallError         (fmi.slave)            an FMI host's call our FMUs refuse (logged, not raised)
          |   +-- SpaceError           (sweep.space)          a sweep's space file
+         |   +-- LatentError          (sweep.latent)         a space's [latent] section (the space names its file)
          |   +-- DriverError          (sweep.drivers)        a sweep's driver setting that makes no behaviour
          |   +-- DiagError            (protocol.diag)        a UDS description (DIDs, DTCs) or the DBC's diagnostic IDs
          +-- RunError (also a RuntimeError)                  exit 1: the run could not go on
