@@ -333,32 +333,31 @@ class TcuRunner:
 
     def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
         """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data."""
-        if self.diag is not None and frame_id == self.diag.request_id:
-            self.diag.take(data)
-            return False
-        if self.xcp is not None and frame_id == self.xcp.request_id:
-            self.xcp.take(data)
+        if self._to_side(frame_id, data):
             return False
         return self.link.handle_data(frame_id, data, now)
+
+    def _to_side(self, frame_id: int, data: bytes | bytearray) -> bool:
+        """Hand a frame on the diagnostic request ID to :attr:`diag`, one on the XCP command ID to :attr:`xcp`; True
+        if one took it (its data copied only then: every received frame passes here)."""
+        diag, xcp = self.diag, self.xcp
+        if diag is not None and frame_id == diag.request_id:
+            diag.take(bytes(data))
+            return True
+        if xcp is not None and frame_id == xcp.request_id:
+            xcp.take(bytes(data))
+            return True
+        return False
 
     def _is_diag(self, item: object) -> bool:
         """Whether ``item`` (a can.Message, or (ID, data) from the in-process bus) is a diagnostic request or an XCP
         command; it is handed to :attr:`diag` or :attr:`xcp` then."""
-        diag, xcp = self.diag, self.xcp
         if isinstance(item, can.Message):
-            frame_id = item.arbitration_id
             if item.is_extended_id or item.is_remote_frame or item.is_error_frame:
                 return False
-        elif isinstance(item, tuple):
-            frame_id = item[0]
-        else:
-            return False
-        if diag is not None and frame_id == diag.request_id:
-            diag.take(bytes(item.data if isinstance(item, can.Message) else item[1]))
-            return True
-        if xcp is not None and frame_id == xcp.request_id:
-            xcp.take(bytes(item.data if isinstance(item, can.Message) else item[1]))
-            return True
+            return self._to_side(item.arbitration_id, item.data)
+        if isinstance(item, tuple):
+            return self._to_side(item[0], item[1])
         return False
 
     def _diag_recv(self, recv: Callable[[float], Received | None]) -> Callable[[float], Received | None]:
