@@ -1,5 +1,4 @@
-"""Contact laws side by side: why the 1-ms plant once missed the creep case's speeds, and the law it now has
-(issue 9, issue 16 item 4).
+"""Contact laws side by side: why the 1-ms plant once missed the creep case's speeds, and the law it now has.
 
     python bench/contact_law.py [--seconds 3] [--long-seconds 30] [--json]
 

@@ -1,4 +1,4 @@
-"""The slowest, heaviest handovers of issue 18's safety sample: is their speed dip the TCU's, or the plant's?
+"""The slowest, heaviest handovers of the safety sweep's sample: is their speed dip the TCU's, or the plant's?
 
 The 5,000-run sample on the TCU of 7ecfd2f left five runs without a frame fault or the driver's pedal beyond
 +-20 % of the desired speed through a handover (r00652 25.6 %, r00857 23.8 %, r01753 20.8 %, r03843 36.4 %, r04681

@@ -1,4 +1,4 @@
-"""Issue 18's evidence from a sweep's table (``dsg-hil sweep dsg_hil/data/sweeps/safety.toml``, finished or
+"""The safety argument's evidence from a sweep's table (``dsg-hil sweep dsg_hil/data/sweeps/safety.toml``, finished or
 interrupted): the verdict's counts and violations, the hottest true plate and the smallest margins, the overheat
 stops' hotter plate (used to >= 235 degC before giving up?), roll-back (distance, and speed against the 10-mm/s
 drivability target, split by whether a frame fault was injected), the speed through handovers against +-20 % (all,

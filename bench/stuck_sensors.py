@@ -1,30 +1,49 @@
-"""Issue 18's stuck thermal inputs in the closed loop: a 30-s creep from CL 228 / CH 235 / oil 130 degC on Table I's
+"""Stuck thermal inputs in the closed loop: a 30-s creep from CL 228 / CH 235 / oil 130 degC on Table I's
 grade, one signal stuck (CRC and counter valid) from 2 s to the end; one JSON line per case with the true plates'
 maxima, seconds above 250 degC, the stop reason and the TCU's implausible counts (ecu_stub/sensor_checks.py).
 
-    PYTHONPATH=. python bench/stuck_sensors.py [CASE ...]      (default: all; about 1 s each)
+    python bench/stuck_sensors.py [CASE ...] [--json]     (default: all; about 1 s each)
+
+``--json``: one JSON object, ``{"cases": [...]}``, instead of a line per case.
 
 Cases: none, and SIGNAL=VALUE of tests/ecu_stub/test_sensor_checks.py's STUCK plus EngineSpeed=0 and =3000.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
+from pathlib import Path
 
-from tests.ecu_stub.test_sensor_checks import STUCK, hot_creep
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: its tests' scenarios
+
+from tests.ecu_stub.test_sensor_checks import STUCK, hot_creep  # noqa: E402
 
 EXTRA = {"EngineSpeed=0": ("PLANT_ENGINE.EngineSpeed", 0.0), "EngineSpeed=3000": ("PLANT_ENGINE.EngineSpeed", 3000.0)}
 
 
-def main(names: list[str]) -> None:
-    cases = {"none": None, **{f"{s}={v:g}": (t, v) for s, (t, v) in STUCK.items()}, **EXTRA}
-    for name in names or list(cases):
-        summary, counts = hot_creep(stuck=cases[name])
-        print(json.dumps({"case": name, "max_plate_temp_c": summary["max_plate_temp_c"],
-                          "time_above_limit_s": summary["time_above_limit_s"], "stop_reason": summary["stop_reason"],
-                          "implausible": {k: n for k, n in counts["implausible"].items() if n}}), flush=True)
+CASES = {"none": None, **{f"{s}={v:g}": (t, v) for s, (t, v) in STUCK.items()}, **EXTRA}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("cases", nargs="*", metavar="CASE", help=f"cases (default: all): {' '.join(CASES)}")
+    ap.add_argument("--json", action="store_true", help="one JSON object instead of a line per case")
+    args = ap.parse_args()
+    if unknown := [c for c in args.cases if c not in CASES]:
+        ap.error(f"unknown case(s): {' '.join(unknown)}")
+    rows = []
+    for name in args.cases or list(CASES):
+        summary, counts = hot_creep(stuck=CASES[name])
+        rows.append({"case": name, "max_plate_temp_c": summary["max_plate_temp_c"],
+                     "time_above_limit_s": summary["time_above_limit_s"], "stop_reason": summary["stop_reason"],
+                     "implausible": {k: n for k, n in counts["implausible"].items() if n}})
+        if not args.json:
+            print(json.dumps(rows[-1]), flush=True)
+    if args.json:
+        print(json.dumps({"cases": rows}))
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    main()

@@ -1,4 +1,4 @@
-"""Sweep throughput on Dask, side by side in one run (issue 17, item 6): the default creep (the shipped scenario,
+"""Sweep throughput on Dask, side by side in one run: the default creep (the shipped scenario,
 240 simulated s, the bundled ecu-stub) as ``dsg-hil sweep`` runs it, on a LocalCluster of 1 worker and of 2 workers
 (one thread each), alternating, ``--rounds`` times; per configuration the runs per minute, the scaling efficiency
 (rate with N workers / (N x the rate with 1)), runs per core-hour and each worker's memory: its peak resident set, and

@@ -3,17 +3,23 @@ tracking RMS outside handovers, min/max speed through the handovers (and the wor
 roll-back at brake release, max plate temperatures (truth and the TCU's estimate), the worst truth-minus-estimate,
 seconds above 250 degC and the stop time.
 
-    PYTHONPATH=. python bench/tcu_envelope.py [CASE ...]      (default: all cases; each 240 simulated s)
+    python bench/tcu_envelope.py [CASE ...] [--json]     (default: all cases; each 240 simulated s)
+
+``--json``: one JSON object, ``{"cases": {CASE: figures}}``, instead of a line per case.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
-from dsg_hil.sim.scenario import load_scenario
-from tests.sim.test_closed_loop import Trace, closed_loop, creep_scenario
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: its tests' scenarios
+
+from dsg_hil.sim.scenario import load_scenario  # noqa: E402
+from tests.sim.test_closed_loop import Trace, closed_loop, creep_scenario  # noqa: E402
 
 RELEASE_S = 1.0  # the driver releases the brake (creep_scenario and the shipped scenario)
 
@@ -60,8 +66,25 @@ CASES = {
     "steep_light_fast": case(0.2, 1300, 0.4, 100, 90, 0.7),
 }
 
-if __name__ == "__main__":
-    for name in sys.argv[1:] or list(CASES):
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("cases", nargs="*", metavar="CASE", help=f"cases (default: all): {' '.join(CASES)}")
+    ap.add_argument("--json", action="store_true", help="one JSON object instead of a line per case")
+    args = ap.parse_args()
+    if unknown := [c for c in args.cases if c not in CASES]:
+        ap.error(f"unknown case(s): {' '.join(unknown)}")
+    found = {}
+    for name in args.cases or list(CASES):
         scenario, mass = CASES[name]()
         s, trace, _ = closed_loop(scenario, mass)
-        print(name, json.dumps(metrics(s, trace)), flush=True)
+        found[name] = metrics(s, trace)
+        if not args.json:
+            print(name, json.dumps(found[name]), flush=True)
+    if args.json:
+        print(json.dumps({"cases": found}))
+
+
+if __name__ == "__main__":
+    main()

@@ -106,3 +106,16 @@ def test_latent_findings_counts_the_runs_by_their_latent_faults(tmp_path):
     assert sum(group["runs"] for group in found["groups"].values()) == 2
     assert set(found["groups"]) == {"beyond", "within", "none"}
     assert "runs with a latent fault beyond its detection threshold" in proc.stdout
+
+
+def test_a_recorded_result_has_its_date_machine_command_and_figures(tmp_path):
+    """bench/record.py keeps a script's --json output with what the performance page shows beside it."""
+    proc = subprocess.run([sys.executable, str(BENCH / "record.py"), "stuck", "--out", str(tmp_path), "--note", "idle",
+                           "--", "python", "bench/stuck_sensors.py", "--json", "none"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    record = json.loads((tmp_path / "stuck.json").read_text(encoding="utf-8"))
+    assert record["command"] == "python bench/stuck_sensors.py --json none" and record["machine"].endswith("; idle")
+    assert len(record["date"]) == 10 and positive(record["wall_s"])
+    (case,) = record["results"]["cases"]
+    assert case["case"] == "none" and case["stop_reason"] == "STOPPED_OVERHEAT" and case["implausible"] == {}

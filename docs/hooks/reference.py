@@ -14,6 +14,7 @@ import argparse
 import importlib
 import json
 import re
+import shlex
 import textwrap
 import tomllib
 from collections.abc import Callable, Iterator
@@ -22,9 +23,9 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-__all__ = ["MARKERS", "PAGES", "bench_page", "cli_page", "codes_page", "dbc_page", "did_table", "dtc_table",
-           "nested_lists", "on_files", "on_page_content", "on_page_markdown", "params_page", "plain_roles",
-           "snapshot_dids"]
+__all__ = ["MARKERS", "PAGES", "bad_input_table", "bench_page", "cli_page", "codes_page", "dbc_page", "did_table",
+           "dtc_table", "figures", "nested_lists", "on_files", "on_page_content", "on_page_markdown", "params_page",
+           "plain_roles", "snapshot_dids"]
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -221,27 +222,110 @@ def codes_page() -> str:
 
 # -- performance -----------------------------------------------------------------------------------------------
 
+def _rounded(value: Any) -> Any:
+    """Floats to 4 significant digits (a bench's figures are no more precise than that), inside lists and tables."""
+    if isinstance(value, float):
+        return float(f"{value:.4g}")
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_rounded(v) for v in value]
+    return value
+
+
+def _value(value: object) -> str:
+    """A figure as the table shows it: numbers (4 significant digits) and words as they are, lists and tables as
+    compact JSON."""
+    value = _rounded(value)
+    if isinstance(value, dict | list):
+        return json.dumps(value, ensure_ascii=False, separators=(", ", ": "))
+    return f"{value:g}" if isinstance(value, float) and abs(value) < 1e6 and value == int(value) else str(value)
+
+
+def _rows_table(rows: list[dict[str, Any]], first: str = "") -> list[str]:
+    """Records of the same kind (a bench's cases) as one table, a column per key."""
+    keys = list(dict.fromkeys(k for row in rows for k in row))
+    head = ([first] if first else []) + keys
+    return _table(head, [([row.get(first, "")] if first else []) + [_value(row.get(k, "")) for k in keys]
+                         for row in rows])
+
+
+def _is_records(value: object) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _is_named_records(value: object) -> bool:
+    return isinstance(value, dict) and bool(value) and all(isinstance(v, dict) for v in value.values())
+
+
+def _flat(results: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    for key, value in results.items():
+        if isinstance(value, dict) and not _is_named_records(value):
+            yield from _flat(value, f"{prefix}{key}.")
+        else:
+            yield prefix + key, value
+
+
+def figures(results: object) -> list[str]:
+    """A bench's JSON as Markdown: its single figures in one table (nested keys dotted), its lists of cases (a list
+    of objects, or an object of objects by name) each a table of their own."""
+    if _is_records(results):
+        return [*_rows_table(results), ""]  # type: ignore[arg-type]
+    if not isinstance(results, dict):
+        return [_value(results), ""]
+    single: list[list[object]] = []
+    tables: list[str] = []
+    for key, value in _flat(results):
+        if _is_records(value):
+            tables += [f"**{key}**", "", *_rows_table(value), ""]
+        elif _is_named_records(value):
+            tables += [f"**{key}**", "", *_rows_table([{"name": n, **v} for n, v in value.items()], "name"), ""]
+        else:
+            single.append([key, _value(value)])
+    return ([*_table(["figure", "value"], single), ""] if single else []) + tables
+
+
 def bench_page() -> str:
     """The measured figures: every ``bench/results/*.json`` with its date, machine and command."""
     found = sorted((ROOT / "bench" / "results").glob("*.json"))
-    lines = ["Generated from the JSON files the `bench/` scripts write into `bench/results/`.", ""]
+    lines = ["Generated from the JSON files in `bench/results/`, kept by `python bench/record.py NAME -- COMMAND`.",
+             ""]
     if not found:
-        lines += ["No benchmark result is recorded in `bench/results/` yet.",
-                  "To show one here, keep a script's `--json` output there as `NAME.json`: an object with `date`, "
-                  "`machine`, `command` and `results` (the script's JSON).", ""]
+        lines += ["No benchmark result is recorded in `bench/results/` yet.", ""]
     for path in found:
         data = json.loads(path.read_text(encoding="utf-8"))
-        lines += [f"### {path.stem}", "",
-                  *_table(["date", "machine", "command"],
-                          [[data.get("date", "?"), data.get("machine", "?"), f"`{data.get('command', '?')}`"]]), ""]
+        took = f"{data['wall_s']:g} s" if isinstance(data.get("wall_s"), int | float) else "-"
+        script = re.search(r"bench/(\w+\.py)", str(data.get("command", "")))
+        what = _cell(_first_line(ROOT / "bench" / script.group(1))) if script else ""
+        lines += [f"### {path.stem}", "", what, "",
+                  *_table(["date", "machine", "command", "took"],
+                          [[data.get("date", "?"), data.get("machine", "?"), f"`{data.get('command', '?')}`", took]]),
+                  ""]
         results = data.get("results", {k: v for k, v in data.items() if k not in ("date", "machine", "command")})
-        if isinstance(results, dict):
-            lines += [*_table(["figure", "value"], [[k, json.dumps(v) if isinstance(v, dict | list) else v]
-                                                    for k, v in results.items()]), ""]
+        lines += figures(results)
     scripts = sorted((ROOT / "bench").glob("*.py"))
     lines += ["### The scripts", "", *_table(["script", "what it measures"],
                                           [[f"`bench/{p.name}`", _first_line(p)] for p in scripts]), ""]
     return "\n".join(lines)
+
+
+# -- bad input -------------------------------------------------------------------------------------------------
+
+def bad_input_table() -> str:
+    """Every scripted bad-input case the tests run (``CASES`` of ``tests/cli/test_bad_input.py``): the command line,
+    what is bad, and what its one error line says."""
+    import sys
+
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    cases = importlib.import_module("tests.cli.test_bad_input")
+    program = {"dsg-hil": "dsg-hil", "ecu-stub": "ecu-stub", "identify": "python -m ecu_stub.identify"}
+    rows: list[list[object]] = []
+    for i, (prog, argv, bad, form, needle) in enumerate(cases.CASES, 1):
+        line = " ".join([program[prog], *(shlex.quote(a) for a in argv)])
+        said = f"`{needle}`" if form == cases.ERROR else f"usage, then `PROG: error: {needle}`"
+        rows.append([i, f"`{line}`", "an option" if bad == "option" else "a file", said])
+    return "\n".join(_table(["#", "command line", "bad", "the error line says"], rows))
 
 
 # -- diagnostics -----------------------------------------------------------------------------------------------
@@ -293,8 +377,9 @@ PAGES: dict[str, Callable[[], str]] = {
 }
 BENCH_MARKER = "<!-- bench-results -->"  # where performance.md shows the recorded benchmark JSON
 # where a page shows a table made from the code: marker -> what replaces it
-MARKERS: dict[str, Callable[[], str]] = {BENCH_MARKER: bench_page, "<!-- diag-dids -->": did_table,
-                                         "<!-- diag-dtcs -->": dtc_table, "<!-- diag-snapshot -->": snapshot_dids}
+MARKERS: dict[str, Callable[[], str]] = {BENCH_MARKER: bench_page, "<!-- bad-input-cases -->": bad_input_table,
+                                         "<!-- diag-dids -->": did_table, "<!-- diag-dtcs -->": dtc_table,
+                                         "<!-- diag-snapshot -->": snapshot_dids}
 
 
 def on_files(files: Any, config: Any) -> Any:

@@ -203,3 +203,15 @@ def test_lockstep_over_vcan_is_bit_for_bit_reproducible(lockstep, outdir, durati
     run_pair(outdir, "lockstep2", "lockstep", duration, extra=("--log", str(outdir / "lockstep2.plant.log")))
     first = (outdir / "lockstep.plant.log").read_bytes()
     assert len(first) > 10_000 and (outdir / "lockstep2.plant.log").read_bytes() == first
+
+
+def test_the_tutorial_s_run_on_vcan0(tmp_path, duration):
+    """docs/tutorials/vcan.md's run: plant and the bundled TCU as two processes on vcan0, with a log (the page's
+    command, with the suite's --duration); every frame accepted, the log written."""
+    summary = tmp_path / "s.json"
+    proc = subprocess.run([console("dsg-hil"), "run", "--interface", "socketcan", "--channel", "vcan0", "--log",
+                           str(tmp_path / "run.log"), "--duration", str(duration), "--summary", str(summary)],
+                          capture_output=True, text=True, timeout=STARTUP + 60 * duration)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    frames = json.loads(summary.read_text())["frames"]
+    assert frames["rejected"] == 0 and frames["received"] > 0 and (tmp_path / "run.log").stat().st_size > 0

@@ -31,6 +31,11 @@ def blocks(language: str) -> list[tuple[Path, str]]:
     return found
 
 
+def page_blocks(language: str, page: Path) -> list[str]:
+    """The fenced blocks of that language of one page."""
+    return [block for where, block in blocks(language) if where == page]
+
+
 def command_lines() -> list[tuple[str, list[str]]]:
     """The dsg-hil, ecu-stub and identification commands of every sh block (a '$ ' prompt, comments, '&&' and
     'source <(...)' taken apart), with where they are."""
@@ -106,21 +111,28 @@ SUMMARY_TOLERANCE = {"tcu_stop_time_s": 0.01, "T_CL_at_first_CH_limit_c": 0.05, 
 
 
 def test_the_quick_start_run_prints_what_the_readme_shows(tmp_path):
-    """'dsg-hil run' as the quick start runs it: the README's lines, but the pace, are the run's (lockstep: the same
-    lines but for a CPU's rounding, see same_line), and its table's three numbers are the summary's."""
+    """'dsg-hil run' as the quick start runs it, with the output files of the first tutorial's command (which the
+    logs guide's is a part of): the README's lines, but the pace, are the run's (lockstep: the same lines but for a
+    CPU's rounding, see same_line), and its table's three numbers are the summary's; the log is written."""
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     quick = readme.split("## Quick start", 1)[1].split("\n## ", 1)[0]
     assert re.search(r"```sh\n.*&& dsg-hil run\n", quick)
     shown = re.search(r"```text\n(.*?)```", quick, re.S)
     assert shown
-    done = _run(str(BIN / "dsg-hil"), "run", "--summary", "s.json", cwd=tmp_path)
+    (tutorial,) = page_blocks("sh", ROOT / "docs" / "tutorials" / "first-creep.md")
+    (logs,) = page_blocks("sh", ROOT / "docs" / "how-to" / "logs.md")
+    words = shlex.split(tutorial)
+    assert words == ["dsg-hil", "run", "--log", "run.log", "--summary", "summary.json"]
+    assert shlex.split(logs) == words[:4]  # a part of it
+    done = _run(str(BIN / "dsg-hil"), *words[1:], cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / "run.log").stat().st_size > 0
     printed = [PACE.sub("", line) for line in (done.stdout + done.stderr).splitlines()]
     for line in shown.group(1).splitlines():
         if line != "...":
             line = PACE.sub("", line)
             assert any(same_line(line, other) for other in printed), (line, printed)
-    summary = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))
+    summary = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
     numbers = re.findall(r"^\| `(\w+)`: [^|]*\| ([\d.]+) ", quick, re.M)
     assert [key for key, _ in numbers] == list(SUMMARY_TOLERANCE)  # the three to compare with the paper
     for key, value in numbers:

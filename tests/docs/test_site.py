@@ -80,6 +80,40 @@ def test_the_api_page_renders_the_docstrings(site):
     assert not re.search(r":(class|func|meth|mod|data):<code>", page)  # roles read as code
 
 
+def test_the_bad_input_page_has_every_case_the_tests_run(site):
+    """docs/bad-input.md's table is made from the tests' CASES: every command line, with what its error names."""
+    import html
+
+    from ..cli.test_bad_input import CASES
+
+    page = html.unescape(re.sub(r"<[^>]+>", "", (site / "bad-input" / "index.html").read_text(encoding="utf-8")))
+    for program, argv, _, _, needle in CASES:
+        assert " ".join(argv[:3]) in page and needle in page, (program, argv)
+    assert f"\n{len(CASES)}\n" in page  # the last row's number
+
+
+def test_the_performance_page_shows_every_recorded_result(site):
+    """Every bench/results/*.json on the page, with its date, machine and command."""
+    import html
+    import json
+
+    page = html.unescape((site / "performance" / "index.html").read_text(encoding="utf-8"))
+    found = sorted((ROOT / "bench" / "results").glob("*.json"))
+    assert found
+    for path in found:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        assert all(data[key] in page for key in ("date", "machine", "command")), path.name
+        assert f'id="{path.stem}"' in page.replace("_", "_"), path.name
+
+
+def test_the_figures_of_a_bench_become_tables():
+    made = hook().figures({"ratio": 2.1, "peak": {"a": 1, "b": 2}, "cases": [{"case": "x", "T": 1}, {"case": "y"}],
+                           "by_name": {"n1": {"v": 3}}})
+    text = "\n".join(made)
+    assert "| ratio | 2.1 |" in text and "| peak.a | 1 |" in text and "| case | T |" in text
+    assert "| y |  |" in text and "| name | v |" in text and "| n1 | 3 |" in text
+
+
 def test_the_readme_s_links_reach_files_of_the_checkout():
     """README.md is read on the forge and the package index, outside the site: its relative links are files."""
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -88,11 +122,21 @@ def test_the_readme_s_links_reach_files_of_the_checkout():
     assert [link for link in links if not (ROOT / link).is_file()] == []
 
 
+INTERNAL = re.compile(r"\bissues? #?\d|\bitems? \d|\bCEO\b", re.IGNORECASE)  # the work's words
+
+
 def test_no_page_names_an_issue_number():
     """What users read says what the program does, not which work item changed it."""
     pages = [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")]
-    named = [p for p in pages if re.search(r"\bissues? #?\d", p.read_text(encoding="utf-8"), re.IGNORECASE)]
+    named = [p for p in pages if INTERNAL.search(p.read_text(encoding="utf-8"))]
     assert [str(p.relative_to(ROOT)) for p in named] == []
+
+
+def test_no_generated_page_names_an_issue_number(site):
+    """Nor the pages made from the code (the CLI's help, the bench scripts' docstrings, the DBC's comments)."""
+    named = [str(p.relative_to(site)) for p in site.rglob("*.html")
+             if INTERNAL.search(re.sub(r"<[^>]+>", " ", p.read_text(encoding="utf-8")))]
+    assert named == []
 
 
 def test_lists_written_for_github_are_lists_on_the_site():

@@ -1,0 +1,212 @@
+"""The guides' shell blocks run as a user types them (the programs on PATH, a directory of their own), and what the
+pages show them print is what they print: the fault guide's run, the interfaces guide's two-process run and its two
+sides started by hand, the diagnostics command's session, the binding check, the XCP guide's A2L, the layout's
+tree. On udp_multicast a fresh group and port replace the page's, so that two runs on one host do not meet. Numbers
+are compared as the quick start's are (test_blocks.same_line: one unit of the last printed digit). Skipped without a
+checkout (an installed package has no docs/). tests/docs/test_inventory.py lists which test runs which block."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import signal
+import subprocess
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from .test_blocks import BIN, ROOT, same_line
+
+pytestmark = pytest.mark.skipif(not (ROOT / "mkdocs.yml").exists(), reason="the docs are in the checkout only")
+ENV = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+
+
+def blocks(page: str, language: str) -> list[str]:
+    text = (ROOT / page).read_text(encoding="utf-8")
+    return re.findall(rf"^```{language}\n(.*?)^```", text, re.S | re.M)
+
+
+def sh_block(page: str, start: str) -> list[str]:
+    """The command lines of the page's sh block that starts so (comments kept out)."""
+    (block,) = [b for b in blocks(page, "sh") if b.startswith(start)]
+    return [line for line in block.splitlines() if line.strip()]
+
+
+def run(line: str, cwd: Path, replace: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    """One command line of a page, as a shell would split it (a trailing comment dropped), words replaced."""
+    words = [(replace or {}).get(word, word) for word in shlex.split(line, comments=True)]
+    return subprocess.run(words, cwd=cwd, capture_output=True, text=True, timeout=600, env=ENV)
+
+
+def check_shown(shown: str, printed: str) -> None:
+    """Every line the page shows (but '...') is a line printed, in that order."""
+    lines = printed.splitlines()
+    at = 0
+    for line in shown.splitlines():
+        if line.strip() == "...":
+            continue
+        hits = [i for i in range(at, len(lines)) if same_line(line, lines[i])]
+        assert hits, f"shown {line!r}, not printed after line {at}:\n{printed}"
+        at = hits[0] + 1
+
+
+def udp_words(page_channel: str, page_port: str) -> dict[str, str]:
+    from dsg_hil.protocol.bus import fresh_udp_group
+
+    group = fresh_udp_group()
+    return {page_channel: group["channel"], f"port={page_port}": f"port={group['port']}"}
+
+
+# -- faults, interfaces ----------------------------------------------------------------------------------------
+
+def test_the_fault_guide_s_run_runs(tmp_path: Path) -> None:
+    """Its first line: two faults on the in-process loop; the run counts them (the other two lines need a real
+    bus and vcan0: parsed by test_blocks.py)."""
+    line = sh_block("docs/how-to/faults.md", "dsg-hil run")[0]
+    done = run(line, tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "t=10.00 s: lock-step tick 1000 unanswered" in done.stderr
+    assert "t=12.000 s: valid TCU_CMD again" in done.stderr
+    faults = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))["faults"]
+    assert faults["seed"] == 7 and set(faults["injected"]) == {"drop:TCU_CMD@10-12",
+                                                               "stuck:PLANT_VEHICLE.VehicleSpeed@40-45"}
+    assert all(count > 0 for count in faults["injected"].values())
+
+
+def test_the_interfaces_guide_s_run_runs(tmp_path: Path) -> None:
+    (line,) = sh_block("docs/how-to/interfaces.md", "dsg-hil run -i udp_multicast")
+    done = run(line, tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    summary = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))
+    assert summary["frames"]["rejected"] == 0 and (tmp_path / "run.log").stat().st_size > 0
+
+
+def test_the_interfaces_guide_s_two_sides_start_as_shown(tmp_path: Path) -> None:
+    """The plant started as shown prints its line and the TCU's command (with its own group and port); that
+    command, run, answers its ticks: the plant's first progress line comes. Both are then stopped."""
+    lines = sh_block("docs/how-to/interfaces.md", "$ dsg-hil plant")
+    commands = [line.removeprefix("$ ") for line in lines if line.startswith("$ ")]
+    shown = [line for line in lines if not line.startswith("$ ")]
+    assert commands[0] == "dsg-hil plant -i udp_multicast --mode lockstep" and len(shown) == 2
+    plant = subprocess.Popen(shlex.split(commands[0]), cwd=tmp_path, stderr=subprocess.PIPE, text=True, env=ENV)
+    tcu = None
+    try:
+        assert plant.stderr is not None
+        printed = [plant.stderr.readline().rstrip("\n") for _ in shown]
+        address = re.compile(r"239\.255\.\d+\.\d+|port[= ]\d+")
+        for line, got in zip(shown, printed):
+            assert address.sub("#", line) == address.sub("#", got), (line, got)
+        tcu_line = printed[1].removeprefix("TCU: ")
+        page_tcu = shlex.split(commands[1], comments=True)
+        assert address.sub("#", shlex.join(page_tcu)) == address.sub("#", tcu_line)
+        tcu = subprocess.Popen(shlex.split(tcu_line), cwd=tmp_path, stderr=subprocess.DEVNULL, env=ENV)
+        progress = ""
+        while not progress.startswith("t="):
+            progress = plant.stderr.readline()
+            assert progress, "the plant ended before its first progress line"
+    finally:
+        for proc in (plant, tcu):
+            if proc is not None and proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        for proc in (plant, tcu):
+            if proc is not None:
+                try:
+                    proc.wait(timeout=60)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+
+
+# -- diagnostics ------------------------------------------------------------------------------------------------
+
+def test_the_diag_guide_s_session_prints_what_it_shows(tmp_path: Path) -> None:
+    """ecu-stub in the background, the plant with its stuck speed, then the tester's dtc, read, clear and dtc: each
+    prints the page's output (the freeze frame's numbers within their last digit)."""
+    pytest.importorskip("udsoncan")
+    page = "docs/how-to/diag-command.md"
+    words = udp_words("239.255.12.34", "40000")
+    (ecu_line,) = sh_block(page, "ecu-stub")
+    plant_line, dtc_line = sh_block(page, "dsg-hil plant")
+    (read_line,) = sh_block(page, "dsg-hil diag read")
+    clear_line, again_line = sh_block(page, "dsg-hil diag clear")
+    texts = blocks(page, "text")
+    argv = [words.get(w, w) for w in shlex.split(ecu_line)]
+    ecu = subprocess.Popen(argv, cwd=tmp_path, stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        assert ecu.stderr is not None and "listening on udp_multicast" in ecu.stderr.readline()
+        plant = run(plant_line, tmp_path, words)
+        assert plant.returncode == 0, plant.stderr[-2000:]
+        outputs = [run(line, tmp_path, words) for line in (dtc_line, read_line, clear_line, again_line)]
+        assert [o.returncode for o in outputs] == [0, 0, 0, 0], [o.stderr[-500:] for o in outputs]
+    finally:
+        ecu.send_signal(signal.SIGTERM)
+        ecu.communicate(timeout=60)
+    dtc_shown, read_shown, cleared_shown = (t for t in texts if t.startswith(("DTC ", "0x0102", "cleared")))
+    check_shown(dtc_shown, outputs[0].stdout)
+    check_shown(read_shown, outputs[1].stdout)
+    check_shown(cleared_shown, outputs[2].stdout + outputs[3].stdout)
+
+
+def test_the_diag_guide_s_description_loads(tmp_path: Path) -> None:
+    """The page's description of another ECU is one the command reads: its IDs, DIDs, snapshot and DTC."""
+    from dsg_hil.protocol.diag import load_description
+
+    (block,) = [b for b in blocks("docs/how-to/diag-command.md", "toml") if b.startswith("request_id")]
+    path = tmp_path / "my_ecu.toml"
+    path.write_text(block, encoding="utf-8")
+    description = load_description(path)
+    assert sorted(description.dids) == [0x0110, 0xF189] and list(description.snapshot) == [0x0110]
+    assert [d.code for d in description.dtcs] == ["P0715"]
+
+
+# -- binding, XCP, layout ---------------------------------------------------------------------------------------
+
+def test_the_binding_guide_s_file_is_a_binding() -> None:
+    """The page's file (for another DBC, not shipped) has the shipped binding's sections and quantities the plant
+    knows, each a 'MESSAGE.Signal' or a table with one."""
+    from dsg_hil.protocol.binding import DEFAULT_BINDING, QUANTITIES
+
+    (block,) = [b for b in blocks("docs/how-to/binding.md", "toml") if b.startswith("send = [")]
+    shown = tomllib.loads(block)
+    shipped = tomllib.loads(DEFAULT_BINDING.read_text(encoding="utf-8"))
+    assert set(shown) - {"messages"} <= set(shipped) and set(shown["lockstep"]) == set(shipped["lockstep"])
+    assert set(shown["quantities"]) <= set(QUANTITIES)
+    for ref in shown["quantities"].values():
+        signal_ref = ref["signal"] if isinstance(ref, dict) else ref
+        assert re.fullmatch(r"\w+\.\w+", signal_ref) and signal_ref.split(".")[0] in shown["send"] + shown["read"]
+
+
+def test_the_binding_check_prints_the_guide_s_columns(tmp_path: Path) -> None:
+    """The output the page shows is the check of the shipped DBC and binding (the command as on the page, with
+    those two files)."""
+    (line,) = sh_block("docs/how-to/binding.md", "dsg-hil binding check")
+    done = run(line, tmp_path, {"my_ecu.dbc": str(ROOT / "dbc" / "dsg_hil.dbc"),
+                                "my_ecu.binding.toml": str(ROOT / "dbc" / "dsg_hil.binding.toml")})
+    assert done.returncode == 0, done.stderr
+    (shown,) = [b for b in blocks("docs/how-to/binding.md", "text") if b.startswith("quantity")]
+    check_shown(shown, done.stdout)
+
+
+def test_the_xcp_guide_s_commands_run(tmp_path: Path) -> None:
+    """The A2L line writes the file (the servers' lines are what the guide's script starts in a thread)."""
+    lines = sh_block("docs/how-to/xcp.md", "ecu-stub")
+    (a2l_line,) = [line for line in lines if "--a2l" in line]
+    done = run(a2l_line, tmp_path)
+    assert done.returncode == 0, done.stderr
+    text = (tmp_path / "tcu.a2l").read_text(encoding="utf-8")
+    assert "ASAP2_VERSION" in text and "/begin MEASUREMENT" in text
+
+
+def test_the_layout_tree_is_the_checkout_s() -> None:
+    """Every path the layout page's tree names is in the checkout, and every package folder of the checkout is
+    named."""
+    (tree,) = [b for b in re.findall(r"^```\n(.*?)^```", (ROOT / "docs/explanation/layout.md").read_text(
+        encoding="utf-8"), re.S | re.M) if b.startswith("dbc/")]
+    named = [line.split()[0] for line in tree.splitlines() if line and not line.startswith(" ")]
+    assert [path for path in named if not (ROOT / path).exists()] == []
+    packages = {f"{p.parent.relative_to(ROOT)}/" for p in ROOT.glob("dsg_hil/*/__init__.py")}
+    assert packages - set(named) == set()
+
