@@ -244,7 +244,7 @@ def _value(value: object) -> str:
 
 def _rows_table(rows: list[dict[str, Any]], first: str = "") -> list[str]:
     """Records of the same kind (a bench's cases) as one table, a column per key."""
-    keys = list(dict.fromkeys(k for row in rows for k in row))
+    keys = [k for k in dict.fromkeys(k for row in rows for k in row) if k != first]
     head = ([first] if first else []) + keys
     return _table(head, [([row.get(first, "")] if first else []) + [_value(row.get(k, "")) for k in keys]
                          for row in rows])

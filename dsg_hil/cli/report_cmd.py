@@ -92,7 +92,8 @@ def _do_report(args: argparse.Namespace) -> int:
     from ..paper.report.log import read_log  # noqa: PLC0415
     from ..protocol import load_dbc  # noqa: PLC0415
     from ..protocol.binding import load_binding  # noqa: PLC0415
-    from ..sim.plant_io import from_binding  # noqa: PLC0415
+    from ..protocol.codec import Codec, ProtocolError  # noqa: PLC0415
+    from ..sim.plant_io import SHIPPED, from_binding  # noqa: PLC0415
     from ..protocol.bus import VIRTUAL_CHANNEL  # noqa: PLC0415
     from ..sim.run import RunConfig, resolve_scenario  # noqa: PLC0415
 
@@ -102,6 +103,10 @@ def _do_report(args: argparse.Namespace) -> int:
     require_matplotlib()
     db = load_dbc(args.dbc)
     io = None if args.binding is None else from_binding(load_binding(args.binding, db=db))
+    try:  # the messages and signals the plant sends and reads, as the creep run and the log's decoding need them
+        Codec(db, (io or SHIPPED).uses)
+    except ProtocolError as exc:
+        raise ProtocolError(f"{args.dbc or 'the shipped DBC'}: {exc}") from None
     params = params_from(args)
     record = read_log(args.from_log, db, io) if args.from_log else None
     scenario = resolve_scenario(args.scenario, args.duration)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from . import command_help
 from ..common.cli import signals_held
+from ..common.errors import InputError
 from .busopts import SETTING_UP, add_bus_options, frames_line, run_config, started, summary_if_unstarted
 from .common import add_params_option, progress
 
@@ -42,6 +43,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def _do_run(args: argparse.Namespace) -> int:
+    if args.controller_map is not None and args.controller is None:  # else ignored: a bad file would pass unseen
+        raise InputError(f"--controller-map {args.controller_map}: maps a controller FMU's variables: give "
+                         f"--controller FMU too")
     with ExitStack() as stack:
         with signals_held(SETTING_UP):  # a signal now: the run ends once set up, its summary written
             from ..sim.run import open_run  # noqa: PLC0415 - the plant (numpy ...) when a run starts

@@ -294,6 +294,28 @@ CASES = [
      "gain value 1e+06 cannot be encoded in PLANT_SPEEDS.ClutchInputSpeed"),
     ("dsg-hil", ["sweep", "badlatent.toml", "--out", "o"], "file", ERROR,  # a sweep's latent faults: the key named
      "badlatent.toml: latent.per_run: must lie within 0-2, got [0, 3]"),
+    # every option naming a file has its case (tests/docs/test_site.py checks that against the parsers)
+    ("dsg-hil", ["run", *BUS, "--params", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read parameter"),
+    ("dsg-hil", ["run", *BUS, "--calibration", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read calib"),
+    ("dsg-hil", ["run", *BUS, "--controller-map", "bad.toml", *OUT], "option", ERROR,  # ignored (and run) before
+     "--controller-map bad.toml: maps a controller FMU's variables: give --controller FMU too"),
+    ("dsg-hil", ["plant", *BUS, "--scenario", "bad.toml", *OUT], "file", ERROR, "bad.toml: not valid TOML"),
+    ("dsg-hil", ["plant", *BUS, "--params", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read parameter"),
+    ("dsg-hil", ["validate", "--plots", "afile", "--json", "v.json"], "option", ERROR,
+     "--plots afile: not a writable directory"),
+    ("dsg-hil", ["report", "--scenario", "bad.toml", "--out", "outdir"], "file", ERROR, "bad.toml: not valid TOML"),
+    ("dsg-hil", ["report", "--dbc", "small.dbc", "--out", "outdir"], "file", ERROR,  # after the validation before
+     "small.dbc: message PLANT_ENGINE is not in the DBC"),
+    ("dsg-hil", ["report", "--params", "nosuch.toml", "--out", "outdir"], "file", ERROR,
+     "nosuch.toml: cannot read parameter"),
+    ("dsg-hil", ["plot", "short.log", "--dbc", "nosuch.dbc", "-o", "p.png"], "file", ERROR,
+     "nosuch.dbc: DBC file not found"),
+    ("identify", ["short.log", "--calibration", "nosuch.toml", "--write", "cal.toml"], "file", ERROR,
+     "nosuch.toml: cannot read calibration"),
+    ("identify", ["short.log", "--map-only", "garbage.log", "--write", "cal.toml"], "file", ERROR,
+     "garbage.log:1: cannot read the log line 'garbage'"),
+    ("identify", ["short.log", "--dbc", "nosuch.dbc", "--write", "cal.toml"], "file", ERROR,
+     "nosuch.dbc: DBC file not found"),
 ]
 
 

@@ -50,15 +50,15 @@ def pages() -> list[Path]:
     return [p for p in (ROOT / "README.md", ROOT / "CONTRACT.md") if p.exists()] + sorted((ROOT / "docs").rglob("*.md"))
 
 
-# What a block is. Run: a test runs it as shown (REDUCED: the same command with a size option added, which the entry
-# names). Not run, each with its reason: OUTPUT (what a command printed: the test named compares it), EXCERPT (part
-# of a shipped file or the checkout, the test named compares it), VCAN (needs vcan0: the VM suite runs it, dsg-hil
-# vcan), PARSED (the user's own files, hosts or hardware, or minutes of runs: test_blocks.py parses each command
-# line with the command's own parser), STUDY (a bench/ study of minutes to hours: the test named runs the script on
-# a few short runs), INSTALL (installs packages: CI installs as README.md says), DIAGRAM, CITATION, FORMULA.
-RUN, REDUCED, OUTPUT, EXCERPT, VCAN = "run", "reduced", "output", "excerpt", "vcan"
+# What a block is. RUN: a test runs it as shown (the entry says what it replaces: a fresh port, a file). Not run, each
+# with its reason: OUTPUT (what a command printed: the test named compares it), EXCERPT (part of a shipped file or the
+# checkout, the test named compares it), VCAN (needs vcan0: the VM suite runs it, dsg-hil vcan), PARSED (the user's
+# own files, hosts or hardware, or minutes of runs: test_blocks.py parses each command line with the command's own
+# parser), STUDY (a bench/ study of minutes to hours: the test named runs the script on a few short runs), INSTALL
+# (installs packages: CI installs as README.md says), DIAGRAM, CITATION, FORMULA.
+RUN, OUTPUT, EXCERPT, VCAN = "run", "output", "excerpt", "vcan"
 PARSED, STUDY, INSTALL, DIAGRAM, CITATION, FORMULA = "parsed", "study", "install", "diagram", "citation", "formula"
-NEEDS_A_TEST = {RUN, REDUCED, OUTPUT, EXCERPT, VCAN, STUDY}
+NEEDS_A_TEST = {RUN, OUTPUT, EXCERPT, VCAN, STUDY}
 NOT_RUN = {OUTPUT, EXCERPT, VCAN, PARSED, STUDY, INSTALL, DIAGRAM, CITATION, FORMULA}
 PARSE_TEST = "tests/docs/test_blocks.py::test_every_documented_command_line_parses"
 QUICK_START = "tests/docs/test_blocks.py::test_the_quick_start_run_prints_what_the_readme_shows"

@@ -92,6 +92,24 @@ def test_the_bad_input_page_has_every_case_the_tests_run(site):
     assert f"\n{len(CASES)}\n" in page  # the last row's number
 
 
+FILE_METAVAR = re.compile(r"FILE|DIR|LOG|FMU|DBC|A2L|KERNEL")  # an option that reads or writes a file
+
+
+def test_every_option_naming_a_file_has_a_bad_input_case():
+    """The bad-input page cannot miss a new option's row: every option of every command line that takes a file
+    (by its metavar) is in a case of CASES."""
+    from ..cli.test_bad_input import CASES
+
+    names = {"dsg-hil": "dsg-hil", "ecu-stub": "ecu-stub", "identify": "python -m ecu_stub.identify"}
+    used = {(names[p] if p != "dsg-hil" else f"dsg-hil {argv[0]}", a.split("=")[0]) for p, argv, *_ in CASES
+            for a in argv if a.startswith("-")}
+    missing = [f"{name} {'/'.join(action.option_strings)}" for name, parser in hook().parsers().items()
+               for action in parser._actions
+               if action.option_strings and action.nargs != 0 and FILE_METAVAR.search(str(action.metavar or ""))
+               and not any((name, option) in used for option in action.option_strings)]
+    assert missing == []
+
+
 def test_the_performance_page_shows_every_recorded_result(site):
     """Every bench/results/*.json on the page, with its date, machine and command."""
     import html
@@ -111,7 +129,7 @@ def test_the_figures_of_a_bench_become_tables():
                            "by_name": {"n1": {"v": 3}}})
     text = "\n".join(made)
     assert "| ratio | 2.1 |" in text and "| peak.a | 1 |" in text and "| case | T |" in text
-    assert "| y |  |" in text and "| name | v |" in text and "| n1 | 3 |" in text
+    assert "| y |  |" in text and "\n| name | v |\n" in text and "\n| n1 | 3 |" in text
 
 
 def test_the_readme_s_links_reach_files_of_the_checkout():
