@@ -191,8 +191,22 @@ def test_the_binding_check_prints_the_guide_s_columns(tmp_path: Path) -> None:
 
 
 def test_the_xcp_guide_s_commands_run(tmp_path: Path) -> None:
-    """The A2L line writes the file (the servers' lines are what the guide's script starts in a thread)."""
+    """The first line serves XCP on the DBC's default IDs (on a fresh group and port; stopped once it says so); the
+    A2L line writes the file. The third, on vcan0, is parsed by test_blocks.py."""
+    from dsg_hil.protocol.bus import fresh_udp_group
+
     lines = sh_block("docs/how-to/xcp.md", "ecu-stub")
+    group = fresh_udp_group()
+    argv = [group["channel"] if w == "239.255.0.1" else w for w in shlex.split(lines[0], comments=True)]
+    serving = subprocess.Popen([*argv, "--bus-kwargs", f"port={group['port']}"], cwd=tmp_path, stderr=subprocess.PIPE,
+                               text=True, env=ENV)
+    try:
+        assert serving.stderr is not None
+        said = [serving.stderr.readline() for _ in range(2)]
+    finally:
+        serving.send_signal(signal.SIGTERM)
+        serving.communicate(timeout=60)
+    assert "listening on udp_multicast" in said[0] and "XCP slave on CAN, master 0x7D0, slave 0x7D1" in said[1], said
     (a2l_line,) = [line for line in lines if "--a2l" in line]
     done = run(a2l_line, tmp_path)
     assert done.returncode == 0, done.stderr
