@@ -146,9 +146,10 @@ class FaultInjector:
             data = bytes(msg.data)[:spec.dlc].ljust(spec.dlc, b"\x00")
             return [_copy(msg, data)]
         data = bytes(msg.data)
-        if kind == "freeze_counter":
-            return [_copy(msg, protection.seal(data, self._frozen.setdefault(i, protection.counter(data))))]
         message = self._messages[msg.arbitration_id]
+        if kind == "freeze_counter":  # (a CAN FD frame's padding not sealed)
+            counter = self._frozen.setdefault(i, protection.counter(data))
+            return [_copy(msg, protection.seal(data[:message.length], counter) + data[message.length:])]
         values = _decode(message, data[:message.length], scaling=True)  # (a CAN FD frame's padding apart)
         if spec.signal is None:  # parse_fault gives every other kind its MESSAGE.Signal
             raise FaultError(f"{spec.origin}: {kind} needs a target MESSAGE.Signal")
