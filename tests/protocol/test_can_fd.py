@@ -204,3 +204,55 @@ def test_open_bus_opens_an_fd_bus():
         assert bus.protocol == can.CanProtocol.CAN_20
     finally:
         bus.shutdown()
+
+
+def test_the_creep_runs_on_fd_frames_over_udp_multicast(fd_dbc):
+    """The plant and a TCU (its own loop, on a thread) on two udp_multicast ends opened for CAN FD, in lock-step:
+    nothing rejected on either side, and a third end hears every FD message as CAN FD frames of its length."""
+    import threading
+
+    from dsg_hil.physics.params import load_params
+    from dsg_hil.physics.plant import Plant
+    from dsg_hil.protocol.bus import UDP_MULTICAST, fresh_udp_group
+    from dsg_hil.sim.plant_io import PLANT_RX
+    from dsg_hil.sim.runner import PlantRunner
+    from dsg_hil.sim.scenario import load_scenario
+    from ecu_stub.runner import TCU_RX
+
+    db = load_dbc(fd_dbc)
+    config = {"interface": UDP_MULTICAST, **fresh_udp_group()}
+    tap = open_bus(config, fd=True)
+    plant_bus = open_bus(config, receive=[db.get_message_by_name(n) for n in PLANT_RX], fd=True)
+    tcu_bus = open_bus(config, receive=[db.get_message_by_name(n) for n in TCU_RX], fd=True)
+    tcu = TcuRunner(Codec(db, TCU_USES), tcu_bus)
+    done, errors, heard = threading.Event(), [], []
+
+    def serve():
+        try:
+            tcu.run(should_stop=done.is_set)
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    def listen():
+        while not done.is_set():
+            msg = tap.recv(0.1)
+            if msg is not None:
+                heard.append(msg)
+
+    threads = [threading.Thread(target=serve, daemon=True), threading.Thread(target=listen, daemon=True)]
+    for thread in threads:
+        thread.start()
+    runner = PlantRunner(Plant(load_params()), load_scenario().with_duration(1.0), Codec(db, PLANT_USES), plant_bus)
+    try:
+        runner.run_lockstep(reply_timeout=30.0)
+    finally:
+        done.set()
+        for thread in threads:
+            thread.join(10)
+        for bus in (tap, plant_bus, tcu_bus):
+            bus.shutdown()
+    assert not errors
+    assert runner.frames()["rejected"] == 0 and tcu.rx.rejected_total == 0 and runner.frames()["received"] >= 100
+    kinds = {(m.arbitration_id, m.is_fd, m.bitrate_switch, len(m.data)) for m in heard if m.arbitration_id in
+             IDS.values()}
+    assert kinds == {(IDS[name], True, bool(brs), fd_length(length)) for name, (length, brs) in FD.items()}

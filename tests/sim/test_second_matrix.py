@@ -193,3 +193,23 @@ def test_the_log_of_the_example_run_decodes_with_its_binding(runs):
              if frame is not None}
     assert counts["rejected"] == counts["unknown"] == 0 and counts["decoded"] == len(frames)
     assert names == set(other.uses)
+
+
+def test_the_report_s_log_reader_reads_the_example_run(runs):
+    """``dsg-hil report --from-log --dbc --binding``'s reader on the run's .blf log (CAN FD frames, Profile 5 and 11,
+    the multiplexed oil temperatures): the creep time of the run's own summary, the plate temperature's peak of the
+    truth frames it sent."""
+    from dsg_hil.paper.report.log import read_log
+    from dsg_hil.sim.plant_io import from_binding
+
+    _, (other, frames, summary, log) = runs
+    record = read_log(log, other.db, from_binding(other), other.protection)
+    assert record.frames == {"decoded": len(frames), "rejected": 0, "unknown": 0} and record.has_status
+    assert record.metrics["creep_time_s"] == pytest.approx(summary["creep_time_s"], abs=0.02)
+    truth = other.db.get_message_by_name("SIM_ClutchA")
+    sent = max(float(truth.decode(bytes(m.data)[:truth.length])["T_PlateA"]) for m in frames  # type: ignore[arg-type]
+               if m.arbitration_id == truth.frame_id) - 273.15  # the truth frames' own peak (every 100 ms)
+    assert record.metrics["max_plate_temp_c"]["CL"] == pytest.approx(sent, abs=0.01)
+    predicted = record.columns["T_CL_pred"]  # TCU_Info's, in K on the bus
+    assert predicted.size > 700 and float(predicted[20:].min()) > 0.0  # (no NaN after the first status)
+    assert float(predicted.max()) == pytest.approx(summary["max_predicted_temp_c"]["CL"], abs=0.01)
