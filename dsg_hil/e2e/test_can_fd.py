@@ -86,10 +86,10 @@ def test_lockstep_on_vcan0_with_fd_frames(outdir: Path):
     formats: dict[int, set[tuple[bool, int, int]]] = {}
     for line in log.read_text().splitlines():  # candump -L: "(t) vcan0 ID#DATA", CAN FD "ID##<flags>DATA"
         frame = line.split()[2]
-        ident, _, data = frame.partition("#")
+        head, _, data = frame.partition("#")
         fd = data.startswith("#")
         flags = int(data[1], 16) if fd else 0
-        formats.setdefault(int(ident, 16), set()).add((fd, flags & 1, len(bytes.fromhex(data[2:] if fd else data))))
+        formats.setdefault(int(head, 16), set()).add((fd, flags & 1, len(bytes.fromhex(data[2:] if fd else data))))
     for name, (ident, length, brs) in FD.items():
         assert formats[ident] == {(True, brs, 12 if length == 10 else length)}, name
     assert formats[256] == {(False, 0, 8)}

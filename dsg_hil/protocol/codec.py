@@ -26,7 +26,7 @@ from collections.abc import Callable, Mapping, Sequence
 from functools import partial
 from importlib import resources
 from pathlib import Path
-from typing import NamedTuple, cast
+from typing import Any, NamedTuple, cast
 
 import cantools
 from cantools.database.can import Database, Message
@@ -89,6 +89,7 @@ def bitrate_switch(message: Message, db: Database | None = None) -> bool:
     else its default in ``db`` (the database's definition), else True (as Vector's tools default it)."""
     dbc = message.dbc
     value: object = None
+    definition: Any = None
     if dbc is not None and "CANFD_BRS" in dbc.attributes:
         value = dbc.attributes["CANFD_BRS"].value
         definition = dbc.attributes["CANFD_BRS"].definition

@@ -207,7 +207,7 @@ def test_the_report_s_log_reader_reads_the_example_run(runs):
     assert record.frames == {"decoded": len(frames), "rejected": 0, "unknown": 0} and record.has_status
     assert record.metrics["creep_time_s"] == pytest.approx(summary["creep_time_s"], abs=0.02)
     truth = other.db.get_message_by_name("SIM_ClutchA")
-    sent = max(float(truth.decode(bytes(m.data)[:truth.length])["T_PlateA"]) for m in frames  # type: ignore[arg-type]
+    sent = max(float(truth.decode(bytes(m.data)[:truth.length])["T_PlateA"]) for m in frames
                if m.arbitration_id == truth.frame_id) - 273.15  # the truth frames' own peak (every 100 ms)
     assert record.metrics["max_plate_temp_c"]["CL"] == pytest.approx(sent, abs=0.01)
     predicted = record.columns["T_CL_pred"]  # TCU_Info's, in K on the bus
