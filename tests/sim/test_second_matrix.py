@@ -229,3 +229,39 @@ def test_the_report_s_log_reader_reads_the_example_run(runs):
     predicted = record.columns["T_CL_pred"]  # TCU_Info's, in K on the bus
     assert predicted.size > 700 and float(predicted[20:].min()) > 0.0  # (no NaN after the first status)
     assert float(predicted.max()) == pytest.approx(summary["max_predicted_temp_c"]["CL"], abs=0.01)
+
+
+@pytest.mark.parametrize("message, signal, value", [("TCU_Demand", "PressReqA", 500.0),
+                                                    ("TCM_ShaftSpeeds", "GbxOutSpd", 12.5)])
+def test_faults_on_the_example_s_fd_frames(message, signal, value):
+    """Profile 5 over the 16-byte TCU_Demand and Profile 11 over the 12-byte TCM_ShaftSpeeds: each fault kind on a
+    CAN FD frame gives a CAN FD frame of its length that the receiver rejects for the fault's cause (a frozen
+    counter: a repeat, once the frame before it was taken), or takes with the stuck value."""
+    from dsg_hil.protocol.faults import FaultInjector
+    from dsg_hil.protocol.faults.spec import parse_fault
+    from dsg_hil.protocol.frame import data_frame
+    from dsg_hil.protocol.validity import NEW, REJECTED, RxMonitor
+
+    other = load_binding(BINDING, dbc=DBC)
+    codec = Codec(other.db, other.uses, protection=other.protection)
+    frame_id, length = codec.frame_id(message), codec.message(message).length
+
+    def frames(n: int) -> list[can.Message]:
+        return [data_frame(frame_id, codec.encode(message, {signal: value + k}, k), 0.01 * k, fd=codec.fd)
+                for k in range(n)]  # (the values change: a frozen counter's frames are no byte-identical repeat)
+
+    for fault, expected in ((f"corrupt_crc:{message}", ["crc"]), (f"freeze_counter:{message}", ["counter"]),
+                            (f"stuck:{message}.{signal},value=100", [])):
+        injector = FaultInjector(other.db, [parse_fault(fault)], protections=codec.protections())
+        rx = RxMonitor(codec, [message])
+        statuses = []
+        for k, msg in enumerate(frames(3)):
+            (out,) = injector.apply(msg, 0.01 * k)
+            assert out.is_fd and out.bitrate_switch and len(out.data) == length
+            status, frame = rx.take(out, 0.01 * k)
+            statuses.append(status)
+            if fault.startswith("stuck") and frame is not None:
+                assert frame.values[signal] == pytest.approx(100.0)
+        assert sorted(rx.rejected) == expected, fault
+        assert statuses == ([NEW, NEW, NEW] if not expected else
+                            [REJECTED] * 3 if expected == ["crc"] else [NEW, REJECTED, REJECTED])
