@@ -164,7 +164,8 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
     """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
     serving ends); returns it and the bus configuration."""
     from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
-    from dsg_hil.protocol.bus import FrameLog, bus_config, log_channel, open_bus, receive_filters  # noqa: PLC0415
+    from dsg_hil.protocol.bus import (  # noqa: PLC0415
+        FrameLog, bus_config, has_fd, log_channel, open_bus, receive_filters)
     from dsg_hil.protocol.diag import diag_ids  # noqa: PLC0415
     from dsg_hil.protocol.faults import FaultError, check_faults, faults_from_args, with_faults  # noqa: PLC0415
 
@@ -190,7 +191,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
     if faults["plant"]:
         raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                          f"side=tcu")
-    inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
+    inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX], fd=has_fd(db.messages))
     requests = [diag_ids(db)[0]] if db.dbc is not None and "DiagRequestId" in db.dbc.attributes else []
     requests += [xcp[0]] if xcp is not None else []
     if requests:  # and UDS requests (ecu_stub.diag), XCP commands (ecu_stub.xcp)

@@ -100,7 +100,7 @@ class TcuRunner:
         self.codec, self.bus = codec, bus
         self.listeners = tuple(listeners)
         self._channel = getattr(bus, "channel", None)  # of the frames recorded for the listeners
-        self._send_frame, recv = frame_io(bus)  # the in-process bus: frames as (ID, data), no can.Message
+        self._send_frame, recv = frame_io(bus, codec.fd)  # the in-process bus: frames as (ID, data), no can.Message
         self.controller: TcuController = controller or CreepController()
         self.cycle = codec.cycle_time("TCU_CMD")
         self.cycle_ms = codec.cycle_time_ms("TCU_CMD")
@@ -311,7 +311,8 @@ class TcuRunner:
 
     def _record(self, frame_id: int, data: bytes, stamp: float, is_rx: bool) -> None:
         """Hand a frame taken or sent to the listeners, stamped ``stamp`` (lock-step), else with the wall clock."""
-        msg = data_frame(frame_id, data, stamp if self.lockstep else time.time(), self._channel, is_rx)
+        msg = data_frame(frame_id, data, stamp if self.lockstep else time.time(), self._channel, is_rx,
+                         fd=self.codec.fd)
         for listener in self.listeners:
             listener(msg)
 

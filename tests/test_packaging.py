@@ -47,6 +47,17 @@ def test_binding_resource_is_identical_to_the_top_level_binding():
         "dsg_hil/data/dsg_hil.binding.toml and dbc/dsg_hil.binding.toml differ: copy one onto the other"
 
 
+@pytest.mark.skipif(not TOP_DBC.exists(), reason="dbc/ is in the source tree only")
+def test_example_matrices_are_identical_to_the_top_level_ones():
+    examples = sorted((ROOT / "dbc" / "examples").glob("*/*"))
+    assert examples
+    for path in examples:
+        copy = Path(str(resources.files("dsg_hil") / "data" / "examples" / path.parent.name / path.name))
+        assert copy.read_bytes() == path.read_bytes(), \
+            f"dsg_hil/data/examples/{path.parent.name}/{path.name} and {path.relative_to(ROOT)} differ: copy one " \
+            f"onto the other"
+
+
 def test_typed_packages():
     for package in ("dsg_hil", "ecu_stub"):
         assert (resources.files(package) / "py.typed").is_file(), package

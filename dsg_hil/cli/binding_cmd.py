@@ -30,9 +30,11 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def mapping_rows(binding: Binding) -> list[tuple[str, ...]]:
-    """(quantity, direction, message.signal, unit, resolution, cycle ms, protection) of each signal the plant
-    uses, the lock-step tick and echo included (their quantity in brackets)."""
-    from ..protocol.profiles import protection_for  # noqa: PLC0415 - cantools at run time only
+    """(quantity, direction, message.signal, unit, resolution, cycle ms, protection, frame) of each signal the
+    plant uses, the lock-step tick and echo included (their quantity in brackets); frame: ``CAN(8)`` for a classic
+    frame of 8 bytes, ``FD(16,BRS)`` for a CAN FD one of 16 bytes with bit-rate switch."""
+    from ..protocol.codec import bitrate_switch, frame_length  # noqa: PLC0415 - cantools at run time only
+    from ..protocol.profiles import protection_for  # noqa: PLC0415
 
     db = binding.db
     roles = {**{key: (quantity, binding.units[quantity]) for key, (quantity, _) in binding.signals.items()},
@@ -43,12 +45,14 @@ def mapping_rows(binding: Binding) -> list[tuple[str, ...]]:
         for message_name, signals in table.items():
             message = db.get_message_by_name(message_name)
             protection = protection_for(message, binding.protection.get(message_name)).profile
+            frame = f"CAN({message.length})" if not message.is_fd else \
+                f"FD({frame_length(message)}{',BRS' if bitrate_switch(message, db) else ''})"
             for signal_name in signals:
                 signal = message.get_signal_by_name(signal_name)
                 quantity, unit = roles[message_name, signal_name]
                 rows.append((quantity, direction, f"{message_name}.{signal_name}",
                              unit if unit is not None else signal.unit or "-", f"{signal.scale:g}",
-                             str(message.cycle_time), protection))
+                             str(message.cycle_time), protection, frame))
     return rows
 
 
@@ -62,7 +66,7 @@ def _do_binding(args: argparse.Namespace) -> int:
         for line in problems[:-1]:
             print(f"error: {line}", file=sys.stderr)
         raise BindingError(problems[-1])
-    header = ("quantity", "dir", "message.signal", "unit", "resolution", "cycle ms", "protection")
+    header = ("quantity", "dir", "message.signal", "unit", "resolution", "cycle ms", "protection", "frame")
     rows: list[tuple[str, ...]] = [header, *mapping_rows(binding)]
     widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
     for row in rows:

@@ -57,14 +57,14 @@ def bridge(source: can.BusABC, sink: can.BusABC, injector: FaultInjector, clock:
 
 def _do_bridge(args: argparse.Namespace) -> int:
     from ..protocol import load_dbc  # noqa: PLC0415 - python-can and cantools at run time only
-    from ..protocol.bus import bus_config, bus_name, open_bus  # noqa: PLC0415
+    from ..protocol.bus import bus_config, bus_name, has_fd, open_bus  # noqa: PLC0415
     from ..protocol.faults import FaultInjector, faults_from_args  # noqa: PLC0415
 
     db = load_dbc(args.dbc)
     injector = FaultInjector(db, faults_from_args(args), args.fault_seed)
     configs = [bus_config(args, prefix=end) for end in ("from", "to")]
     with ExitStack() as stack:
-        source, sink = (open_bus(config) for config in configs)
+        source, sink = (open_bus(config, fd=has_fd(db.messages)) for config in configs)  # (a CAN FD matrix: FD)
         stack.callback(source.shutdown)
         stack.callback(sink.shutdown)
         progress(f"bridge: {bus_name(configs[0])} -> {bus_name(configs[1])} through "

@@ -102,13 +102,14 @@ def _do_report(args: argparse.Namespace) -> int:
     setup_logging(args.verbose, args.quiet)
     require_matplotlib()
     db = load_dbc(args.dbc)
-    io = None if args.binding is None else from_binding(load_binding(args.binding, db=db))
+    binding = None if args.binding is None else load_binding(args.binding, db=db)
+    io, protection = (None, None) if binding is None else (from_binding(binding), binding.protection)
     try:  # the messages and signals the plant sends and reads, as the creep run and the log's decoding need them
         Codec(db, (io or SHIPPED).uses)
     except ProtocolError as exc:
         raise ProtocolError(f"{args.dbc or 'the shipped DBC'}: {exc}") from None
     params = params_from(args)
-    record = read_log(args.from_log, db, io) if args.from_log else None
+    record = read_log(args.from_log, db, io, protection) if args.from_log else None
     scenario = resolve_scenario(args.scenario, args.duration)
     runs = {} if record is not None else {  # the given configuration, then Table I's (DIR/table1/)
         name: RunConfig(scenario=scenario, params=config, dbc=db, binding=args.binding, bus={"interface": "virtual",
@@ -121,9 +122,9 @@ def _do_report(args: argparse.Namespace) -> int:
     checks = model_checks(params, scenario, progress=progress)
     table1 = None
     if record is None:
-        record = read_log(_run_creep(runs["main"]), db, io)
+        record = read_log(_run_creep(runs["main"]), db, io, protection)
         (out / TABLE1_DIR).mkdir(exist_ok=True)
-        table1 = read_log(_run_creep(runs[TABLE1_DIR]), db, io)
+        table1 = read_log(_run_creep(runs[TABLE1_DIR]), db, io, protection)
     progress(f"creep: decoded {record.frames['decoded']} frames of {record.source}")
     name = "fitted" if args.params in (None, "fitted") else Path(args.params).name
     comparison = Comparison(checks, table1, params, scenario, name + (" + --set" if args.set else ""))

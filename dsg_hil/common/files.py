@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from pathlib import Path
@@ -54,4 +55,16 @@ def _probe(option: str, path: str, where: Path) -> None:
     try:
         tempfile.TemporaryDirectory(dir=where).cleanup()
     except OSError as exc:
-        raise InputError(f"{option} {path}: {where} is not a writable directory ({exc.strerror or exc})") from None
+        reason = _PROBE_REASONS.get(exc.errno or 0, exc.strerror or str(exc))
+        raise InputError(f"{option} {path}: {where} is not a writable directory ({reason})") from None
+
+
+# The probe's errors in a user's words: a virtual file system such as /proc answers "no such file" to a new entry.
+_PROBE_REASONS = {
+    errno.EACCES: "permission denied",
+    errno.EPERM: "permission denied",
+    errno.EROFS: "read-only file system",
+    errno.ENOENT: "it takes no new files",
+    errno.ENOSPC: "no space left",
+    errno.EDQUOT: "disk quota exceeded",
+}

@@ -95,9 +95,9 @@ def vcan_present() -> bool:
 
 
 def create_vcan() -> str | None:
-    """Try ``modprobe vcan`` and ``ip link add``; returns None on success, else why it failed."""
+    """Try ``modprobe vcan``, ``ip link add`` and the CAN FD MTU; returns None on success, else why it failed."""
     steps = (["modprobe", "vcan"], ["ip", "link", "add", "dev", VCAN, "type", "vcan"],
-             ["ip", "link", "set", "up", VCAN])
+             ["ip", "link", "set", VCAN, "mtu", "72"], ["ip", "link", "set", "up", VCAN])  # mtu 72: CAN FD frames
     for cmd in steps:
         if shutil.which(cmd[0]) is None:
             return f"{cmd[0]} not found"
@@ -182,7 +182,8 @@ def vm_plan(command: list[str], outdir: Path, kernel: Path, env: dict[str, str],
                "PYTHONUNBUFFERED": "1", **env}  # unbuffered: the console shows each test as it ends
     script = "; ".join([
         f"date +%s > {shlex.quote(str(outdir / BOOTED))}",
-        "modprobe vcan && ip link add dev vcan0 type vcan && ip link set up vcan0 || echo 'vcan setup failed'",
+        "modprobe vcan && ip link add dev vcan0 type vcan && ip link set vcan0 mtu 72 && ip link set up vcan0"
+        " || echo 'vcan setup failed'",  # (mtu 72: CAN FD frames)
         *(f"export {k}={shlex.quote(v)}" for k, v in exports.items()),
         f"cd {shlex.quote(str(cwd))}",
         f"( {' '.join(shlex.quote(c) for c in command)}; echo $? > {shlex.quote(str(outdir / 'rc'))} ) 2>&1"

@@ -39,7 +39,7 @@ from typing import Any
 from cantools.database.can import Database
 
 from ..common.units import CV
-from .codec import ProtocolError, load_dbc
+from .codec import ProtocolError, frame_length, load_dbc
 from .e2e import ProtectionError
 from .profiles import protection_for
 from .ranges import signal_range
@@ -319,6 +319,10 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
         if message_name not in cycle_times and (carrier_message.cycle_time is None or carrier_message.cycle_time <= 0):
             problem(f"message {message_name} has no cycle time in the database: give "
                     f"messages.{message_name}.cycle_time_ms")
+        try:
+            frame_length(carrier_message)
+        except ProtocolError as exc:
+            problem(str(exc))
         if message_name not in protection:
             try:
                 protection_for(carrier_message)

@@ -34,8 +34,8 @@ if TYPE_CHECKING:
     from cantools.database.can import Message
 
 __all__ = ["DEFAULT_CHANNELS", "FrameLog", "LOG_CHANNEL", "UDP_MULTICAST", "VIRTUAL_CHANNEL", "add_bus_arguments",
-           "bus_args", "bus_config", "bus_name", "fresh_udp_group", "log_channel", "open_bus", "per_process_warning",
-           "receive_filters", "require_mf4", "resolve_bus_config", "vcan0_present"]
+           "bus_args", "bus_config", "bus_name", "fresh_udp_group", "has_fd", "log_channel", "open_bus",
+           "per_process_warning", "receive_filters", "require_mf4", "resolve_bus_config", "vcan0_present"]
 
 VIRTUAL_CHANNEL = "dsg_hil"
 UDP_MULTICAST = "udp_multicast"
@@ -174,15 +174,28 @@ def receive_filters(messages: Iterable[Message]) -> can.typechecking.CanFilters:
              "extended": bool(m.is_extended_frame)} for m in messages]
 
 
-def open_bus(config: dict[str, Any], receive: Iterable[Message] | None = None) -> can.BusABC:
+def open_bus(config: dict[str, Any], receive: Iterable[Message] | None = None, fd: bool = False) -> can.BusABC:
     """Open a bus from a resolved configuration, passing only the frames of ``receive`` when given (see
     :func:`receive_filters`); a failure is one readable RunError (the options were well formed, the interface or
-    channel could not be had here: exit 1)."""
+    channel could not be had here: exit 1).
+
+    ``fd``: the matrix has CAN FD messages (:func:`has_fd`): the bus is opened for CAN FD, ``fd=True`` as python-can
+    takes it (socketcan: the FD MTU of 72 bytes, which vcan0 needs; udp_multicast: FD datagrams; a real interface
+    also needs its data bit rate, e.g. ``--bus-kwargs data_bitrate=2000000`` or ``--timing``), the ``virtual``
+    interface its CAN FD protocol. A ``fd`` the configuration gives is kept."""
     filters = None if receive is None else receive_filters(receive)
+    extra: dict[str, Any] = {}
+    if fd and "fd" not in config:
+        extra = {"protocol": can.CanProtocol.CAN_FD} if config.get("interface") == "virtual" else {"fd": True}
     try:
-        return can.Bus(**{**config, "receive_own_messages": False, "can_filters": filters})
+        return can.Bus(**{**config, **extra, "receive_own_messages": False, "can_filters": filters})
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise RunError(f"cannot open CAN bus {config.get('interface')}:{config.get('channel')}: {exc}") from None
+
+
+def has_fd(messages: Iterable[Message]) -> bool:
+    """Whether any of ``messages`` (the ones a node sends or reads) is CAN FD: its bus must be opened for CAN FD."""
+    return any(message.is_fd for message in messages)
 
 
 class FrameLog:

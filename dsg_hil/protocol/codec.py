@@ -7,6 +7,11 @@ Every message and signal the code uses is resolved once, at start-up: a missing 
 naming it. Encoding clamps each value to its signal's DBC range, then encodes with ``strict=True``; decoding
 rejects (never clamps) a frame with a wrong DLC, CRC or a value outside its range.
 
+A message the database says is CAN FD (cantools' ``Message.is_fd``, from the DBC's ``VFrameFormat``) is sent as a
+CAN FD frame (:attr:`Codec.fd`: its frame ID and its bit-rate switch, the DBC's ``CANFD_BRS``) of up to 64 bytes;
+a length that no DLC codes (e.g. 10) travels in the next frame length that one does (12), padded with zeros, the
+padding checked for length only on receive.
+
 The frames are encoded and decoded by functions generated per message from the DBC (:mod:`.generated`), which
 do byte for byte what the cantools path here does, five times faster; ``reference=True`` keeps the cantools path
 for every message (the reference of the tests, the baseline of ``bench/closed_loop_speed.py``). A message under
@@ -21,12 +26,13 @@ from collections.abc import Callable, Mapping, Sequence
 from functools import partial
 from importlib import resources
 from pathlib import Path
-from typing import NamedTuple, cast
+from typing import Any, NamedTuple, cast
 
 import cantools
 from cantools.database.can import Database, Message
 
 from .e2e import COUNTER, CRC, Protection, ProtectionError
+from .frame import fd_length
 from .profiles import CAUSE_TEXT, FrameProtection, ProtectionSpec, protection_for, protection_signals
 from ..common.errors import InputError
 from ..common.units import CV
@@ -34,7 +40,8 @@ from .generated import dict_of, generate, generate_fused, generate_planned, plan
 from .plan import COMPILED as PLANS_COMPILED, MessagePlan
 from .ranges import raw_range, signal_range  # noqa: F401 - raw_range: re-exported (the fault injector)
 
-__all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "load_dbc"]
+__all__ = ["Codec", "DEFAULT_DBC", "DecodedFrame", "FrameError", "ProtocolError", "bitrate_switch", "frame_length",
+           "load_dbc"]
 
 DEFAULT_DBC = resources.files("dsg_hil") / "data" / "dsg_hil.dbc"  # the package's copy of dbc/dsg_hil.dbc
 
@@ -77,6 +84,39 @@ def load_dbc(path: str | Path | None = None) -> Database:
     return db
 
 
+def bitrate_switch(message: Message, db: Database | None = None) -> bool:
+    """Whether a CAN FD ``message`` switches to the data bit rate: the DBC's ``CANFD_BRS`` attribute of the message,
+    else its default in ``db`` (the database's definition), else True (as Vector's tools default it)."""
+    dbc = message.dbc
+    value: object = None
+    definition: Any = None
+    if dbc is not None and "CANFD_BRS" in dbc.attributes:
+        value = dbc.attributes["CANFD_BRS"].value
+        definition = dbc.attributes["CANFD_BRS"].definition
+    else:
+        definition = db.dbc.attribute_definitions.get("CANFD_BRS") if db is not None and db.dbc is not None else None
+        value = definition.default_value if definition is not None else None
+    if value is None:
+        return True
+    choices = definition.choices if definition is not None else None
+    if isinstance(value, int) and choices and 0 <= value < len(choices):  # an ENUM's index
+        value = choices[value]
+    return str(value).strip().strip('"') not in ("0", "", "false", "False")
+
+
+def frame_length(message: Message) -> int:
+    """The data length of ``message``'s frames: its length, snapped up to a CAN FD length for a CAN FD message;
+    :class:`ProtocolError` for a classic message over 8 bytes or a CAN FD one over 64."""
+    if not message.is_fd:
+        if message.length > 8:
+            raise ProtocolError(f"message {message.name}: {message.length} bytes on classic CAN (at most 8): a CAN FD "
+                                f"message needs VFrameFormat CAN_FD in the DBC")
+        return message.length
+    if message.length > 64:
+        raise ProtocolError(f"message {message.name}: {message.length} bytes (a CAN FD frame carries at most 64)")
+    return fd_length(message.length)
+
+
 class Codec:
     """Encode and decode the messages named in ``uses`` ({message: [signals the code reads or writes]}).
 
@@ -96,6 +136,10 @@ class Codec:
         self._timeouts = dict(timeouts or {})
         self.reference = reference
         self._plans: dict[str, MessagePlan] = {}
+        self.fd: dict[int, bool] = {}  # the CAN FD messages used: by frame ID, their bit-rate switch
+        self._multiplexer: dict[str, str] = {}  # multiplexed messages: their multiplexer signal
+        self._pages: dict[str, list[int]] = {}  # ... and its values, the pages sent in turn
+        self._padding: dict[str, bytes] = {}  # CAN FD messages of a length no DLC codes: the zeros sent after them
         use_plans = PLANS_COMPILED if plans is None else plans
         self._by_name: dict[str, Message] = {}
         self._by_id: dict[int, Message] = {}
@@ -122,12 +166,17 @@ class Codec:
                     raise ProtocolError(f"signal {name}.{signal} is not in the DBC") from None
             if message.cycle_time is None or message.cycle_time <= 0:
                 raise ProtocolError(f"message {name} has no GenMsgCycleTime in the DBC")
+            length = frame_length(message)
+            if message.is_fd:
+                self.fd[message.frame_id] = bitrate_switch(message, db)
             try:
                 protected = protection_for(message, spec)
             except ProtectionError as exc:
                 if not default:
                     raise
                 raise ProtocolError(str(exc)) from None
+            if message.is_multiplexed():
+                self._multiplex(message)
             carriers = protection_signals(message, protected)
             if carriers & set(signals):
                 raise ProtocolError(f"signal {name}.{sorted(carriers & set(signals))[0]} carries the message's "
@@ -146,6 +195,22 @@ class Codec:
                 if message_plan is not None:
                     self._plans[name] = message_plan
                     self._decoders[message.frame_id] = message_plan.decode
+            if length != message.length:
+                self._padding[name] = bytes(length - message.length)
+                self._encoders[name] = partial(_padded, self._encoders[name], self._padding[name])
+                self._decoders[message.frame_id] = partial(_unpadded, self._decoders[message.frame_id], message,
+                                                           length)
+
+    def _multiplex(self, message: Message) -> None:
+        """Take a multiplexed message's pages: one multiplexer signal, its values those the signals name (a
+        multiplexer inside a page, or none, is a :class:`ProtocolError`)."""
+        multiplexers = [signal for signal in message.signals if signal.is_multiplexer]
+        if len(multiplexers) != 1 or multiplexers[0].multiplexer_ids is not None:
+            raise ProtocolError(f"message {message.name}: one multiplexer signal, itself not multiplexed, is "
+                                f"supported, not {[s.name for s in multiplexers]}")
+        self._multiplexer[message.name] = multiplexers[0].name
+        self._pages[message.name] = sorted({page for signal in message.signals
+                                            for page in signal.multiplexer_ids or ()})
 
     # ---- lookup --------------------------------------------------------------------------------------------
     def message(self, name: str) -> Message:
@@ -195,13 +260,16 @@ class Codec:
         own state every cycle); else the dict, then :meth:`encoder`. ``floats``: every expression gives a float
         (no ``float()`` of it taken again)."""
         message = self._by_name[name]
+        padding = self._padding.get(name)
         if name in self._plans:
-            return generate_planned(message, self._plans[name], args, values, namespace, floats=floats)[0]
-        if name in self.sources:
-            return generate_fused(message, self._protection[message.frame_id], args, values, namespace,
-                                  floats=floats)[0]
-        encode, of = self._encoders[name], dict_of(args, values, namespace)
-        return lambda *a: encode(of(*a[:-1]), a[-1])
+            fused = generate_planned(message, self._plans[name], args, values, namespace, floats=floats)[0]
+        elif name in self.sources:
+            fused = generate_fused(message, self._protection[message.frame_id], args, values, namespace,
+                                   floats=floats)[0]
+        else:
+            encode, of = self._encoders[name], dict_of(args, values, namespace)
+            return lambda *a: encode(of(*a[:-1]), a[-1])
+        return fused if padding is None else lambda *a: fused(*a) + padding
 
     def decoder(self, frame_id: int) -> Callable[[bytes], DecodedFrame]:
         """:meth:`decode` of a frame id the codec knows as one callable ``data -> frame`` (KeyError if unknown)."""
@@ -219,7 +287,10 @@ class Codec:
         message = self._by_name[name]
         protection, carriers = self._protection[message.frame_id], self._carriers[message.frame_id]
         data: dict[str, float] = {}
+        page = self._page(message, values, counter)
         for signal in message.signals:
+            if page is not None and signal.multiplexer_ids is not None and page not in signal.multiplexer_ids:
+                continue  # (another page's)
             lo, hi = signal_range(signal)
             if signal.name in carriers:  # filled by the protection's seal
                 data[signal.name] = min(max(0.0, lo), hi)
@@ -230,9 +301,23 @@ class Codec:
             if value is None or not math.isfinite(value):
                 value = default
             data[signal.name] = min(max(float(value), lo), hi)
+        if page is not None:
+            data[self._multiplexer[message.name]] = page
         return protection.seal(message.encode(data, strict=True, scaling=True), counter)
 
-    def _decode_reference(self, message: Message, data: bytes) -> DecodedFrame:
+    def _page(self, message: Message, values: Mapping[str, float], counter: int) -> int | None:
+        """A multiplexed message's page (its multiplexer's value) to send: the one ``values`` give, else the
+        pages in turn, by the frame's counter (None: not multiplexed)."""
+        multiplexer = self._multiplexer.get(message.name)
+        if multiplexer is None:
+            return None
+        given = values.get(multiplexer)
+        if given is not None and math.isfinite(given):
+            return int(given)
+        pages = self._pages[message.name]
+        return pages[counter % len(pages)]
+
+    def _decode_reference(self, message: Message, data: bytes) -> DecodedFrame:  # (a frame unpadded: _unpadded)
         frame_id = message.frame_id
         if len(data) != message.length:
             raise FrameError("dlc", f"{message.name}: DLC {len(data)}, expected {message.length}")
@@ -248,7 +333,7 @@ class Codec:
         carriers = self._carriers[frame_id]
         dsg_hil = isinstance(protection, Protection)  # (its Counter and CRC ranges checked, as they always were)
         for signal in message.signals:
-            if signal.name in carriers and not dsg_hil:
+            if (signal.name in carriers and not dsg_hil) or signal.name not in values:  # (or another page's)
                 continue
             v = values[signal.name]
             lo, hi = signal_range(signal)
@@ -256,3 +341,16 @@ class Codec:
                 raise FrameError("range", f"{message.name}.{signal.name} = {v} outside [{lo:g}, {hi:g}]")
         counter = int(values[COUNTER]) if dsg_hil else protection.counter(data)
         return DecodedFrame(message.name, {k: float(v) for k, v in values.items() if k not in carriers}, counter)
+
+
+def _padded(encode: Callable[[Mapping[str, float], int], bytes], padding: bytes, values: Mapping[str, float],
+            counter: int) -> bytes:
+    """A CAN FD frame's data: the message's, then ``padding`` up to the frame's length."""
+    return encode(values, counter) + padding
+
+
+def _unpadded(decode: Callable[[bytes], DecodedFrame], message: Message, length: int, data: bytes) -> DecodedFrame:
+    """Decode a CAN FD frame of ``length`` bytes carrying ``message`` (shorter): its first bytes."""
+    if len(data) != length:
+        raise FrameError("dlc", f"{message.name}: DLC {len(data)}, expected {length}")
+    return decode(data[:message.length])

@@ -10,8 +10,10 @@ A classic data frame with an 11-bit ID travels as its ID and data alone (``bytes
 the other's frame), and a node that knows this bus hands those over directly, with no :class:`can.Message`
 built for them at all (:meth:`LocalBus.send_data`, :meth:`LocalBus.recv_data`: the plant's and ecu-stub's
 lock-step hot path, which builds a message only for a listener); ``recv`` builds the message python-can's
-``virtual`` would have delivered. Any other frame (remote, error, CAN FD, 29-bit ID) travels as a copy of its
-message.
+``virtual`` would have delivered. Any other frame sent as a message (remote, error, CAN FD, 29-bit ID) travels as
+a copy of it. A node that sends a CAN FD message's frames by ``send_data`` (the plant and ecu-stub do: both ends
+know the matrix) hands them over as (ID, data) too, and the receiving node takes them in its message's format
+(:attr:`.codec.Codec.fd`); ``recv`` gives such a frame as a classic one.
 """
 
 from __future__ import annotations

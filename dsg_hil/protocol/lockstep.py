@@ -46,7 +46,7 @@ WAITING_NOTICE_S = 10.0  # master: while the handshake waits, say so at its star
 STATUS_RETRIES = 2  # ... re-sends for a TCU_STATUS missing from an answer, before going on without it
 SIGHTS_BEFORE_INCOMPLETE = 3  # responder: a tick seen this often is answered even with plant frames missing
 
-Frames = list[tuple[int, bytes]]  # (ID, data) of classic data frames
+Frames = list[tuple[int, bytes]]  # (ID, data) of data frames, each in its message's format (classic or CAN FD)
 # what ``recv`` gives: a classic data frame as (ID, data), or any message (an explicit alias: setup.py's mypyc build
 # types python-can as Any, where an implicit one would be a variable)
 Received: TypeAlias = tuple[int, bytes] | can.Message
@@ -74,14 +74,16 @@ def answers_lost_by(faults: Iterable[FaultSpec]) -> Callable[[float], bool]:
     return lambda t: any(spec.active(t) for spec in windows)
 
 
-def frame_io(bus: can.BusABC) -> tuple[Callable[[int, bytes], None], Callable[[float], Received | None]]:
-    """``send(frame_id, data)`` and ``recv(timeout)`` of classic data frames on ``bus``: the direct (ID, data) path of
-    the in-process bus (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped), else python-can messages."""
+def frame_io(bus: can.BusABC, fd: dict[int, bool] | None = None
+             ) -> tuple[Callable[[int, bytes], None], Callable[[float], Received | None]]:
+    """``send(frame_id, data)`` and ``recv(timeout)`` of data frames on ``bus``: the direct (ID, data) path of the
+    in-process bus (:class:`~dsg_hil.protocol.local.LocalBus`, unwrapped), else python-can messages, CAN FD ones for
+    the IDs in ``fd`` (a codec's :attr:`~.codec.Codec.fd`)."""
     send_data = getattr(bus, "send_data", None)
     recv_data = getattr(bus, "recv_data", None)
 
     def send(frame_id: int, data: bytes) -> None:
-        bus.send(data_frame(frame_id, data))
+        bus.send(data_frame(frame_id, data, fd=fd))
     return send_data or send, recv_data or bus.recv
 
 
@@ -152,7 +154,7 @@ class LockstepMaster:
                 item = self.recv(remaining)
                 if item is None:
                     continue
-                msg = data_frame(*item) if isinstance(item, tuple) else item
+                msg = data_frame(item[0], item[1], fd=self.codec.fd) if isinstance(item, tuple) else item
                 frame = self.rx.receive(msg, 0.0)
                 if frame is not None and frame.name == self._cmd_name \
                         and int(frame.values[self._echo_name]) == self.probe & 0xFF:
@@ -403,13 +405,14 @@ class LockstepResponder:
     def handle(self, msg: can.Message, now: float) -> bool:
         """Take one frame; a SIM_SYNC tick is answered at once. True if the frame was the plant's (even a duplicate
         or a rejected one: the plant is alive), False for others (e.g. the TCU's own, looped back)."""
-        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id or msg.is_fd:
-            status, _ = self.rx.take(msg, now)  # not ours, or one of ours as a CAN FD frame: rejected
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id \
+                or msg.is_fd != (msg.arbitration_id in self.rx.codec.fd):
+            status, _ = self.rx.take(msg, now)  # not ours, or one of ours in the other frame format: rejected
             return status != IGNORED
         return self.handle_data(msg.arbitration_id, bytes(msg.data), now)
 
     def handle_data(self, frame_id: int, data: bytes, now: float) -> bool:
-        """:meth:`handle` of a classic data frame with an 11-bit ID, given by its ID and data."""
+        """:meth:`handle` of a data frame with an 11-bit ID (in its message's format), given by its ID and data."""
         stamp = self.tick * self.cycle + self.cycle if self.lockstep else now  # tick_time + cycle
         status, frame = self.rx.take_data(frame_id, data, stamp)
         if status not in (NEW, DUPLICATE):

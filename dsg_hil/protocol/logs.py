@@ -8,7 +8,7 @@ Whatever python-can's readers raise on a missing or garbled file becomes one
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, MutableMapping
+from collections.abc import Iterator, Mapping, MutableMapping
 from pathlib import Path
 from typing import TextIO, cast
 
@@ -24,10 +24,19 @@ __all__ = ["decoded_frames", "log_codec"]
 log = logging.getLogger(__name__)
 
 
-def log_codec(db: Database) -> Codec:
-    """A codec of every cyclic DBC message protected by a counter and a CRC, all its signals but those two."""
-    return Codec(db, {m.name: [s.name for s in m.signals if s.name not in ("Counter", "CRC")] for m in db.messages
-                      if {"Counter", "CRC"} <= {s.name for s in m.signals} and m.cycle_time})
+def log_codec(db: Database, protection: Mapping[str, Mapping[str, object]] | None = None) -> Codec:
+    """A codec of every cyclic DBC message protected by a counter and a CRC, all its signals but those two; and of
+    each message of ``protection`` (a binding's: by message, its profile's table), all its signals but the ones
+    that carry the protection. CAN FD frames decode as classic ones (the codec knows their lengths)."""
+    from .profiles import protection_for, protection_signals  # noqa: PLC0415
+
+    uses = {m.name: [s.name for s in m.signals if s.name not in ("Counter", "CRC")] for m in db.messages
+            if {"Counter", "CRC"} <= {s.name for s in m.signals} and m.cycle_time}
+    for name, table in (protection or {}).items():
+        message = db.get_message_by_name(name)
+        carriers = protection_signals(message, protection_for(message, table))
+        uses[name] = [s.name for s in message.signals if s.name not in carriers]
+    return Codec(db, uses, protection=protection)
 
 
 def decoded_frames(path: str | Path, codec: Codec,

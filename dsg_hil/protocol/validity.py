@@ -126,6 +126,7 @@ class RxMonitor:
         self._by_id: dict[int, tuple[RxState, Callable[[bytes], DecodedFrame], dict[bytes, DecodedFrame]]] = {
             frame_id: (self.states[name], codec.decoder(frame_id), {})  # take: one look-up per frame
             for frame_id, name in self._ids.items()}
+        self._fd = codec.fd  # the CAN FD messages' frame IDs (their frames CAN FD, the others' classic)
         self.rejected: Tally[str] = Tally()
         self.received = 0
         self._checks: dict[int, tuple[str, Callable[[DecodedFrame], str | None]]] = {}
@@ -156,12 +157,14 @@ class RxMonitor:
         None) when it fails its checks; (``IGNORED``, None) when it is not ours."""
         if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
             return IGNORED, None
-        if msg.is_fd:
+        if msg.is_fd != (msg.arbitration_id in self._fd):  # a frame of the other format than its message's
             frame_id = msg.arbitration_id
             if frame_id not in self._by_id:
                 return IGNORED, None
             self.received += 1
-            self._reject(self._by_id[frame_id][0], "dlc", f"0x{frame_id:03X}: CAN FD frame on a classic CAN contract")
+            self._reject(self._by_id[frame_id][0], "dlc", f"0x{frame_id:03X}: "
+                         + ("CAN FD frame of a classic CAN message" if msg.is_fd else
+                            "classic CAN frame of a CAN FD message"))
             return REJECTED, None
         return self.take_data(msg.arbitration_id, bytes(msg.data), now)
 
@@ -296,7 +299,7 @@ class TxScheduler:
 
     def frame(self, name: str, values: dict[str, float], timestamp: float = 0.0) -> can.Message:
         """The next frame of ``name`` (counter advanced)."""
-        return data_frame(self.ids[name], self.data(name, values), timestamp)
+        return data_frame(self.ids[name], self.data(name, values), timestamp, fd=self.codec.fd)
 
     def next_counter(self, name: str) -> int:
         """The counter of the next frame of ``name`` (advanced, the frame counted as sent), for a sender that

@@ -45,7 +45,7 @@ from ..physics.plant import PlantOutputs
 from ..protocol import Codec, load_dbc
 from ..protocol.binding import load_binding
 from ..protocol.codec import ProtocolError
-from ..protocol.bus import FrameLog, bus_args, bus_name, log_channel, open_bus
+from ..protocol.bus import FrameLog, bus_args, bus_name, has_fd, log_channel, open_bus
 from ..protocol.frame import FrameListener
 from ..protocol.faults import FaultError, FaultSpec, check_faults, parse_fault, with_faults
 from ..protocol.local import local_pair
@@ -327,10 +327,12 @@ class Run:
             for end in pair:
                 self._stack.callback(end.shutdown)
             return pair
-        plant_bus = open_bus(self.bus_config, receive=[self.db.get_message_by_name(name) for name in self.io.rx])
+        fd = has_fd(self.db.get_message_by_name(name) for name in self.io.uses)
+        plant_bus = open_bus(self.bus_config, receive=[self.db.get_message_by_name(name) for name in self.io.rx],
+                             fd=fd)
         self._stack.callback(plant_bus.shutdown)
         if self._tcu_in_process():
-            tcu_bus = open_bus(self.bus_config)
+            tcu_bus = open_bus(self.bus_config, fd=fd)
             self._stack.callback(tcu_bus.shutdown)
             return plant_bus, tcu_bus
         return plant_bus, None

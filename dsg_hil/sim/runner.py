@@ -67,6 +67,7 @@ class PlantRunner:
         self.P_cmd = (0.0, 0.0)
         self.decel_cmd = 0.0  # TCU_CMD.DecelRequest [m/s^2]: the brakes' deceleration, while the command is valid
         self.sent = 0
+        self._fd: dict[int, bool] = codec.fd  # the CAN FD messages' IDs: their frames built as CAN FD
         self._names = {codec.frame_id(name): name for name in io.uses}
         self._sent_by_id = dict.fromkeys(self._names, 0)  # frames sent (first transmissions, the ones logged)
         self._send_data: Callable[[int, bytes], None] | None = None  # see _bind_bus
@@ -168,7 +169,7 @@ class PlantRunner:
         if self._send_data is not None:
             self._send_data(frame_id, data)
             return None
-        msg = data_frame(frame_id, data, stamp)
+        msg = data_frame(frame_id, data, stamp, fd=self._fd)
         self.bus.send(msg)
         return msg
 
@@ -190,7 +191,7 @@ class PlantRunner:
             self._keep(frame_id, data, stamp)
         if self.listeners:
             if msg is None:
-                msg = data_frame(frame_id, data, stamp)
+                msg = data_frame(frame_id, data, stamp, fd=self._fd)
             for listener in self.listeners:
                 listener(msg)
 
@@ -258,7 +259,7 @@ class PlantRunner:
             elif frame.name == self._status_name:
                 self.summary.on_status(self.plant.state.t, self.io.status_values(frame.values), self.out)
         elif isinstance(item, tuple):
-            self._use(frame, data_frame(item[0], item[1], stamp, self._channel, True))
+            self._use(frame, data_frame(item[0], item[1], stamp, self._channel, True, fd=self._fd))
         else:
             item.timestamp = stamp
             self._use(frame, item)

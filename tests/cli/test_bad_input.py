@@ -163,7 +163,7 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
 # (bad ones), nodid.toml (a diagnostic description whose DID lacks its id), nocmd.binding.toml (the shipped
 # binding without a quantity the plant needs), renamed.dbc and renamed.binding.toml (another matrix and its
-# binding: tests/sim/test_binding_run.py).
+# binding: tests/sim/test_binding_run.py), long.dbc (the shipped DBC with a 9-byte classic message).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -252,6 +252,8 @@ CASES = [
      "nosuch.dbc: DBC file not found"),
     ("dsg-hil", ["binding", "check", "small.dbc", "nosuch.toml"], "file", ERROR,
      "nosuch.toml: binding file not found"),
+    ("dsg-hil", ["binding", "check", "long.dbc", str(DEFAULT_BINDING)], "file", ERROR,
+     "message PLANT_OIL_TEMP: 9 bytes on classic CAN (at most 8): a CAN FD message needs VFrameFormat CAN_FD"),
     ("dsg-hil", ["binding", "list", "small.dbc", "nosuch.toml"], "option", USAGE,
      "argument action: invalid choice: 'list'"),
     ("dsg-hil", ["run", "-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=abc", *OUT], "option",
@@ -327,6 +329,8 @@ def write_inputs(where: Path) -> None:
     (where / "outdir").mkdir()
     (where / "small.dbc").write_text('VERSION ""\n\nBU_: A\n\nBO_ 100 X: 8 A\n SG_ S : 0|8@1+ (1,0) [0|255] "" A\n',
                                      encoding="utf-8")  # a DBC, without the plant's messages
+    (where / "long.dbc").write_text(DEFAULT_DBC.read_text(encoding="utf-8").replace(
+        "BO_ 272 PLANT_OIL_TEMP: 8 ", "BO_ 272 PLANT_OIL_TEMP: 9 "), encoding="utf-8")  # 9 bytes, not CAN FD
     write_renamed_pair(where)  # renamed.dbc, renamed.binding.toml: another matrix, the plant bound to it
     (where / "nocmd.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
         'P_CL_cmd = "TCU_CMD.P_CL_Cmd"\n', ""), encoding="utf-8")  # the shipped binding without a command

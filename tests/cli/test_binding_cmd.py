@@ -26,11 +26,12 @@ def check(tmp_path: Path, capsys, dbc: str = DBC, binding: str = BINDING) -> tup
 def test_the_shipped_pair_prints_its_mapping(tmp_path, capsys):
     code, out, err = check(tmp_path, capsys)
     assert code == 0 and err == []
-    assert out[0].split() == ["quantity", "dir", "message.signal", "unit", "resolution", "cycle", "ms", "protection"]
+    assert out[0].split() == ["quantity", "dir", "message.signal", "unit", "resolution", "cycle", "ms", "protection",
+                            "frame"]
     rows = {line.split()[0]: line.split() for line in out[1:-1]}
     assert len(rows) == len(load_binding().signals) + 1  # + the tick; the echo's row is "(lock-step echo)"
-    assert rows["omega_e"] == ["omega_e", "send", "PLANT_ENGINE.EngineSpeed", "rpm", "0.25", "10", "dsg-hil"]
-    assert rows["T_CL_pred"] == ["T_CL_pred", "read", "TCU_STATUS.T_CL_Pred", "degC", "0.1", "100", "dsg-hil"]
+    assert rows["omega_e"] == ["omega_e", "send", "PLANT_ENGINE.EngineSpeed", "rpm", "0.25", "10", "dsg-hil", "CAN(8)"]
+    assert rows["T_CL_pred"] == ["T_CL_pred", "read", "TCU_STATUS.T_CL_Pred", "degC", "0.1", "100", "dsg-hil", "CAN(8)"]
     assert out[-1].endswith("36 quantities on 10 messages sent, 2 read: no problem")
 
 

@@ -182,12 +182,21 @@ def test_the_binding_guide_s_file_is_a_binding() -> None:
 def test_the_binding_check_prints_the_guide_s_columns(tmp_path: Path) -> None:
     """The output the page shows is the check of the shipped DBC and binding (the command as on the page, with
     those two files)."""
-    (line,) = sh_block("docs/how-to/binding.md", "dsg-hil binding check")
+    (line,) = sh_block("docs/how-to/binding.md", "dsg-hil binding check my_ecu")
     done = run(line, tmp_path, {"my_ecu.dbc": str(ROOT / "dbc" / "dsg_hil.dbc"),
                                 "my_ecu.binding.toml": str(ROOT / "dbc" / "dsg_hil.binding.toml")})
     assert done.returncode == 0, done.stderr
     (shown,) = [b for b in blocks("docs/how-to/binding.md", "text") if b.startswith("quantity")]
     check_shown(shown, done.stdout)
+
+
+def test_the_example_matrix_passes_the_binding_check() -> None:
+    """The binding guide's check of the CAN FD example, from the checkout's root as the page's paths are: exit 0,
+    each CAN FD message shown with its frame."""
+    (line,) = sh_block("docs/how-to/binding.md", "dsg-hil binding check dbc/examples/")
+    done = run(line, ROOT)
+    assert done.returncode == 0, done.stderr
+    assert "FD(" in done.stdout and done.stdout.splitlines()[0].startswith("quantity")
 
 
 def test_the_xcp_guide_s_commands_run(tmp_path: Path) -> None:

@@ -119,6 +119,8 @@ ENTRIES = [
     E("docs/how-to/binding.md", "quantity           dir", OUTPUT,
       (f"{GUIDES}::test_the_binding_check_prints_the_guide_s_columns",)),
     E("docs/how-to/binding.md", "dsg-hil plant -i socketcan -c can0", PARSED, why="a real bus and the user's files"),
+    E("docs/how-to/binding.md", "dsg-hil binding check dbc/examples/dct_fd/", RUN,
+      (f"{GUIDES}::test_the_example_matrix_passes_the_binding_check",)),
     E("docs/how-to/diag-command.md", "pip install 'dsg-hil[diag]'", INSTALL, why="an extra; the dev extra has it"),
     E("docs/how-to/diag-command.md", "ecu-stub -i udp_multicast -c 239.255.12.34", RUN,
       (f"{GUIDES}::test_the_diag_guide_s_session_prints_what_it_shows",), "on a fresh port"),

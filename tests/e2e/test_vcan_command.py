@@ -22,7 +22,7 @@ def test_vm_plan_brings_up_vcan_and_reports_the_status(tmp_path, monkeypatch):
     assert plan.argv[-2:] == ["--exec", f"sh {tmp_path / vcan.RUN_SCRIPT}"]
     script = plan.script
     assert script.startswith(f"date +%s > {tmp_path / vcan.BOOTED}; modprobe vcan && ip link add dev vcan0 type vcan"
-                             " && ip link set up vcan0")
+                             " && ip link set vcan0 mtu 72 && ip link set up vcan0")
     assert f"export {vcan.ENV_REQUIRE}=1" in script
     assert f"echo $? > {tmp_path / 'rc'}" in script and "output.txt" in script
 

@@ -12,6 +12,7 @@ and P taken 0.5 s into each, would differ from the per-step summary's during a l
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -88,13 +89,15 @@ class CreepRecord:
         return self.columns[name]
 
 
-def read_log(path: str | Path, db: Database, io: PlantIO | None = None) -> CreepRecord:
+def read_log(path: str | Path, db: Database, io: PlantIO | None = None,
+             protection: Mapping[str, Mapping[str, object]] | None = None) -> CreepRecord:
     """Decode the log at ``path`` with ``db`` and compute its creep numbers (one pass, in time order); ``io``: the
-    plant's messages and signals on ``db`` (its binding's; None: the shipped DBC's)."""
+    plant's messages and signals on ``db`` (its binding's; None: the shipped DBC's); ``protection``: its binding's
+    protection by message (the messages under an AUTOSAR profile or none)."""
     path = Path(path)
     io = io if io is not None else SHIPPED
     signals, offsets = (SIGNALS, {}) if io is SHIPPED else (_signals(io), io.offsets)
-    codec = log_codec(db)
+    codec = log_codec(db, protection)
     period = codec.cycle_time(io.command)
     row = [NAN] * len(LogSample._fields)
     events: list[tuple[float, dict | None, list[float]]] = []  # (t, TCU_STATUS values or None: a grid sample, row)

@@ -146,10 +146,11 @@ class FaultInjector:
             data = bytes(msg.data)[:spec.dlc].ljust(spec.dlc, b"\x00")
             return [_copy(msg, data)]
         data = bytes(msg.data)
-        if kind == "freeze_counter":
-            return [_copy(msg, protection.seal(data, self._frozen.setdefault(i, protection.counter(data))))]
         message = self._messages[msg.arbitration_id]
-        values = _decode(message, data, scaling=True)
+        if kind == "freeze_counter":  # (a CAN FD frame's padding not sealed)
+            counter = self._frozen.setdefault(i, protection.counter(data))
+            return [_copy(msg, protection.seal(data[:message.length], counter) + data[message.length:])]
+        values = _decode(message, data[:message.length], scaling=True)  # (a CAN FD frame's padding apart)
         if spec.signal is None:  # parse_fault gives every other kind its MESSAGE.Signal
             raise FaultError(f"{spec.origin}: {kind} needs a target MESSAGE.Signal")
         elif kind == "stuck":
@@ -162,7 +163,8 @@ class FaultInjector:
             values[spec.signal] = outside_range(message.get_signal_by_name(spec.signal))
         try:
             return [_copy(msg, protection.seal(message.encode(values, scaling=True, strict=False),
-                                               protection.counter(data)))]  # (no range check: a fault may leave it)
+                                               protection.counter(data)) + data[message.length:])]
+            # (no range check: a fault may leave it)
         except (OverflowError, ValueError, EncodeError) as exc:  # e.g. an offset or gain pushing the value off the bits
             if not self.encode_errors[spec.describe()]:
                 log.warning("%s at t=%.3f s: %s cannot be encoded (%s): such frames are sent unchanged, counted",
@@ -188,7 +190,8 @@ def _protection(message: Message, given: Mapping[str, FrameProtection] | None) -
 
 def _copy(msg: can.Message, data: bytes) -> can.Message:
     return can.Message(arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id, data=data,
-                       dlc=len(data), timestamp=msg.timestamp, channel=msg.channel, is_rx=False)
+                       dlc=len(data), timestamp=msg.timestamp, channel=msg.channel, is_rx=False, is_fd=msg.is_fd,
+                       bitrate_switch=msg.bitrate_switch)
 
 
 class FaultyBus(can.BusABC):
