@@ -128,13 +128,13 @@ STATUS = ("tcu_state", "active_clutch", "brake_request", "T_CL_pred", "T_CH_pred
 UNITS: dict[str, tuple[str, float, float]] = {
     "rad/s": ("angular speed", 1.0, 0.0), "rpm": ("angular speed", CV.RPM_TO_RAD_S, 0.0),
     "r/min": ("angular speed", CV.RPM_TO_RAD_S, 0.0), "1/min": ("angular speed", CV.RPM_TO_RAD_S, 0.0),
-    "Pa": ("pressure", 1.0, 0.0), "kPa": ("pressure", 1e3, 0.0), "bar": ("pressure", 1e5, 0.0),
+    "Pa": ("pressure", 1.0, 0.0), "kPa": ("pressure", CV.KPA_TO_PA, 0.0), "bar": ("pressure", CV.BAR_TO_PA, 0.0),
     "MPa": ("pressure", CV.MPA_TO_PA, 0.0),
-    "m/s": ("speed", 1.0, 0.0), "km/h": ("speed", 1.0 / 3.6, 0.0),
+    "m/s": ("speed", 1.0, 0.0), "km/h": ("speed", CV.KMH_TO_MPS, 0.0),
     "m/s2": ("acceleration", 1.0, 0.0), "m/s^2": ("acceleration", 1.0, 0.0),
     "Nm": ("torque", 1.0, 0.0), "N m": ("torque", 1.0, 0.0), "N.m": ("torque", 1.0, 0.0),
     "W": ("power", 1.0, 0.0), "kW": ("power", CV.KW_TO_W, 0.0),
-    "degC": ("temperature", 1.0, 0.0), "°C": ("temperature", 1.0, 0.0), "K": ("temperature", 1.0, -273.15),
+    "degC": ("temperature", 1.0, 0.0), "°C": ("temperature", 1.0, 0.0), "K": ("temperature", 1.0, -CV.ZERO_C_IN_K),
     "1": ("ratio", 1.0, 0.0), "-": ("ratio", 1.0, 0.0), "": ("ratio", 1.0, 0.0),
     "%": ("ratio", CV.PERCENT_TO_FRACTION, 0.0),
 }
