@@ -69,7 +69,13 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                     "the TCU_CMD cycle time.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     add_bus_arguments(parser, fresh_udp=False)
-    parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
+    parser.add_argument("--dbc", metavar="FILE",
+                        help="the communication matrix: a DBC, or an ARXML through cantools (default: the one shipped "
+                             "with dsg-hil)")
+    parser.add_argument("--binding", metavar="FILE",
+                        help="the binding TOML that says which of the matrix's signals carry each quantity, as "
+                             "dsg-hil takes it (default: the shipped one, of the shipped DBC; check a pair with "
+                             "dsg-hil binding check)")
     parser.add_argument("--calibration", metavar="FILE",
                         help="TCU calibration TOML (default: ecu_stub/data/calibration.toml)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: never)")
@@ -163,14 +169,16 @@ def _write_a2l(args: argparse.Namespace) -> None:
 def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, Any]]:
     """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
     serving ends); returns it and the bus configuration."""
-    from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
+    from dsg_hil.protocol import Codec  # noqa: PLC0415 - cantools when serving, not for --help
+    from dsg_hil.protocol.binding import load_binding  # noqa: PLC0415
     from dsg_hil.protocol.bus import FrameLog, bus_config, log_channel, open_bus, receive_filters  # noqa: PLC0415
     from dsg_hil.protocol.diag import diag_ids  # noqa: PLC0415
     from dsg_hil.protocol.faults import FaultError, check_faults, faults_from_args, with_faults  # noqa: PLC0415
 
     from .calibration import load_calibration  # noqa: PLC0415
     from .controller import CreepController  # noqa: PLC0415
-    from .runner import TCU_RX, TCU_USES, TcuRunner  # noqa: PLC0415
+    from .runner import TcuRunner  # noqa: PLC0415
+    from .tcu_io import TcuIO  # noqa: PLC0415
 
     level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
     logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
@@ -183,18 +191,19 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         raise InputError("--xcp-ids: serves nothing without --xcp (or --a2l)")
     controller = CreepController(load_calibration(args.calibration))
     config = bus_config(args)
-    db = load_dbc(args.dbc)
-    codec = Codec(db, TCU_USES)
+    binding = load_binding(args.binding, dbc=args.dbc)  # checked together: BindingError naming the file
+    db, io = binding.db, TcuIO(binding)
+    codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
     xcp = _checked_xcp_ids(args, db) if args.xcp else None
     faults = check_faults(faults_from_args(args), db)
     if faults["plant"]:
         raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                          f"side=tcu")
-    inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX])
+    inner = open_bus(config, receive=[db.get_message_by_name(name) for name in io.rx])
     requests = [diag_ids(db)[0]] if db.dbc is not None and "DiagRequestId" in db.dbc.attributes else []
     requests += [xcp[0]] if xcp is not None else []
     if requests:  # and UDS requests (ecu_stub.diag), XCP commands (ecu_stub.xcp)
-        filters: list[Any] = [*receive_filters(db.get_message_by_name(name) for name in TCU_RX)]
+        filters: list[Any] = [*receive_filters(db.get_message_by_name(name) for name in io.rx)]
         filters += [{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in requests]
         inner.set_filters(filters)
     tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
@@ -208,7 +217,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         from .xcp import xcp_slave  # noqa: PLC0415
 
         slave = xcp_slave(*xcp)
-    tcu = TcuRunner(codec, bus, controller, (record,) if record else (), slave)
+    tcu = TcuRunner(codec, bus, controller, (record,) if record else (), slave, io)
     tcu_side.append(tcu)
     stack.callback(_print_counts, tcu, injector)  # first when the stack closes, then the log and the bus
     return tcu, config

@@ -150,7 +150,7 @@ class TcuRunner:
             request_id, response_id = diag_ids(codec.db)
             self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, self.states,
                                    self.clutches, cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
-                                   else math.nan, repr(cal))
+                                   else math.nan, repr(cal), messages=io.renames(SHIPPED))
         # XCP on its own IDs (ecu_stub.xcp): ``xcp(runner, send)`` builds the slave; None: no XCP
         self.xcp: SidePort | None = xcp(self, self._send_diag) if xcp is not None else None
         self.link = LockstepResponder(codec, io.rx, io.tx, io.required, step=self._step, restart=self._restart,

@@ -44,7 +44,8 @@ OUTPUTS: dict[str, tuple[str, str]] = {
 
 def edge(signal_unit: str, tcu_unit: str) -> tuple[float, float]:
     """(k, c): a value in ``signal_unit`` times k plus c is the value in ``tcu_unit`` (both of one dimension of
-    :data:`~dsg_hil.protocol.binding.UNITS`); (1.0, 0.0) exactly where the two convert alike."""
+    :data:`~dsg_hil.protocol.binding.UNITS`); (1.0, 0.0) exactly where the two convert alike. (``edge(tcu_unit,
+    signal_unit)``: the other way.)"""
     _, f_signal, o_signal = UNITS[signal_unit.strip()]
     _, f_tcu, o_tcu = UNITS[tcu_unit]
     if (f_signal, o_signal) == (f_tcu, o_tcu):
@@ -98,10 +99,10 @@ class TcuIO:
             (self.required.index(where[q][0]), where[q][1], *conversions[q]) for q in INPUTS)
         sent = [m for m in binding.rx if m != command] + [command]
         self.tx_values: dict[str, dict[str, str]] = {m: {} for m in sent}
-        for quantity, (expression, _) in OUTPUTS.items():
+        for quantity, (expression, unit) in OUTPUTS.items():
             if quantity in where:
                 message, signal = where[quantity]
-                k, c = conversions[quantity]
+                k, c = edge(unit, binding.units[quantity])  # (the other way)
                 if (k, c) != (1.0, 0.0):
                     expression = f"({expression}) * {k!r}" + (f" + {c!r}" if c != 0.0 else "")
                 self.tx_values[message][signal] = expression
@@ -120,6 +121,14 @@ class TcuIO:
     def step(self, quantity: str, default: float = 0.0) -> float:
         """The step of the signal that carries ``quantity``, in the TCU's unit (``default`` if unmapped)."""
         return self.steps.get(quantity, default)
+
+    def renames(self, other: TcuIO) -> dict[str, str]:
+        """By message ``other`` reads, the one this matrix carries its first input quantity in, where named
+        otherwise (e.g. the diagnostic description's messages, the shipped DBC's, on this matrix)."""
+        found: dict[str, str] = {}
+        for quantity in INPUTS:
+            found.setdefault(other.message(quantity), self.message(quantity))
+        return {name: mine for name, mine in found.items() if name != mine}
 
     def message(self, quantity: str) -> str:
         """The message that carries ``quantity``."""

@@ -1,25 +1,27 @@
-"""The plant on another communication matrix by configuration alone: a copy of the shipped DBC with every message
+"""Both ends on another communication matrix by configuration alone: a copy of the shipped DBC with every message
 and signal renamed, every ID moved and scalings changed (vehicle speed in km/h, the clutch pressures in kPa, the
-TCU's predicted plate temperatures in K), with its binding, runs the shipped creep in lock-step. ecu-stub speaks
-the shipped DBC only, so it answers through a gateway that decodes each frame with one matrix and encodes it with
-the other (:class:`Gateway`, quantities converted by the two bindings): the plant's frames, decoded with the
-renamed DBC and its binding, carry the physical values of the shipped pair's run."""
+TCU's predicted plate temperatures in K), with its binding, runs the shipped creep in lock-step, the plant and
+ecu-stub each reading the same pair of files: in one process, and as two processes (``dsg-hil plant`` and
+``ecu-stub``) on udp_multicast. The frames, decoded with the renamed DBC and its binding, carry the physical values
+of the shipped pair's run, and the plant's truth is the shipped run's."""
 
 from __future__ import annotations
 
-import itertools
+import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import can
 import pytest
 
-from dsg_hil.protocol import Codec, DecodedFrame, load_dbc
+from dsg_hil.protocol.bus import UDP_MULTICAST, bus_args, fresh_udp_group
+
+from dsg_hil.protocol import load_dbc
 from dsg_hil.protocol.binding import DEFAULT_BINDING, Binding, load_binding
 from dsg_hil.protocol.e2e import COUNTER, CRC
-from dsg_hil.protocol.logs import log_codec
 from dsg_hil.sim.run import RunConfig, open_run
-from ecu_stub.runner import TCU_USES, TcuRunner
 
 DURATION = 8.0  # s of the shipped creep: the TCU engages CL and creeps
 NEW = {  # shipped message -> (renamed, new ID)
@@ -36,7 +38,6 @@ NEW = {  # shipped message -> (renamed, new ID)
 RESCALED = {("PLANT_VEHICLE", "VehicleSpeed"): (3.6, 0.0, "km/h"), ("PLANT_PRESSURE", "P_CL"): (1e3, 0.0, "kPa"),
             ("PLANT_PRESSURE", "P_CH"): (1e3, 0.0, "kPa"), ("TCU_STATUS", "T_CL_Pred"): (1.0, 273.15, "K"),
             ("TCU_STATUS", "T_CH_Pred"): (1.0, 273.15, "K")}
-_channels = itertools.count()
 
 
 def renamed(signal: str) -> str:
@@ -70,53 +71,6 @@ def write_renamed_pair(tmp_path: Path) -> tuple[Path, Path]:
     return dbc, binding
 
 
-def _roles(binding: Binding) -> dict[tuple[str, str], tuple[str, float, float]]:
-    """(message, signal) -> (role, factor, offset): a quantity's name, or the lock-step signal's."""
-    roles = {key: (quantity, factor, binding.offsets.get(key, 0.0)) for key, (quantity, factor)
-             in binding.signals.items()}
-    roles[binding.sync] = ("tick", 1.0, 0.0)
-    roles[binding.echo] = ("echo", 1.0, 0.0)
-    return roles
-
-
-class Gateway(can.BusABC):
-    """ecu-stub's end of the bus, in the shipped DBC: frames from the bus (the renamed matrix) decoded, their
-    quantities converted and encoded in the shipped matrix (the counter kept, the CRC the shipped one's), and back."""
-
-    def __init__(self, bus: can.BusABC, shipped: Binding, other: Binding) -> None:
-        super().__init__(channel="gateway")
-        self.bus = bus
-        self.codecs = {"shipped": log_codec(shipped.db), "other": log_codec(other.db)}
-        roles = {"shipped": _roles(shipped), "other": _roles(other)}
-        self.by_role = {side: {role: (m, s, f, o) for (m, s), (role, f, o) in table.items()}
-                        for side, table in roles.items()}
-        self.roles = roles
-
-    def _translate(self, msg: can.Message, source: str, target: str) -> can.Message:
-        codec = self.codecs[source]
-        try:
-            frame: DecodedFrame = codec.decode(msg.arbitration_id, bytes(msg.data))
-        except Exception:  # noqa: BLE001 - not a frame of the matrix: as it is
-            return msg
-        values: dict[str, float] = {}
-        name = None
-        for signal, value in frame.values.items():
-            role, factor, offset = self.roles[source][frame.name, signal]
-            name, new_signal, new_factor, new_offset = self.by_role[target][role]
-            values[new_signal] = (value * factor + offset - new_offset) / new_factor
-        assert name is not None
-        data = self.codecs[target].encode(name, values, frame.counter)
-        return can.Message(arbitration_id=self.codecs[target].frame_id(name), data=data, is_extended_id=False,
-                           timestamp=msg.timestamp)
-
-    def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self.bus.send(self._translate(msg, "shipped", "other"), timeout)
-
-    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        msg = self.bus.recv(timeout)
-        return (None if msg is None else self._translate(msg, "other", "shipped")), False
-
-
 def quantities(frames: list[can.Message], binding: Binding) -> dict[str, list[tuple[float, float]]]:
     """By quantity, its (time, value in SI) of every frame (decoded with the binding's DBC)."""
     out: dict[str, list[tuple[float, float]]] = {}
@@ -143,19 +97,10 @@ def runs(tmp_path_factory):
         shipped_summary = run.run().as_json()
     shipped_frames = run.frames
     shipped, other = load_binding(), load_binding(binding_path, dbc=dbc)
-
-    gateways: list[Gateway] = []
-
-    def tcu(db, bus):
-        gateways.append(Gateway(bus, shipped, other))
-        return TcuRunner(Codec(load_dbc(), TCU_USES), gateways[-1])
-
-    config = RunConfig(duration=DURATION, dbc=dbc, binding=binding_path, capture=True, truth=True, tcu=tcu,
-                       bus={"interface": "virtual", "channel": f"binding-run-{next(_channels)}"}, direct=False)
+    config = RunConfig(duration=DURATION, dbc=dbc, binding=binding_path, capture=True, truth=True)
     with open_run(config) as run:
+        assert run.tcu.io.names[:4] == ("SIM_Step", "sTick", "TCU_Command", "sSyncEcho")  # ecu-stub, renamed
         other_summary = run.run().as_json()
-    for gateway in gateways:
-        gateway.shutdown()
     return (shipped, shipped_frames, shipped_summary), (other, run.frames, other_summary)
 
 
@@ -193,6 +138,34 @@ def test_the_creep_on_the_renamed_matrix_is_the_shipped_one(runs):
         assert b["max_predicted_temp_c"][clutch] == pytest.approx(a["max_predicted_temp_c"][clutch], abs=0.05)
     assert a["max_predicted_temp_c"]["CL"] > 120.0  # the TCU's status was read (it predicts the heating)
     assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0 and b["frames"]["received"] > 800
+
+
+def test_plant_and_ecu_stub_as_two_processes_on_the_renamed_matrix(tmp_path, runs):
+    """``dsg-hil plant`` and ``ecu-stub``, each given ``--dbc renamed.dbc --binding renamed.binding.toml``, on
+    udp_multicast: the creep of the in-process run (lock-step is the same whatever the bus)."""
+    (_, _, shipped), (_, _, in_process) = runs
+    dbc, binding = write_renamed_pair(tmp_path)
+    bus = bus_args({"interface": UDP_MULTICAST, **fresh_udp_group()})
+    pair = ["--dbc", str(dbc), "--binding", str(binding)]
+    summary = tmp_path / "summary.json"
+    tcu = subprocess.Popen([sys.executable, "-m", "ecu_stub", *bus, *pair, "--idle-exit", "10", "--quiet"],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        plant = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", *bus, *pair, "--mode", "lockstep",
+                                "--duration", f"{DURATION:g}", "--summary", str(summary), "--quiet"],
+                               capture_output=True, text=True, timeout=600)
+    finally:
+        tcu.terminate()
+        tcu_err = tcu.communicate(timeout=60)[1]
+    assert plant.returncode == 0, plant.stderr
+    assert "rejected 0" in tcu_err, tcu_err  # ecu-stub's closing counts: it read the renamed frames
+    b = json.loads(summary.read_text(encoding="utf-8"))
+    assert b["phases"] == shipped["phases"] == in_process["phases"]
+    for key in ("creep_time_s", "standstill_time_s", "slip_time_s", "max_plate_temp_c", "friction_energy_kj"):
+        assert b[key] == shipped[key], key
+    for clutch in ("CL", "CH"):
+        assert b["max_predicted_temp_c"][clutch] == pytest.approx(shipped["max_predicted_temp_c"][clutch], abs=0.05)
+    assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0
 
 
 @pytest.mark.parametrize("timeout_ms, events", [(None, 1), (50, 0)])
