@@ -170,7 +170,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
     """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
     serving ends); returns it and the bus configuration."""
     from dsg_hil.protocol import Codec  # noqa: PLC0415 - cantools when serving, not for --help
-    from dsg_hil.protocol.binding import load_binding  # noqa: PLC0415
+    from dsg_hil.protocol.binding import BindingError, load_binding  # noqa: PLC0415
     from dsg_hil.protocol.bus import FrameLog, bus_config, log_channel, open_bus, receive_filters  # noqa: PLC0415
     from dsg_hil.protocol.diag import diag_ids  # noqa: PLC0415
     from dsg_hil.protocol.faults import FaultError, check_faults, faults_from_args, with_faults  # noqa: PLC0415
@@ -191,7 +191,12 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         raise InputError("--xcp-ids: serves nothing without --xcp (or --a2l)")
     controller = CreepController(load_calibration(args.calibration))
     config = bus_config(args)
-    binding = load_binding(args.binding, dbc=args.dbc)  # checked together: BindingError naming the file
+    try:  # the pair checked together: BindingError naming the file
+        binding = load_binding(args.binding, dbc=args.dbc)
+    except BindingError as exc:
+        if args.binding is not None or args.dbc is None:
+            raise
+        raise BindingError(f"{args.dbc}: does not fit the shipped binding: give its own (--binding); {exc}") from None
     db, io = binding.db, TcuIO(binding)
     codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
     xcp = _checked_xcp_ids(args, db) if args.xcp else None

@@ -17,7 +17,8 @@ The file::
 
     [messages.TCU_CMD]                  # optional, per message: the database's cycle time overridden, protection
     cycle_time_ms = 10
-    timeout_ms = 30                     # a message the plant reads: its receive timeout (default 3 cycle times)
+    timeout_ms = 30                     # its receiver's timeout, the plant's for a message it reads, the TCU's
+                                        # (ecu-stub's) for one the plant sends (default 3 cycle times)
     protection = { profile = "dsg-hil" }   # none, dsg-hil, P01, P02, P05, P11 (:mod:`.profiles`)
 
 A quantity's value is the signal's physical value (the database's scaling) in the signal's unit, converted to the
@@ -157,7 +158,8 @@ class Binding:
     * ``tx``/``rx``: by message the plant sends/reads (``send``'s order), its signals used, in the database's order;
     * ``signals``: (message, signal) -> (quantity, factor); ``offsets``: the ones with an offset (K to degC);
     * ``sync``: (message, signal) of the lock-step tick; ``echo``: of the TCU's echo of it;
-    * ``cycle_times_ms``: the overridden cycle times; ``timeouts_ms``: the receive timeouts given (messages read);
+    * ``cycle_times_ms``: the overridden cycle times; ``timeouts_ms``: the receive timeouts given (the plant's of
+      the messages it reads, the TCU's of the ones it sends);
       ``protection``: by message, its protection table;
     * ``units``: by quantity mapped, the signal's unit.
     """
@@ -312,7 +314,7 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
             if carrier is not None and quantity in where and where[quantity] != carrier:
                 problem(f"quantities.{quantity}: must be in {carrier}, with "
                         f"{'the lock-step echo' if group is COMMAND else 'tcu_state'}")
-    cycle_times, protection, timeouts = _messages(name, data.get("messages", {}), [*send, sync[0], *read], read, db,
+    cycle_times, protection, timeouts = _messages(name, data.get("messages", {}), [*send, sync[0], *read], sync[0], db,
                                                   problems)
     for message_name in (*send, sync[0], *read):
         carrier_message = db.get_message_by_name(message_name)
@@ -374,7 +376,7 @@ def _quantity(path: str, quantity: str, entry: object, db: Database, send: list[
     return key, (message, signal, unit, *converted)
 
 
-def _messages(path: str, table: object, known: list[str], read: list[str], db: Database, problems: list[str]
+def _messages(path: str, table: object, known: list[str], tick: str, db: Database, problems: list[str]
               ) -> tuple[dict[str, int], dict[str, dict[str, object]], dict[str, int]]:
     """The ``messages`` table: cycle times, protection and timeouts by message; its problems appended to
     ``problems``."""
@@ -398,9 +400,9 @@ def _messages(path: str, table: object, known: list[str], read: list[str], db: D
             value = entry[field_name]
             if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
                 problems.append(f"{path}: {key}.{field_name} must be a whole number of ms above 0, got {value!r}")
-            elif field_name == "timeout_ms" and message not in read:
-                problems.append(f"{path}: {key}.timeout_ms: the plant does not read {message} (a timeout is "
-                                f"the receiver's)")
+            elif field_name == "timeout_ms" and message == tick:
+                problems.append(f"{path}: {key}.timeout_ms: the lock-step tick has no receive timeout (the TCU "
+                                f"waits for it)")
             else:
                 values[message] = value
         if "protection" in entry:

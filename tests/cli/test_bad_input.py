@@ -162,8 +162,8 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # notblf.blf (text), short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty
 # directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
 # (bad ones), nodid.toml (a diagnostic description whose DID lacks its id), nocmd.binding.toml (the shipped
-# binding without a quantity the plant needs), renamed.dbc and renamed.binding.toml (another matrix and its
-# binding: tests/sim/test_binding_run.py).
+# binding without a quantity the plant needs), noaccel.binding.toml (without one only ecu-stub reads), renamed.dbc
+# and renamed.binding.toml (another matrix and its binding: tests/sim/test_binding_run.py).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -246,8 +246,17 @@ CASES = [
      "nocmd.binding.toml: send: message PLANT_ENGINE is not in the database"),
     ("dsg-hil", ["report", "--binding", "nosuch.toml", "--out", "outdir"], "file", ERROR,
      "nosuch.toml: binding file not found"),
-    ("dsg-hil", ["run", *BUS, "--dbc", "renamed.dbc", "--binding", "renamed.binding.toml", *OUT], "file", ERROR,
-     "renamed.dbc: ecu-stub, the bundled TCU, speaks the shipped DBC's messages and signals by name"),
+    ("dsg-hil", ["run", *BUS, "--binding", "noaccel.binding.toml", *OUT], "file", ERROR,
+     "noaccel.binding.toml: quantities.a_x: not mapped, and ecu-stub reads it"),
+    # ecu-stub on a matrix: the same pair of files as the plant's, checked before the bus opens
+    ("ecu-stub", [*BUS, "--binding", "nosuch.toml", "--log", "t.log"], "file", ERROR,
+     "nosuch.toml: binding file not found"),
+    ("ecu-stub", [*BUS, "--binding", "noaccel.binding.toml", "--log", "t.log"], "file", ERROR,
+     "noaccel.binding.toml: quantities.a_x: not mapped, and ecu-stub reads it"),
+    ("ecu-stub", [*BUS, "--dbc", "renamed.dbc", "--log", "t.log"], "file", ERROR,
+     "renamed.dbc: does not fit the shipped binding: give its own (--binding);"),
+    ("ecu-stub", [*BUS, "--dbc", "small.dbc", "--binding", "renamed.binding.toml", "--log", "t.log"], "file", ERROR,
+     "renamed.binding.toml: send: message EMS_Engine is not in the database"),
     ("dsg-hil", ["binding", "check", "nosuch.dbc", "nocmd.binding.toml"], "file", ERROR,
      "nosuch.dbc: DBC file not found"),
     ("dsg-hil", ["binding", "check", "small.dbc", "nosuch.toml"], "file", ERROR,
@@ -306,6 +315,8 @@ def write_inputs(where: Path) -> None:
     (where / "small.dbc").write_text('VERSION ""\n\nBU_: A\n\nBO_ 100 X: 8 A\n SG_ S : 0|8@1+ (1,0) [0|255] "" A\n',
                                      encoding="utf-8")  # a DBC, without the plant's messages
     write_renamed_pair(where)  # renamed.dbc, renamed.binding.toml: another matrix, the plant bound to it
+    (where / "noaccel.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
+        'a_x = "PLANT_VEHICLE.LongAccel"\n', ""), encoding="utf-8")  # without a quantity only ecu-stub reads
     (where / "nocmd.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
         'P_CL_cmd = "TCU_CMD.P_CL_Cmd"\n', ""), encoding="utf-8")  # the shipped binding without a command
     space = 'name = "t"\nn = 2\nduration_s = 1.0\n[inputs]\ngrade_rad = {uniform = [-0.15, 0.1]}\n'

@@ -181,3 +181,22 @@ def test_a_binding_s_timeout_is_the_command_s_deadline(tmp_path, timeout_ms, eve
         summary = run.run().as_json()
     assert summary["frames"]["unanswered_ticks"] == 4
     assert summary["command_fallback"]["events"] == events
+
+
+@pytest.mark.parametrize("timeout_ms, dropouts", [(None, 1), (50, 0)])
+def test_a_binding_s_timeout_on_a_plant_message_is_ecu_stub_s_deadline(tmp_path, timeout_ms, dropouts):
+    """PLANT_VEHICLE lost for 4 control periods (40 ms) just after the launch: past ecu-stub's default deadline
+    (3 cycle times, 30 ms) its inputs are invalid and it opens the clutch for a cycle (FAULT); with the binding's
+    50 ms it controls on through the gap."""
+    binding = None
+    if timeout_ms is not None:
+        binding = tmp_path / "timeout.binding.toml"
+        binding.write_text(DEFAULT_BINDING.read_text(encoding="utf-8")
+                           + f"\n[messages.PLANT_VEHICLE]\ntimeout_ms = {timeout_ms}\n", encoding="utf-8")
+    with open_run(RunConfig(duration=1.5, binding=binding, faults=["drop:PLANT_VEHICLE@1-1.04"], capture=True)) as run:
+        run.run()
+    assert run.tcu.rx.states["PLANT_VEHICLE"].deadline == (timeout_ms or 30) / 1000
+    command = run.tcu.codec.message("TCU_CMD")
+    pressures = [command.decode(bytes(m.data))["P_CL_Cmd"] for m in run.frames if m.arbitration_id == command.frame_id]
+    engaged = next(k for k, p in enumerate(pressures) if p > 0.1)
+    assert sum(p == 0.0 for p in pressures[engaged:]) == dropouts
