@@ -15,6 +15,9 @@ The file::
     tick = "SIM_SYNC.Tick"
     echo = "TCU_CMD.SyncEcho"
 
+    [simulation]                        # optional: the simulation database's messages (SIM_SYNC, the truth)
+    ids = { SIM_SYNC = 0x7E0, SIM_TRUTH_CL = 0x7A0 }   # added to the matrix on these IDs (:data:`SIM_DATABASE`)
+
     [messages.TCU_CMD]                  # optional, per message: the database's cycle time overridden, protection
     cycle_time_ms = 10
     timeout_ms = 30                     # its receiver's timeout, the plant's for a message it reads, the TCU's
@@ -32,11 +35,13 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping
+import copy
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import cantools
 from cantools.database.can import Database
 
 from ..common.units import CV
@@ -45,10 +50,13 @@ from .e2e import ProtectionError
 from .profiles import protection_for
 from .ranges import signal_range
 
-__all__ = ["DEFAULT_BINDING", "QUANTITIES", "UNITS", "Binding", "BindingError", "Quantity", "check_binding",
-           "conversion", "load_binding"]
+__all__ = ["DEFAULT_BINDING", "QUANTITIES", "SIM_DATABASE", "UNITS", "Binding", "BindingError", "Quantity",
+           "check_binding", "conversion", "load_binding"]
 
 DEFAULT_BINDING = resources.files("dsg_hil") / "data" / "dsg_hil.binding.toml"  # of dbc/dsg_hil.binding.toml
+# the simulation database (of dbc/dsg_hil_sim.dbc): the lock-step tick (SIM_SYNC) and the truth frames, which a
+# binding's [simulation] table adds to a matrix that lacks them, on IDs of its choosing
+SIM_DATABASE = resources.files("dsg_hil") / "data" / "dsg_hil_sim.dbc"
 
 
 class BindingError(ProtocolError):
@@ -262,9 +270,11 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
         problems.append(f"{name}: {text}")
 
     try:
-        unknown = sorted(set(data) - {"send", "read", "quantities", "lockstep", "messages"})
+        unknown = sorted(set(data) - {"send", "read", "quantities", "lockstep", "messages", "simulation"})
         if unknown:
-            raise _fail(name, f"unknown key {unknown[0]!r} (send, read, quantities, lockstep, messages)")
+            raise _fail(name, f"unknown key {unknown[0]!r} (send, read, quantities, lockstep, messages, simulation)")
+        if "simulation" in data:
+            _add_simulation(name, data["simulation"], db, problems)
         send, read = _names(name, data, "send", db, problems), _names(name, data, "read", db, problems)
         both = sorted(set(send) & set(read))
         if both:
@@ -341,6 +351,46 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
     return Binding(name, db, tx, rx, {key: mapped[key][:2] for key in order},
                    {key: mapped[key][2] for key in order if mapped[key][2] != 0.0}, sync, echo, cycle_times,
                    protection, units, timeouts), []
+
+
+def _add_simulation(path: str, table: object, db: Database, problems: list[str]) -> None:
+    """The ``simulation`` table: each message of ``ids`` copied from :data:`SIM_DATABASE` into ``db`` on its ID.
+    An ID the matrix uses (a message's, or its diagnostic request or response ID), one given twice, a message the
+    matrix has already or the simulation database lacks: a problem each (appended to ``problems``; not added)."""
+    if not isinstance(table, dict) or set(table) != {"ids"} or not isinstance(table["ids"], dict):
+        raise _fail(path, "simulation must be a table with ids = { MESSAGE = ID, ... } (the simulation "
+                          "database's messages to add, on these IDs)")
+    simulation = cantools.database.load_string(SIM_DATABASE.read_text(encoding="utf-8"), "dbc", strict=True)
+    assert isinstance(simulation, Database)
+    taken = {m.frame_id: f"the ID of {m.name} in the matrix" for m in db.messages}
+    attributes = db.dbc.attributes if db.dbc is not None else {}
+    for attribute, what in (("DiagRequestId", "diagnostic request"), ("DiagResponseId", "diagnostic response")):
+        if attribute in attributes:
+            taken.setdefault(int(attributes[attribute].value), f"the matrix's {what} ID ({attribute})")
+    added = []
+    for message_name, frame_id in table["ids"].items():
+        key = f"simulation.ids.{message_name}"
+        try:
+            message = copy.deepcopy(simulation.get_message_by_name(message_name))
+        except KeyError:
+            names = ", ".join(m.name for m in simulation.messages)
+            problems.append(f"{path}: {key}: not a message of the simulation database ({names})")
+            continue
+        if isinstance(frame_id, bool) or not isinstance(frame_id, int) or not 0 <= frame_id <= 0x7FF:
+            problems.append(f"{path}: {key} must be an 11-bit CAN ID (0x0-0x7FF), got {frame_id!r}")
+            continue
+        if any(m.name == message_name for m in db.messages):
+            problems.append(f"{path}: {key}: the matrix has a message {message_name} already")
+            continue
+        if frame_id in taken:
+            problems.append(f"{path}: {key}: 0x{frame_id:X} is {taken[frame_id]}")
+            continue
+        message.frame_id = frame_id
+        taken[frame_id] = f"{message_name}'s too"
+        added.append(message)
+    if added:
+        db.messages.extend(added)
+        db.refresh()
 
 
 def _num(value: float) -> str:

@@ -163,7 +163,8 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
 # (bad ones), nodid.toml (a diagnostic description whose DID lacks its id), nocmd.binding.toml (the shipped
 # binding without a quantity the plant needs), noaccel.binding.toml (without one only ecu-stub reads), renamed.dbc
-# and renamed.binding.toml (another matrix and its binding: tests/sim/test_binding_run.py).
+# and renamed.binding.toml (another matrix and its binding: tests/sim/test_binding_run.py), simclash.binding.toml
+# (that binding adding SIM_SYNC on an ID of the matrix's).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -261,6 +262,8 @@ CASES = [
      "nosuch.dbc: DBC file not found"),
     ("dsg-hil", ["binding", "check", "small.dbc", "nosuch.toml"], "file", ERROR,
      "nosuch.toml: binding file not found"),
+    ("dsg-hil", ["binding", "check", "renamed.dbc", "simclash.binding.toml"], "file", ERROR,
+     "simclash.binding.toml: simulation.ids.SIM_SYNC: 0xC0 is the ID of EMS_Engine in the matrix"),
     ("dsg-hil", ["binding", "list", "small.dbc", "nosuch.toml"], "option", USAGE,
      "argument action: invalid choice: 'list'"),
     ("dsg-hil", ["run", "-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=abc", *OUT], "option",
@@ -314,7 +317,9 @@ def write_inputs(where: Path) -> None:
     (where / "outdir").mkdir()
     (where / "small.dbc").write_text('VERSION ""\n\nBU_: A\n\nBO_ 100 X: 8 A\n SG_ S : 0|8@1+ (1,0) [0|255] "" A\n',
                                      encoding="utf-8")  # a DBC, without the plant's messages
-    write_renamed_pair(where)  # renamed.dbc, renamed.binding.toml: another matrix, the plant bound to it
+    _, renamed = write_renamed_pair(where)  # renamed.dbc, renamed.binding.toml: another matrix, the plant bound to it
+    (where / "simclash.binding.toml").write_text(renamed.read_text(encoding="utf-8") + "\n[simulation]\n"
+                                                 "ids = { SIM_SYNC = 0x0C0 }\n", encoding="utf-8")  # EMS_Engine's ID
     (where / "noaccel.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
         'a_x = "PLANT_VEHICLE.LongAccel"\n', ""), encoding="utf-8")  # without a quantity only ecu-stub reads
     (where / "nocmd.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(

@@ -19,7 +19,7 @@ import pytest
 from dsg_hil.protocol.bus import UDP_MULTICAST, bus_args, fresh_udp_group
 
 from dsg_hil.protocol import load_dbc
-from dsg_hil.protocol.binding import DEFAULT_BINDING, Binding, load_binding
+from dsg_hil.protocol.binding import DEFAULT_BINDING, Binding, check_binding, load_binding
 from dsg_hil.protocol.e2e import COUNTER, CRC
 from dsg_hil.sim.run import RunConfig, open_run
 
@@ -200,3 +200,64 @@ def test_a_binding_s_timeout_on_a_plant_message_is_ecu_stub_s_deadline(tmp_path,
     pressures = [command.decode(bytes(m.data))["P_CL_Cmd"] for m in run.frames if m.arbitration_id == command.frame_id]
     engaged = next(k for k, p in enumerate(pressures) if p > 0.1)
     assert sum(p == 0.0 for p in pressures[engaged:]) == dropouts
+
+
+SIM_IDS = {"SIM_SYNC": 0x010, "SIM_TRUTH_CL": 0x7F0, "SIM_TRUTH_CH": 0x7F1, "SIM_HEAT": 0x7F2}  # the binding's
+
+
+def write_matrix_without_simulation(tmp_path: Path) -> tuple[Path, Path]:
+    """The renamed matrix without its simulation frames (a vehicle's matrix), and its binding, which adds the
+    simulation database's on IDs of its own (SIM_SYNC the highest priority, 0x010)."""
+    dbc, binding = write_renamed_pair(tmp_path)
+    db = load_dbc(dbc)
+    db.messages[:] = [m for m in db.messages if not m.name.startswith("SIM_")]
+    db.refresh()
+    dbc.write_text(db.as_dbc_string(), encoding="utf-8")
+    text = binding.read_text(encoding="utf-8")
+    for shipped in SIM_IDS:
+        text = text.replace(f'"{NEW[shipped][0]}', f'"{shipped}')  # the names of the simulation database
+    text = re.sub(r'"SIM_(\w+)\.s(\w+)"', r'"SIM_\1.\2"', text)  # and of its signals
+    ids = ", ".join(f"{name} = 0x{frame_id:03X}" for name, frame_id in SIM_IDS.items())
+    binding.write_text(text + f"\n[simulation]\nids = {{ {ids} }}\n", encoding="utf-8")
+    return dbc, binding
+
+
+def test_the_simulation_frames_are_added_to_a_matrix_without_them(tmp_path, runs):
+    """A matrix with none of the simulation frames: the binding adds SIM_SYNC and the truth frames on its IDs, and
+    the plant and ecu-stub run the shipped creep on it in lock-step."""
+    (_, _, shipped), _ = runs
+    dbc, binding_path = write_matrix_without_simulation(tmp_path)
+    assert not any(m.name.startswith("SIM_") for m in load_dbc(dbc).messages)
+    binding = load_binding(binding_path, dbc=dbc)
+    assert {m.name: m.frame_id for m in binding.db.messages if m.name.startswith("SIM_")} == SIM_IDS
+    assert binding.sync == ("SIM_SYNC", "Tick")
+    with open_run(RunConfig(duration=DURATION, dbc=dbc, binding=binding_path, capture=True)) as run:
+        summary = run.run().as_json()
+    assert {msg.arbitration_id for msg in run.frames} >= set(SIM_IDS.values())
+    assert summary["phases"] == shipped["phases"]
+    for key in ("creep_time_s", "standstill_time_s", "slip_time_s", "max_plate_temp_c", "friction_energy_kj"):
+        assert summary[key] == shipped[key], key
+
+
+@pytest.mark.parametrize("ids, problem", [
+    ("SIM_SYNC = 0x0C0", "simulation.ids.SIM_SYNC: 0xC0 is the ID of EMS_Engine in the matrix"),
+    ("SIM_SYNC = 0x7E1", "simulation.ids.SIM_SYNC: 0x7E1 is the matrix's diagnostic request ID (DiagRequestId)"),
+    ("SIM_SYNC = 0x7F0, SIM_TRUTH_CL = 0x7F0", "simulation.ids.SIM_TRUTH_CL: 0x7F0 is SIM_SYNC's too"),
+    ("SIM_SYNC = 0x800", "simulation.ids.SIM_SYNC must be an 11-bit CAN ID (0x0-0x7FF), got 2048"),
+    ("SIM_CLOCK = 0x010", "simulation.ids.SIM_CLOCK: not a message of the simulation database"),
+])
+def test_binding_check_refuses_a_simulation_id_the_matrix_uses(tmp_path, ids, problem):
+    dbc, binding = write_matrix_without_simulation(tmp_path)
+    text = re.sub(r"ids = \{.*\}", f"ids = {{ {ids} }}", binding.read_text(encoding="utf-8"))
+    binding.write_text(text, encoding="utf-8")
+    found, problems = check_binding(binding, dbc=dbc)
+    assert found is None and any(problem in line for line in problems), problems
+
+
+def test_a_simulation_message_the_matrix_has_already_is_refused(tmp_path):
+    binding = tmp_path / "twice.binding.toml"
+    binding.write_text(DEFAULT_BINDING.read_text(encoding="utf-8") + "\n[simulation]\nids = { SIM_SYNC = 0x010 }\n",
+                       encoding="utf-8")
+    found, problems = check_binding(binding)
+    assert found is None and problems == [f"{binding}: simulation.ids.SIM_SYNC: the matrix has a message SIM_SYNC "
+                                          f"already"]
