@@ -65,13 +65,12 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                     "pre-fill), tracks the desired creep speed with clutch pressure, predicts both plate temperatures "
                     "with its calibrated model, hands the torque over to the other clutch before the slipping one can "
                     "pass 250 degC, and stops the vehicle when neither can take over. Knows the plant only through "
-                    "the DBC. Answers SIM_SYNC ticks when the plant runs in lockstep, else runs on its own clock at "
-                    "the TCU_CMD cycle time.")
+                    "the DBC and its binding (--dbc, --binding). Answers the lock-step ticks when the plant runs in "
+                    "lockstep, else runs on its own clock at the command message's cycle time.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     add_bus_arguments(parser, fresh_udp=False)
     parser.add_argument("--dbc", metavar="FILE",
-                        help="the communication matrix: a DBC, or an ARXML through cantools (default: the one shipped "
-                             "with dsg-hil)")
+                        help="the communication matrix, a DBC or an ARXML (default: the DBC shipped with dsg-hil)")
     parser.add_argument("--binding", metavar="FILE",
                         help="the binding TOML that says which of the matrix's signals carry each quantity, as "
                              "dsg-hil takes it (default: the shipped one, of the shipped DBC; check a pair with "
