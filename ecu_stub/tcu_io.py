@@ -21,7 +21,7 @@ from pathlib import Path
 
 from cantools.database.can import Database
 
-from dsg_hil.protocol.binding import QUANTITIES, UNITS, Binding, BindingError, load_binding
+from dsg_hil.protocol.binding import QUANTITIES, UNITS, Binding, BindingError, load_binding, shipped_binding
 
 __all__ = ["INPUTS", "OUTPUTS", "SHIPPED", "TcuIO", "edge", "from_binding", "tcu_io"]
 
@@ -146,4 +146,4 @@ def tcu_io(binding: str | Path | None = None, dbc: str | Path | None = None, db:
     return TcuIO(load_binding(binding, db=db, dbc=dbc))
 
 
-SHIPPED = tcu_io()  # the shipped DBC with its binding
+SHIPPED = TcuIO(shipped_binding())  # the shipped DBC with its binding

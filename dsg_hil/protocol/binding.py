@@ -37,6 +37,7 @@ import tomllib
 from collections.abc import Mapping
 import copy
 from dataclasses import dataclass, field
+from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -51,7 +52,7 @@ from .profiles import protection_for
 from .ranges import signal_range
 
 __all__ = ["DEFAULT_BINDING", "QUANTITIES", "SIM_DATABASE", "UNITS", "Binding", "BindingError", "Quantity",
-           "check_binding", "conversion", "load_binding"]
+           "check_binding", "conversion", "load_binding", "shipped_binding"]
 
 DEFAULT_BINDING = resources.files("dsg_hil") / "data" / "dsg_hil.binding.toml"  # of dbc/dsg_hil.binding.toml
 # the simulation database (of dbc/dsg_hil_sim.dbc): the lock-step tick (SIM_SYNC) and the truth frames, which a
@@ -250,6 +251,13 @@ def load_binding(path: str | Path | None = None, db: Database | None = None,
     if binding is None:
         raise BindingError(problems[0])
     return binding
+
+
+@cache
+def shipped_binding() -> Binding:
+    """The shipped binding on the shipped DBC, loaded once (the plant's and the TCU's tables of it are made from
+    this one): read it, do not change its database."""
+    return load_binding()
 
 
 def check_binding(path: str | Path | None = None, db: Database | None = None,
