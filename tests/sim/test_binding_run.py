@@ -168,6 +168,23 @@ def test_plant_and_ecu_stub_as_two_processes_on_the_renamed_matrix(tmp_path, run
     assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0
 
 
+def test_run_config_gives_the_pair_to_an_ecu_stub_process(tmp_path, runs):
+    """RunConfig(dbc=..., binding=...) on udp_multicast starts ecu-stub as a process with --dbc and --binding (the
+    files' absolute paths): it answers on the renamed matrix, and the creep is the shipped one."""
+    (_, _, shipped), _ = runs
+    dbc, binding = write_renamed_pair(tmp_path)
+    config = RunConfig(duration=DURATION, dbc=dbc, binding=binding, quiet=True,
+                       bus={"interface": UDP_MULTICAST, **fresh_udp_group()})
+    with open_run(config) as run:
+        command = run._process.command(run.bus_config)
+        summary = run.run().as_json()
+    assert command[command.index("--dbc") + 1] == str(dbc.resolve())
+    assert command[command.index("--binding") + 1] == str(binding.resolve())
+    assert summary["frames"]["rejected"] == summary["frames"]["unanswered_ticks"] == 0
+    for key in ("creep_time_s", "slip_time_s", "max_plate_temp_c", "friction_energy_kj"):
+        assert summary[key] == shipped[key], key
+
+
 @pytest.mark.parametrize("timeout_ms, events", [(None, 1), (50, 0)])
 def test_a_binding_s_timeout_is_the_command_s_deadline(tmp_path, timeout_ms, events):
     """TCU_CMD lost for 4 control periods (40 ms): past the default deadline (3 cycle times, 30 ms) the hydraulics
