@@ -65,11 +65,16 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                     "pre-fill), tracks the desired creep speed with clutch pressure, predicts both plate temperatures "
                     "with its calibrated model, hands the torque over to the other clutch before the slipping one can "
                     "pass 250 degC, and stops the vehicle when neither can take over. Knows the plant only through "
-                    "the DBC. Answers SIM_SYNC ticks when the plant runs in lockstep, else runs on its own clock at "
-                    "the TCU_CMD cycle time.")
+                    "the DBC and its binding (--dbc, --binding). Answers the lock-step ticks when the plant runs in "
+                    "lockstep, else runs on its own clock at the command message's cycle time.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     add_bus_arguments(parser, fresh_udp=False)
-    parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: the one shipped with dsg-hil)")
+    parser.add_argument("--dbc", metavar="FILE",
+                        help="the communication matrix, a DBC or an ARXML (default: the DBC shipped with dsg-hil)")
+    parser.add_argument("--binding", metavar="FILE",
+                        help="the binding TOML that says which of the matrix's signals carry each quantity, as "
+                             "dsg-hil takes it (default: the shipped one, of the shipped DBC; check a pair with "
+                             "dsg-hil binding check)")
     parser.add_argument("--calibration", metavar="FILE",
                         help="TCU calibration TOML (default: ecu_stub/data/calibration.toml)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: never)")
@@ -163,7 +168,8 @@ def _write_a2l(args: argparse.Namespace) -> None:
 def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, Any]]:
     """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
     serving ends); returns it and the bus configuration."""
-    from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
+    from dsg_hil.protocol import Codec  # noqa: PLC0415 - cantools when serving, not for --help
+    from dsg_hil.protocol.binding import BindingError, load_binding  # noqa: PLC0415
     from dsg_hil.protocol.bus import (  # noqa: PLC0415
         FrameLog, bus_config, has_fd, log_channel, open_bus, receive_filters)
     from dsg_hil.protocol.diag import diag_ids  # noqa: PLC0415
@@ -171,7 +177,8 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
 
     from .calibration import load_calibration  # noqa: PLC0415
     from .controller import CreepController  # noqa: PLC0415
-    from .runner import TCU_RX, TCU_USES, TcuRunner  # noqa: PLC0415
+    from .runner import TcuRunner  # noqa: PLC0415
+    from .tcu_io import TcuIO  # noqa: PLC0415
 
     level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
     logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
@@ -184,18 +191,24 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         raise InputError("--xcp-ids: serves nothing without --xcp (or --a2l)")
     controller = CreepController(load_calibration(args.calibration))
     config = bus_config(args)
-    db = load_dbc(args.dbc)
-    codec = Codec(db, TCU_USES)
+    try:  # the pair checked together: BindingError naming the file
+        binding = load_binding(args.binding, dbc=args.dbc)
+    except BindingError as exc:
+        if args.binding is not None or args.dbc is None:
+            raise
+        raise BindingError(f"{args.dbc}: does not fit the shipped binding: give its own (--binding); {exc}") from None
+    db, io = binding.db, TcuIO(binding)
+    codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
     xcp = _checked_xcp_ids(args, db) if args.xcp else None
     faults = check_faults(faults_from_args(args), db)
     if faults["plant"]:
         raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                          f"side=tcu")
-    inner = open_bus(config, receive=[db.get_message_by_name(name) for name in TCU_RX], fd=has_fd(db.messages))
+    inner = open_bus(config, receive=[db.get_message_by_name(name) for name in io.rx], fd=has_fd(db.messages))
     requests = [diag_ids(db)[0]] if db.dbc is not None and "DiagRequestId" in db.dbc.attributes else []
     requests += [xcp[0]] if xcp is not None else []
     if requests:  # and UDS requests (ecu_stub.diag), XCP commands (ecu_stub.xcp)
-        filters: list[Any] = [*receive_filters(db.get_message_by_name(name) for name in TCU_RX)]
+        filters: list[Any] = [*receive_filters(db.get_message_by_name(name) for name in io.rx)]
         filters += [{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in requests]
         inner.set_filters(filters)
     tcu_side: list[TcuRunner] = []  # the fault clock reads the TCU's time
@@ -209,7 +222,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         from .xcp import xcp_slave  # noqa: PLC0415
 
         slave = xcp_slave(*xcp)
-    tcu = TcuRunner(codec, bus, controller, (record,) if record else (), slave)
+    tcu = TcuRunner(codec, bus, controller, (record,) if record else (), slave, io)
     tcu_side.append(tcu)
     stack.callback(_print_counts, tcu, injector)  # first when the stack closes, then the log and the bus
     return tcu, config

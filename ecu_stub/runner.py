@@ -52,34 +52,18 @@ from .diag.server import response_frame
 from .interface import SidePort, TcuController
 from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, FALL_START_TAU, SensorChecks
+from .tcu_io import SHIPPED, TcuIO
 
 __all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
 
 log = logging.getLogger(__name__)
 
-TCU_RX = {
-    "PLANT_ENGINE": ("EngineSpeed",),
-    "PLANT_SPEEDS": ("ClutchInputSpeed", "CLOutputSpeed", "CHOutputSpeed"),
-    "PLANT_VEHICLE": ("VehicleSpeed", "LongAccel"),
-    "PLANT_PRESSURE": ("P_CL", "P_CH"),
-    "PLANT_OIL_TEMP": ("T_OilCL", "T_OilCH", "T_Sump"),
-    "DRIVER": ("CreepRequest", "BrakePedal", "DesiredCreepSpeed"),
-    "SIM_SYNC": ("Tick",),
-}
-TCU_TX = {
-    "TCU_CMD": ("P_CL_Cmd", "P_CH_Cmd", "SyncEcho", "DecelRequest"),
-    "TCU_STATUS": ("State", "ActiveClutch", "BrakeRequest", "T_CL_Pred", "T_CH_Pred", "FaultBits"),
-}
-TCU_USES = {**TCU_RX, **TCU_TX}
-TX_VALUES = {  # by message sent, in the order of an answer (TCU_CMD last), each signal's value: an expression of the
-    # controller's outputs ``out`` (and the tick's ``echo``), ``states`` and ``clutches`` the DBC's value tables
-    "TCU_STATUS": {"State": "states[out.state]", "ActiveClutch": "clutches[out.active_clutch]",
-                   "BrakeRequest": "float(out.brake_request)", "T_CL_Pred": "out.T_CL_pred_c",
-                   "T_CH_Pred": "out.T_CH_pred_c", "FaultBits": "out.fault_bits"},
-    "TCU_CMD": {"P_CL_Cmd": "out.P_CL_cmd_mpa", "P_CH_Cmd": "out.P_CH_cmd_mpa", "SyncEcho": "echo",
-                "DecelRequest": "out.decel_request_mps2"},
-}
-REQUIRED = ("PLANT_ENGINE", "PLANT_SPEEDS", "PLANT_VEHICLE", "PLANT_PRESSURE", "PLANT_OIL_TEMP", "DRIVER")
+TCU_RX = SHIPPED.rx  # the shipped matrix's (ecu_stub.tcu_io): by message read, its signals; the tick's last
+TCU_TX = SHIPPED.tx  # by message sent, in the order of an answer (TCU_CMD last)
+TCU_USES = SHIPPED.uses
+TX_VALUES = SHIPPED.tx_values  # by message sent, each signal's value: an expression of the controller's outputs
+# ``out`` (and the tick's ``echo``), ``states`` and ``clutches`` the DBC's value tables
+REQUIRED = SHIPPED.required
 FAULT_BITS = {"crc": 0x02, "counter": 0x04, "range": 0x08, "dlc": 0x08, "malformed": 0x08}
 FAULT_IMPLAUSIBLE = 0x10  # TCU_STATUS.FaultBits bit 4: a valid frame's value failed a plausibility check
 SYNC_WAIT_S = 1.0  # plant heard this long without a SIM_SYNC: it runs in real time
@@ -94,21 +78,29 @@ class TcuRunner:
 
     def __init__(self, codec: Codec, bus: can.BusABC, controller: TcuController | None = None,
                  listeners: Sequence[FrameListener] = (),
-                 xcp: Callable[[Any, Callable[[int, bytes], None]], SidePort] | None = None) -> None:
-        for name in TCU_USES:
+                 xcp: Callable[[Any, Callable[[int, bytes], None]], SidePort] | None = None,
+                 io: TcuIO | None = None) -> None:
+        self.io: TcuIO = io or SHIPPED  # the matrix's messages and signals (a binding's; ``codec`` uses them)
+        io = self.io
+        for name in io.uses:
             codec.message(name)
         self.codec, self.bus = codec, bus
         self.listeners = tuple(listeners)
         self._channel = getattr(bus, "channel", None)  # of the frames recorded for the listeners
         self._send_frame, recv = frame_io(bus, codec.fd)  # the in-process bus: frames as (ID, data), no can.Message
         self.controller: TcuController = controller or CreepController()
-        self.cycle = codec.cycle_time("TCU_CMD")
-        self.cycle_ms = codec.cycle_time_ms("TCU_CMD")
-        self.states = choices(codec, "TCU_STATUS", "State")
-        self.clutches = choices(codec, "TCU_STATUS", "ActiveClutch")
+        command = io.names[2]
+        self.cycle = codec.cycle_time(command)
+        self.cycle_ms = codec.cycle_time_ms(command)
+        self.states = choices(codec, *io.where["tcu_state"]) if "tcu_state" in io.where else {}
+        self.clutches = choices(codec, *io.where["active_clutch"]) if "active_clutch" in io.where else {}
         missing = {"IDLE", "ENGAGE", "CREEP", "HANDOVER", "STOPPED_OVERHEAT", "FAULT"} - set(self.states)
         if missing or {"NONE", "CL", "CH"} - set(self.clutches):
-            raise ProtocolError(f"DBC TCU_STATUS lacks VAL_ entries the TCU needs: {sorted(missing)}")
+            raise ProtocolError(f"DBC {io.names[4]} lacks VAL_ entries the TCU needs: "
+                                f"{sorted(missing or {'NONE', 'CL', 'CH'} - set(self.clutches))}")
+        # the plant's values in the TCU's units (see inputs): (index of the message in REQUIRED, signal, k, c)
+        self._inputs = io.inputs
+        self._v_index = io.inputs[4][0]  # the message of VehicleSpeed (its counter: the speed vote)
         # the TCU's time of the frames it sends (fault windows): the tick's time (the float of its decimal, from whole
         # ms, as the plant's clock), or run time; < 0 before
         self.now = -1.0
@@ -117,7 +109,7 @@ class TcuRunner:
         # (outputs, echo, counter) -> frame data, by message (the controller's outputs in the DBC's values and units)
         names = {"states": self.states, "clutches": self.clutches}
         self._frame_data = {name: codec.expression_encoder(name, ("out", "echo"), values, names)
-                            for name, values in TX_VALUES.items()}
+                            for name, values in io.tx_values.items()}
         self._required_of: RxMonitor | None = None  # see inputs
         self._required: tuple[RxState, ...] = ()
         # VehicleSpeed voted against the clutch outputs' speeds (ecu_stub.plausibility) with the calibration's speed
@@ -133,22 +125,18 @@ class TcuRunner:
         self._brake_full_mps2, self._decel_q_mps2 = math.inf, 0.0
         cal = getattr(self.controller, "cal", None)
         if isinstance(cal, TcuCalibration):
-            def scale(message: str, signal: str) -> float:
-                return float(codec.message(message).get_signal_by_name(signal).scale)
+            step = io.step  # a signal's step in the TCU's unit, by quantity
 
             self._brake_full_mps2 = cal.vehicle.brake_decel_mps2
-            self._decel_q_mps2 = 0.5 * scale("TCU_CMD", "DecelRequest")
-            self.speed_vote = SpeedVoter(cal.CL.speed_ratio_m, cal.CH.speed_ratio_m,
-                                         scale("PLANT_VEHICLE", "VehicleSpeed"),
-                                         max(scale("PLANT_SPEEDS", "CLOutputSpeed"),
-                                             scale("PLANT_SPEEDS", "CHOutputSpeed")),
-                                         codec.cycle_time("PLANT_VEHICLE"),
-                                         codec.protection("PLANT_VEHICLE").counter_modulus or 16)  # (0: no counter)
+            self._decel_q_mps2 = 0.5 * step("decel_request")
+            vehicle = io.message("v")
+            self.speed_vote = SpeedVoter(cal.CL.speed_ratio_m, cal.CH.speed_ratio_m, step("v"),
+                                         max(step("omega_CL"), step("omega_CH")), codec.cycle_time(vehicle),
+                                         codec.protection(vehicle).counter_modulus or 16)  # (0: no counter)
             self.sensor_checks = SensorChecks(
-                cal.strategy.hydraulic_lag_s, 0.5 * (scale("PLANT_PRESSURE", "P_CL") + scale("TCU_CMD", "P_CL_Cmd")),
+                cal.strategy.hydraulic_lag_s, 0.5 * (step("P_CL") + step("P_CL_cmd")),
                 cal.vehicle.input_ratio,
-                0.5 * (scale("PLANT_SPEEDS", "ClutchInputSpeed") + scale("PLANT_ENGINE", "EngineSpeed")
-                       / cal.vehicle.input_ratio),
+                0.5 * (step("omega_in") + step("omega_e") / cal.vehicle.input_ratio),
                 {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))},
                 {c: k.K_plate_oil_w_k * k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) / k.C_plate_j_k
                  for c, k in (("CL", cal.CL), ("CH", cal.CH))},
@@ -162,12 +150,12 @@ class TcuRunner:
             request_id, response_id = diag_ids(codec.db)
             self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, self.states,
                                    self.clutches, cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
-                                   else math.nan, repr(cal))
+                                   else math.nan, repr(cal), messages=io.renames(SHIPPED))
         # XCP on its own IDs (ecu_stub.xcp): ``xcp(runner, send)`` builds the slave; None: no XCP
         self.xcp: SidePort | None = xcp(self, self._send_diag) if xcp is not None else None
-        self.link = LockstepResponder(codec, TCU_RX, TCU_TX, REQUIRED, step=self._step, restart=self._restart,
+        self.link = LockstepResponder(codec, io.rx, io.tx, io.required, step=self._step, restart=self._restart,
                                       send=self._send_one, recv=self._diag_recv(recv),
-                                      on_taken=self._taken if listeners else None)
+                                      on_taken=self._taken if listeners else None, names=io.names)
 
     # the bus side, kept by the lock-step end
     @property
@@ -202,24 +190,26 @@ class TcuRunner:
                 if n:
                     faults |= FAULT_BITS.get(reason, 0)
         if rx is not self._required_of:  # the states of REQUIRED, looked up once per receive monitor
-            self._required_of, self._required = rx, tuple(rx.states[name] for name in REQUIRED)
+            self._required_of, self._required = rx, tuple(rx.states[name] for name in self.io.required)
         required = self._required
         if not all_valid(required, now):
             return TcuInputs(plant_valid=False, fault_bits=faults)
-        e, s, v, p, o, d = [state.values for state in required]
-        v_mps, vote = v["VehicleSpeed"], self.speed_vote
+        # the plant's values in the TCU's units (ecu_stub.tcu_io.INPUTS' order): as they are where k is 1
+        values = [state.values for state in required]
+        (engine, clutch_in, cl_out, ch_out, v_mps, accel, P_CL, P_CH, T_CL, T_CH, T_sump, creep, pedal,
+         desired) = [values[i][signal] if k == 1.0 and c == 0.0 else values[i][signal] * k + c
+                     for i, signal, k, c in self._inputs]
+        vote = self.speed_vote
         verdict = Verdict.OK
         if vote is not None:
-            verdict, v_mps = vote.update(v_mps, s["CLOutputSpeed"], s["CHOutputSpeed"], now, required[2].last_counter,
-                                         self._brake_mps2(d["BrakePedal"], now))
+            verdict, v_mps = vote.update(v_mps, cl_out, ch_out, now, required[self._v_index].last_counter,
+                                         self._brake_mps2(pedal, now))
         if verdict is not Verdict.OK:  # a sensor fault: VehicleSpeed replaced by the shafts' speed, or none trusted
             faults |= FAULT_IMPLAUSIBLE
             if verdict is Verdict.FAULT:
                 self.implausible["speeds"] += 1
                 return TcuInputs(plant_valid=False, fault_bits=faults)  # FAULT: clutches open, brake requested
             self.implausible["VehicleSpeed"] += 1
-        clutch_in, P_CL, P_CH, T_CL, T_CH = s["ClutchInputSpeed"], p["P_CL"], p["P_CH"], o["T_OilCL"], o["T_OilCH"]
-        cl_out, ch_out = s["CLOutputSpeed"], s["CHOutputSpeed"]
         if vote is not None and vote.outvoted:  # an output speed out-voted: the vehicle's, through its ratio (the slip)
             faults |= FAULT_IMPLAUSIBLE
             if vote.outvoted == "CL":
@@ -231,17 +221,15 @@ class TcuRunner:
         trusted = True
         if (checks := self.sensor_checks) is not None:
             P_CL, P_CH, clutch_in, T_CL, T_CH, failing = checks.check(
-                P_CL, P_CH, clutch_in, e["EngineSpeed"], T_CL, T_CH, o["T_Sump"],
+                P_CL, P_CH, clutch_in, engine, T_CL, T_CH, T_sump,
                 getattr(self.controller, "T_pred", None), now)
             if failing:  # a sensor fault: the value replaced by a conservative one
                 faults |= FAULT_IMPLAUSIBLE
                 for name in failing:
                     self.implausible[name] += 1
                 trusted = "P_CL" not in failing and "P_CH" not in failing
-        return TcuInputs(True, e["EngineSpeed"], clutch_in, cl_out, ch_out,
-                         v_mps, P_CL, P_CH, T_CL, T_CH, o["T_Sump"],
-                         d["CreepRequest"] >= 0.5, d["BrakePedal"], d["DesiredCreepSpeed"], faults, trusted,
-                         v["LongAccel"])
+        return TcuInputs(True, engine, clutch_in, cl_out, ch_out, v_mps, P_CL, P_CH, T_CL, T_CH, T_sump, creep >= 0.5,
+                         pedal, desired, faults, trusted, accel)
 
     def _brake_mps2(self, pedal_pct: float, now: float) -> float:
         """The most deceleration a brake may add now [m/s^2] (the speed vote's step check,
@@ -283,7 +271,7 @@ class TcuRunner:
             self.sensor_checks.commanded(out.P_CL_cmd_mpa, out.P_CH_cmd_mpa)
         tx, frames = link.tx, []
         due = tx.due_ms(tick_ms) if lockstep else tx.due(now)  # lock-step: whole ms
-        for name in TX_VALUES:  # TCU_STATUS, then TCU_CMD
+        for name in self._frame_data:  # TCU_STATUS, then TCU_CMD (the command last)
             if name in due:
                 frames.append((tx.ids[name], self._frame_data[name](out, echo, tx.next_counter(name))))
         if self.listeners:

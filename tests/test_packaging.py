@@ -18,7 +18,7 @@ import pytest
 import dsg_hil
 from dsg_hil.protocol.codec import DEFAULT_DBC
 from dsg_hil.e2e.vcan import ENV_REQUIRE
-from dsg_hil.protocol.binding import DEFAULT_BINDING
+from dsg_hil.protocol.binding import DEFAULT_BINDING, SIM_DATABASE
 from dsg_hil.common.build import COMPILED, EXPECT_ENV, build, compiled_modules as loaded_modules
 from dsg_hil.sweep.code import CODE_PACKAGES, digest_of
 
@@ -39,6 +39,12 @@ def test_dbc_resource_is_a_real_file_loadable_as_a_resource():
 def test_dbc_resource_is_identical_to_the_top_level_dbc():
     assert DEFAULT_DBC.read_bytes() == TOP_DBC.read_bytes(), \
         "dsg_hil/data/dsg_hil.dbc and dbc/dsg_hil.dbc differ: copy one onto the other"
+
+
+@pytest.mark.skipif(not TOP_DBC.exists(), reason="dbc/ is in the source tree only")
+def test_simulation_database_resource_is_identical_to_the_top_level_one():
+    assert SIM_DATABASE.read_bytes() == (ROOT / "dbc" / "dsg_hil_sim.dbc").read_bytes(), \
+        "dsg_hil/data/dsg_hil_sim.dbc and dbc/dsg_hil_sim.dbc differ: copy one onto the other"
 
 
 @pytest.mark.skipif(not TOP_DBC.exists(), reason="dbc/ is in the source tree only")

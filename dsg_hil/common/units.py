@@ -24,6 +24,15 @@ class CV:
     # pressure
     MPA_TO_PA = 1e6
     PA_TO_MPA = 1.0 / MPA_TO_PA
+    KPA_TO_PA = 1e3
+    BAR_TO_PA = 1e5
+
+    # speed
+    KMH_TO_MPS = 1.0 / 3.6
+    MPS_TO_KMH = 3.6
+
+    # temperature (an offset: a value in K less this is the value in degC)
+    ZERO_C_IN_K = 273.15
 
     # energy and power
     KJ_TO_J = 1e3

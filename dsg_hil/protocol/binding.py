@@ -15,9 +15,13 @@ The file::
     tick = "SIM_SYNC.Tick"
     echo = "TCU_CMD.SyncEcho"
 
+    [simulation]                        # optional: the simulation database's messages (SIM_SYNC, the truth)
+    ids = { SIM_SYNC = 0x7E0, SIM_TRUTH_CL = 0x7A0 }   # added to the matrix on these IDs (:data:`SIM_DATABASE`)
+
     [messages.TCU_CMD]                  # optional, per message: the database's cycle time overridden, protection
     cycle_time_ms = 10
-    timeout_ms = 30                     # a message the plant reads: its receive timeout (default 3 cycle times)
+    timeout_ms = 30                     # its receiver's timeout, the plant's for a message it reads, the TCU's
+                                        # (ecu-stub's) for one the plant sends (default 3 cycle times)
     protection = { profile = "dsg-hil" }   # none, dsg-hil, P01, P02, P05, P11 (:mod:`.profiles`)
 
 A quantity's value is the signal's physical value (the database's scaling) in the signal's unit, converted to the
@@ -31,11 +35,14 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping
+import copy
 from dataclasses import dataclass, field
+from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import cantools
 from cantools.database.can import Database
 
 from ..common.units import CV
@@ -44,10 +51,13 @@ from .e2e import ProtectionError
 from .profiles import protection_for
 from .ranges import signal_range
 
-__all__ = ["DEFAULT_BINDING", "QUANTITIES", "UNITS", "Binding", "BindingError", "Quantity", "check_binding",
-           "conversion", "load_binding"]
+__all__ = ["DEFAULT_BINDING", "QUANTITIES", "SIM_DATABASE", "UNITS", "Binding", "BindingError", "Quantity",
+           "check_binding", "conversion", "load_binding", "shipped_binding"]
 
 DEFAULT_BINDING = resources.files("dsg_hil") / "data" / "dsg_hil.binding.toml"  # of dbc/dsg_hil.binding.toml
+# the simulation database (of dbc/dsg_hil_sim.dbc): the lock-step tick (SIM_SYNC) and the truth frames, which a
+# binding's [simulation] table adds to a matrix that lacks them, on IDs of its choosing
+SIM_DATABASE = resources.files("dsg_hil") / "data" / "dsg_hil_sim.dbc"
 
 
 class BindingError(ProtocolError):
@@ -128,13 +138,13 @@ STATUS = ("tcu_state", "active_clutch", "brake_request", "T_CL_pred", "T_CH_pred
 UNITS: dict[str, tuple[str, float, float]] = {
     "rad/s": ("angular speed", 1.0, 0.0), "rpm": ("angular speed", CV.RPM_TO_RAD_S, 0.0),
     "r/min": ("angular speed", CV.RPM_TO_RAD_S, 0.0), "1/min": ("angular speed", CV.RPM_TO_RAD_S, 0.0),
-    "Pa": ("pressure", 1.0, 0.0), "kPa": ("pressure", 1e3, 0.0), "bar": ("pressure", 1e5, 0.0),
+    "Pa": ("pressure", 1.0, 0.0), "kPa": ("pressure", CV.KPA_TO_PA, 0.0), "bar": ("pressure", CV.BAR_TO_PA, 0.0),
     "MPa": ("pressure", CV.MPA_TO_PA, 0.0),
-    "m/s": ("speed", 1.0, 0.0), "km/h": ("speed", 1.0 / 3.6, 0.0),
+    "m/s": ("speed", 1.0, 0.0), "km/h": ("speed", CV.KMH_TO_MPS, 0.0),
     "m/s2": ("acceleration", 1.0, 0.0), "m/s^2": ("acceleration", 1.0, 0.0),
     "Nm": ("torque", 1.0, 0.0), "N m": ("torque", 1.0, 0.0), "N.m": ("torque", 1.0, 0.0),
     "W": ("power", 1.0, 0.0), "kW": ("power", CV.KW_TO_W, 0.0),
-    "degC": ("temperature", 1.0, 0.0), "°C": ("temperature", 1.0, 0.0), "K": ("temperature", 1.0, -273.15),
+    "degC": ("temperature", 1.0, 0.0), "°C": ("temperature", 1.0, 0.0), "K": ("temperature", 1.0, -CV.ZERO_C_IN_K),
     "1": ("ratio", 1.0, 0.0), "-": ("ratio", 1.0, 0.0), "": ("ratio", 1.0, 0.0),
     "%": ("ratio", CV.PERCENT_TO_FRACTION, 0.0),
 }
@@ -157,7 +167,8 @@ class Binding:
     * ``tx``/``rx``: by message the plant sends/reads (``send``'s order), its signals used, in the database's order;
     * ``signals``: (message, signal) -> (quantity, factor); ``offsets``: the ones with an offset (K to degC);
     * ``sync``: (message, signal) of the lock-step tick; ``echo``: of the TCU's echo of it;
-    * ``cycle_times_ms``: the overridden cycle times; ``timeouts_ms``: the receive timeouts given (messages read);
+    * ``cycle_times_ms``: the overridden cycle times; ``timeouts_ms``: the receive timeouts given (the plant's of
+      the messages it reads, the TCU's of the ones it sends);
       ``protection``: by message, its protection table;
     * ``units``: by quantity mapped, the signal's unit.
     """
@@ -242,6 +253,13 @@ def load_binding(path: str | Path | None = None, db: Database | None = None,
     return binding
 
 
+@cache
+def shipped_binding() -> Binding:
+    """The shipped binding on the shipped DBC, loaded once (the plant's and the TCU's tables of it are made from
+    this one): read it, do not change its database."""
+    return load_binding()
+
+
 def check_binding(path: str | Path | None = None, db: Database | None = None,
                   dbc: str | Path | None = None) -> tuple[Binding | None, list[str]]:
     """(the binding, []) or (None, every problem, one line each, naming the file and the key): a message or signal
@@ -260,9 +278,11 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
         problems.append(f"{name}: {text}")
 
     try:
-        unknown = sorted(set(data) - {"send", "read", "quantities", "lockstep", "messages"})
+        unknown = sorted(set(data) - {"send", "read", "quantities", "lockstep", "messages", "simulation"})
         if unknown:
-            raise _fail(name, f"unknown key {unknown[0]!r} (send, read, quantities, lockstep, messages)")
+            raise _fail(name, f"unknown key {unknown[0]!r} (send, read, quantities, lockstep, messages, simulation)")
+        if "simulation" in data:
+            _add_simulation(name, data["simulation"], db, problems)
         send, read = _names(name, data, "send", db, problems), _names(name, data, "read", db, problems)
         both = sorted(set(send) & set(read))
         if both:
@@ -312,7 +332,7 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
             if carrier is not None and quantity in where and where[quantity] != carrier:
                 problem(f"quantities.{quantity}: must be in {carrier}, with "
                         f"{'the lock-step echo' if group is COMMAND else 'tcu_state'}")
-    cycle_times, protection, timeouts = _messages(name, data.get("messages", {}), [*send, sync[0], *read], read, db,
+    cycle_times, protection, timeouts = _messages(name, data.get("messages", {}), [*send, sync[0], *read], sync[0], db,
                                                   problems)
     for message_name in (*send, sync[0], *read):
         carrier_message = db.get_message_by_name(message_name)
@@ -343,6 +363,46 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
     return Binding(name, db, tx, rx, {key: mapped[key][:2] for key in order},
                    {key: mapped[key][2] for key in order if mapped[key][2] != 0.0}, sync, echo, cycle_times,
                    protection, units, timeouts), []
+
+
+def _add_simulation(path: str, table: object, db: Database, problems: list[str]) -> None:
+    """The ``simulation`` table: each message of ``ids`` copied from :data:`SIM_DATABASE` into ``db`` on its ID.
+    An ID the matrix uses (a message's, or its diagnostic request or response ID), one given twice, a message the
+    matrix has already or the simulation database lacks: a problem each (appended to ``problems``; not added)."""
+    if not isinstance(table, dict) or set(table) != {"ids"} or not isinstance(table["ids"], dict):
+        raise _fail(path, "simulation must be a table with ids = { MESSAGE = ID, ... } (the simulation "
+                          "database's messages to add, on these IDs)")
+    simulation = cantools.database.load_string(SIM_DATABASE.read_text(encoding="utf-8"), "dbc", strict=True)
+    assert isinstance(simulation, Database)
+    taken = {m.frame_id: f"the ID of {m.name} in the matrix" for m in db.messages}
+    attributes = db.dbc.attributes if db.dbc is not None else {}
+    for attribute, what in (("DiagRequestId", "diagnostic request"), ("DiagResponseId", "diagnostic response")):
+        if attribute in attributes:
+            taken.setdefault(int(attributes[attribute].value), f"the matrix's {what} ID ({attribute})")
+    added = []
+    for message_name, frame_id in table["ids"].items():
+        key = f"simulation.ids.{message_name}"
+        try:
+            message = copy.deepcopy(simulation.get_message_by_name(message_name))
+        except KeyError:
+            names = ", ".join(m.name for m in simulation.messages)
+            problems.append(f"{path}: {key}: not a message of the simulation database ({names})")
+            continue
+        if isinstance(frame_id, bool) or not isinstance(frame_id, int) or not 0 <= frame_id <= 0x7FF:
+            problems.append(f"{path}: {key} must be an 11-bit CAN ID (0x0-0x7FF), got {frame_id!r}")
+            continue
+        if any(m.name == message_name for m in db.messages):
+            problems.append(f"{path}: {key}: the matrix has a message {message_name} already")
+            continue
+        if frame_id in taken:
+            problems.append(f"{path}: {key}: 0x{frame_id:X} is {taken[frame_id]}")
+            continue
+        message.frame_id = frame_id
+        taken[frame_id] = f"{message_name}'s too"
+        added.append(message)
+    if added:
+        db.messages.extend(added)
+        db.refresh()
 
 
 def _num(value: float) -> str:
@@ -378,7 +438,7 @@ def _quantity(path: str, quantity: str, entry: object, db: Database, send: list[
     return key, (message, signal, unit, *converted)
 
 
-def _messages(path: str, table: object, known: list[str], read: list[str], db: Database, problems: list[str]
+def _messages(path: str, table: object, known: list[str], tick: str, db: Database, problems: list[str]
               ) -> tuple[dict[str, int], dict[str, dict[str, object]], dict[str, int]]:
     """The ``messages`` table: cycle times, protection and timeouts by message; its problems appended to
     ``problems``."""
@@ -402,9 +462,9 @@ def _messages(path: str, table: object, known: list[str], read: list[str], db: D
             value = entry[field_name]
             if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
                 problems.append(f"{path}: {key}.{field_name} must be a whole number of ms above 0, got {value!r}")
-            elif field_name == "timeout_ms" and message not in read:
-                problems.append(f"{path}: {key}.timeout_ms: the plant does not read {message} (a timeout is "
-                                f"the receiver's)")
+            elif field_name == "timeout_ms" and message == tick:
+                problems.append(f"{path}: {key}.timeout_ms: the lock-step tick has no receive timeout (the TCU "
+                                f"waits for it)")
             else:
                 values[message] = value
         if "protection" in entry:

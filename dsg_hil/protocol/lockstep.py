@@ -342,7 +342,8 @@ class LockstepResponder:
     control step at ``now`` and returns the answer's frames (TCU_STATUS when due, TCU_CMD with SyncEcho ``echo``
     last), unsent; ``restart(now)``: a run starts (a fresh controller) whose next step comes after ``now``;
     ``send(frame_id, data)``, ``recv(timeout)`` as :func:`frame_io` gives them; ``on_taken(frame_id, data,
-    stamp)``: each new plant frame but the probe (for a log).
+    stamp)``: each new plant frame but the probe (for a log). ``names``: the tick's message and signal, the
+    command's message and its echo signal, the status message (a binding's; default the shipped DBC's).
 
     Lock-step is decided by the plant: ``lockstep`` is set by the first tick or probe. In lock-step, time is the
     plant's: frames arriving before a tick belong to it (their time the previous tick's + one cycle), so validity
@@ -356,14 +357,16 @@ class LockstepResponder:
     def __init__(self, codec: Codec, receives: Iterable[str], sends: Iterable[str], required: Iterable[str], *,
                  step: Callable[[float, int], Frames], restart: Callable[[float], None],
                  send: Callable[[int, bytes], object], recv: Callable[[float], Received | None],
-                 on_taken: Callable[[int, bytes, float], None] | None = None) -> None:
+                 on_taken: Callable[[int, bytes, float], None] | None = None,
+                 names: tuple[str, str, str, str, str] = (SYNC, TICK, CMD, ECHO, STATUS)) -> None:
         self.codec = codec
+        self._sync_name, self._tick_name, self._cmd_name, self._echo_name, _ = names
         self._receives, self._sends = list(receives), list(sends)
         self._step, self._restart, self._send, self._recv, self._on_taken = step, restart, send, recv, on_taken
         self.rx = RxMonitor(codec, self._receives)
         self.tx = TxScheduler(codec, self._sends)
-        self.probe = probe_tick(codec)
-        self.cycle = codec.cycle_time(CMD)
+        self.probe = probe_tick(codec, self._sync_name, self._tick_name)
+        self.cycle = codec.cycle_time(self._cmd_name)
         self.lockstep = False
         self.tick = 0  # the last tick answered (-1 after the probe: the next is tick 0)
         self.heard_at: float | None = None  # when the plant was first heard
@@ -379,7 +382,7 @@ class LockstepResponder:
         self._answered_early = False  # the tick answered came before its last plant frame (see handle_data)
         self._due_every: dict[str, int] = {}  # by plant message: due at every n-th tick (a whole n only)
         for name in required:
-            every, rest = divmod(codec.cycle_time_ms(name), codec.cycle_time_ms(CMD))
+            every, rest = divmod(codec.cycle_time_ms(name), codec.cycle_time_ms(self._cmd_name))
             if not rest:
                 self._due_every[name] = every
         self._taken_in: dict[str, int] = {}  # by plant message: its last new frame came after tick n - 1's answer
@@ -420,7 +423,7 @@ class LockstepResponder:
         assert frame is not None  # NEW and DUPLICATE come decoded
         if self.heard_at is None:
             self.heard_at = now
-        if frame.name != SYNC:
+        if frame.name != self._sync_name:
             if status == NEW:
                 self._taken_in[frame.name] = self.tick + 1
                 if self._on_taken is not None:
@@ -429,13 +432,13 @@ class LockstepResponder:
                     self._answer_tick(self._pending)
                     self._answered_early = True
             return True
-        tick = int(frame.values[TICK])
+        tick = int(frame.values[self._tick_name])
         if status == NEW and self._on_taken is not None and tick != self.probe:
             self._on_taken(frame_id, data, stamp)
         if tick == self.probe:
             if self._answered != self.probe:
                 self._reset()
-            self.rx.states[SYNC].forget()  # the plant's ticks restart their counter after the handshake
+            self.rx.states[self._sync_name].forget()  # the plant's ticks restart their counter after the handshake
         if tick == self._answered:  # a repeated tick (its answer was lost or late): the same frames again
             if self._answered_early:  # the tick of a re-sent period whose frame just completed it: answered
                 self._answered_early = False
@@ -470,7 +473,8 @@ class LockstepResponder:
             log.info("SIM_SYNC seen: lock-step, answering each tick")
             self.lockstep = True
             self._restart(self.tick_time)
-            self.tx.next_due_ms = dict.fromkeys(self.tx.next_due_ms, self.tick * self.codec.cycle_time_ms(CMD))
+            self.tx.next_due_ms = dict.fromkeys(self.tx.next_due_ms,
+                                                self.tick * self.codec.cycle_time_ms(self._cmd_name))
             self._taken_in = dict.fromkeys(self._taken_in, tick)
             for state in self.rx.states.values():
                 if state.last_time is not None:
@@ -545,7 +549,8 @@ class LockstepResponder:
         self.tick = -1  # the next tick is tick 0
         self._taken_in, self._unconfirmed = {}, None
         self._restart(self.tick_time)
-        self._answer = [(self.tx.ids[CMD], self.tx.data(CMD, {ECHO: self.probe & 0xFF}))]
+        cmd = self._cmd_name
+        self._answer = [(self.tx.ids[cmd], self.tx.data(cmd, {self._echo_name: self.probe & 0xFF}))]
         self._answered, self._answer_sends = self.probe, 0
         self._pending, self._pending_sights, self._answered_early, self._incomplete_run = None, 0, False, 0
         self._outage = set()

@@ -13,7 +13,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any, get_type_hints
 
 from ..physics.plant import PlantOutputs
-from ..protocol.binding import load_binding
+from ..protocol.binding import load_binding, shipped_binding
 from ..protocol.codec import Codec
 from .scenario import DriverInput
 
@@ -146,7 +146,7 @@ def from_binding(binding: object) -> PlantIO:
     return PlantIO(b.tx, b.rx, b.signals, b.sync, b.echo, b.offsets)
 
 
-SHIPPED = plant_io()  # the shipped DBC with its binding
+SHIPPED = from_binding(shipped_binding())  # the shipped DBC with its binding
 PLANT_TX, PLANT_RX, SIGNALS, PLANT_USES = SHIPPED.tx, SHIPPED.rx, SHIPPED.signals, SHIPPED.uses
 SYNC, LOCKSTEP = SHIPPED.sync, SHIPPED.lockstep
 plant_signals = SHIPPED.plant_signals

@@ -43,7 +43,7 @@ from ..common.files import check_output_path
 from ..physics.params import Params, load_params, with_overrides
 from ..physics.plant import PlantOutputs
 from ..protocol import Codec, load_dbc
-from ..protocol.binding import load_binding
+from ..protocol.binding import Binding, load_binding
 from ..protocol.codec import ProtocolError
 from ..protocol.bus import FrameLog, bus_args, bus_name, has_fd, log_channel, open_bus
 from ..protocol.frame import FrameListener
@@ -90,6 +90,8 @@ class EcuStubProcess:
     faults: tuple[FaultSpec, ...] = ()
     fault_seed: int = 0
     calibration: str | None = None  # its calibration TOML (--calibration; None: the shipped one)
+    dbc: str | None = None  # the matrix and its binding (--dbc, --binding; None: the shipped ones)
+    binding: str | None = None
     idle_exit: float = 5.0
     quiet: bool = False  # errors and its closing counts only (ecu-stub --quiet)
     inherit_output: bool = True
@@ -100,6 +102,8 @@ class EcuStubProcess:
         if faults:
             faults += ["--fault-seed", str(self.fault_seed)]
         calibration = [] if self.calibration is None else ["--calibration", self.calibration]
+        calibration += [arg for option, path in (("--dbc", self.dbc), ("--binding", self.binding)) if path is not None
+                        for arg in (option, path)]
         quiet = ["--quiet"] if self.quiet else []
         return [sys.executable, "-m", "ecu_stub", *bus_args(dict(config)), "--idle-exit", f"{self.idle_exit:g}",
                 *calibration, *faults, *quiet]
@@ -254,28 +258,26 @@ class Run:
         """The plant's messages and signals on the DBC, their protection and receive timeouts [s]: the binding's
         (checked against the DBC: :class:`dsg_hil.protocol.binding.BindingError` naming the file), else the shipped
         DBC's."""
+        self.binding: Binding | None = None
         if self.config.binding is None:
             return SHIPPED, {}, {}
-        binding = load_binding(self.config.binding, db=self.db)
+        binding = self.binding = load_binding(self.config.binding, db=self.db)
         return from_binding(binding), binding.protection, {m: ms / 1000 for m, ms in binding.timeouts_ms.items()}
 
     def _check_bundled_tcu(self) -> None:
-        """The bundled TCU (ecu-stub) reads and sends the shipped DBC's messages and signals by name: a DBC without
-        them (another ECU's matrix, with its binding) fails here, naming the DBC, before anything is opened."""
+        """The bundled TCU (ecu-stub) on the run's matrix: its messages and signals from the same binding as the
+        plant's (:mod:`ecu_stub.tcu_io`); one it needs unmapped fails here, naming the binding file and the
+        quantity, before anything is opened."""
+        self.tcu_io: Any = None
         if self.config.tcu != ECU_STUB:
             return
-        from ecu_stub.runner import TCU_USES  # noqa: PLC0415 - the TCU's, when it is the bundled one
+        from ecu_stub.tcu_io import SHIPPED as SHIPPED_TCU  # noqa: PLC0415 - the TCU's, when it is the bundled one
+        from ecu_stub.tcu_io import TcuIO  # noqa: PLC0415
 
-        for message_name, signals in TCU_USES.items():
-            try:
-                message = self.db.get_message_by_name(message_name)
-                for signal in signals:
-                    message.get_signal_by_name(signal)
-            except KeyError:
-                name = "the DBC given" if isinstance(self.config.dbc, Database) else self.config.dbc
-                raise InputError(f"{name}: ecu-stub, the bundled TCU, speaks the shipped DBC's messages and signals "
-                                 f"by name, and this DBC has no {message_name} with them: run your ECU on the other "
-                                 f"end (dsg-hil plant)") from None
+        if self.binding is None and self.config.dbc is None:
+            self.tcu_io = SHIPPED_TCU
+            return
+        self.tcu_io = TcuIO(self.binding if self.binding is not None else load_binding(None, db=self.db))
 
     def _plant_codec(self) -> Codec:
         """The plant's codec: a DBC without a message or signal the plant sends or reads (the TCU's among them)
@@ -371,9 +373,13 @@ class Run:
         assert isinstance(process, TcuProcess)
         if isinstance(process, EcuStubProcess):
             # the TCU waits for a silent plant as long as the plant waits for a silent TCU
-            calibration = None if self.config.calibration is None else str(Path(self.config.calibration).resolve())
+            config = self.config  # (files as absolute paths; a loaded database is not passed on)
+            calibration, dbc, binding = (None if path is None or isinstance(path, Database) else
+                                         str(Path(path).resolve())
+                                         for path in (config.calibration, config.dbc, config.binding))
             return replace(process, faults=tuple(side), fault_seed=self.config.fault_seed, calibration=calibration,
-                           idle_exit=max(self.config.reply_timeout, 2.0), quiet=self.config.quiet)
+                           idle_exit=max(self.config.reply_timeout, 2.0), quiet=self.config.quiet,
+                           dbc=dbc or process.dbc, binding=binding or process.binding)
         if side:
             raise InputError(f"{side[0].origin}: changes the controller's frames: a controller process injects "
                              f"its own (ecu-stub: --fault)")
@@ -384,7 +390,7 @@ class Run:
         tcu = self.config.tcu
         factory = None if isinstance(tcu, str) or isinstance(tcu, TcuProcess) else tcu
         self.tcu, faulty = attach_tcu(self.runner, tcu_bus, self.db, self.faults_by_side["tcu"],
-                                      self.config.fault_seed, factory, self.calibration)
+                                      self.config.fault_seed, factory, self.calibration, self.tcu_io)
         if faulty is not tcu_bus:
             self._stack.callback(faulty.shutdown)
 
@@ -580,21 +586,26 @@ def answer_at_once(runner: PlantRunner) -> None:
 
 
 def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Iterable[FaultSpec], fault_seed: int,
-               tcu_factory: TcuFactory | None = None, calibration: Any = None) -> tuple[Any, can.BusABC]:
+               tcu_factory: TcuFactory | None = None, calibration: Any = None,
+               io: Any = None) -> tuple[Any, can.BusABC]:
     """A TCU in this process on ``bus``, its frames through the TCU-side ``faults`` (windows in the TCU's own time,
     its ``now``); the injector is registered on ``runner`` for the summary. Returns the TCU and its bus (``bus``
     behind the injector). Default TCU: the bundled ecu-stub, which knows the plant only by the DBC (with the
     plant's kind of codec) with ``calibration`` (an ``ecu_stub.calibration.TcuCalibration``; None: the shipped
-    one)."""
+    one), on the matrix as ``io`` (an ``ecu_stub.tcu_io.TcuIO``, of the run's binding; None: the shipped one)."""
     if tcu_factory is None:
         from ecu_stub.controller import CreepController  # noqa: PLC0415 - the TCU when one is attached
-        from ecu_stub.runner import TCU_USES, TcuRunner  # noqa: PLC0415
+        from ecu_stub.runner import TcuRunner  # noqa: PLC0415
+        from ecu_stub.tcu_io import SHIPPED as SHIPPED_TCU  # noqa: PLC0415
 
         reference = runner.codec.reference
         controller = None if calibration is None else CreepController(calibration)
+        tcu_io = io if io is not None else SHIPPED_TCU
 
         def tcu_factory(tcu_db: Database, tcu_bus: can.BusABC) -> Any:
-            return TcuRunner(Codec(tcu_db, TCU_USES, reference=reference), tcu_bus, controller)
+            codec = Codec(tcu_db, tcu_io.uses, reference=reference, protection=tcu_io.protection,
+                          timeouts=tcu_io.timeouts)
+            return TcuRunner(codec, tcu_bus, controller, io=tcu_io)
     built: list[Any] = []  # the TCU, once built: the fault clock reads its time
     tcu_bus, runner.injectors["tcu"] = with_faults(bus, db, faults, fault_seed, lambda: built[0].now)
     built.append(tcu_factory(db, tcu_bus))

@@ -106,7 +106,7 @@ def run_plant(controller: ControllerLike = None, *, scenario: Scenario | str | P
     process controller takes plant-side faults only (give it its own). ``out_dir``: where the log
     (``log``, by extension: ``.asc``, ``.blf``, ``.log`` ..., None for none) and the controller process's
     output go (needed for a log). ``dbc``, ``binding``: the communication matrix and which of its signals carry the
-    plant's quantities (None: the shipped pair; the bundled ecu-stub speaks the shipped DBC only). Raises
+    plant's quantities (None: the shipped pair; the bundled ecu-stub, ``controller`` None, reads the same pair). Raises
     :class:`~dsg_hil.sim.runner.PeerTimeout` when the controller never answers
     the presence probe, :class:`~dsg_hil.sim.runner.PeerLost` when it falls silent for ``reply_timeout`` s."""
     out = Path(out_dir) if out_dir is not None else None

@@ -54,12 +54,15 @@ class DiagServer:
     """Serves ``description`` on ``request_id``/``response_id``; ``send(frame_id, data)`` puts a frame on the bus
     (more than 8 bytes: CAN FD). ``states``/``clutches``: the DBC's value tables of TCU_STATUS; ``T_safe_c``: the
     calibration's safety temperature (the thermal margin's reference); ``calibration``: what identifies the
-    calibration (hashed into DID calibration_id)."""
+    calibration (hashed into DID calibration_id). ``messages``: the description's message names (the shipped
+    DBC's) as the matrix names them, where it names them otherwise (a binding's, :meth:`ecu_stub.tcu_io.TcuIO.renames`).
+    """
 
     def __init__(self, description: DiagDescription, request_id: int, response_id: int,
                  send: Callable[[int, bytes], None], states: Mapping[str, int], clutches: Mapping[str, int],
                  T_safe_c: float = float("nan"), calibration: str = "",
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, messages: Mapping[str, str] | None = None) -> None:
+        renamed = dict(messages or {})
         self.description, self.request_id, self.response_id = description, request_id, response_id
         self._send, self.clock = send, clock
         self.states, self.clutches, self.T_safe_c = states, clutches, T_safe_c
@@ -70,6 +73,8 @@ class DiagServer:
             if kind not in KINDS:
                 raise DiagError(f"dtc {dtc.code}: monitor {dtc.monitor!r}: not one of ecu-stub's "
                                 f"({', '.join(KINDS)})")
+            if kind in ("timeout", "e2e"):
+                argument = renamed.get(argument, argument)
             self.monitors.append((dtc.name, kind, argument))
         self.uds = UdsServer(description, self.memory, self.read_did)
         self.link = IsoTpServer(self._request)

@@ -162,8 +162,9 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # notblf.blf (text), short.log (a log of this DBC without the data a fit needs), afile (a file), outdir/ (an empty
 # directory), small.dbc (a DBC without the plant's messages), space.toml (a sweep space), badkey.toml and noctl.toml
 # (bad ones), nodid.toml (a diagnostic description whose DID lacks its id), nocmd.binding.toml (the shipped
-# binding without a quantity the plant needs), renamed.dbc and renamed.binding.toml (another matrix and its
-# binding: tests/sim/test_binding_run.py), long.dbc (the shipped DBC with a 9-byte classic message).
+# binding without a quantity the plant needs), noaccel.binding.toml (without one only ecu-stub reads), renamed.dbc
+# and renamed.binding.toml (another matrix and its binding: tests/sim/test_binding_run.py), simclash.binding.toml
+# (that binding adding SIM_SYNC on an ID of the matrix's), long.dbc (the shipped DBC with a 9-byte classic message).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -246,14 +247,25 @@ CASES = [
      "nocmd.binding.toml: send: message PLANT_ENGINE is not in the database"),
     ("dsg-hil", ["report", "--binding", "nosuch.toml", "--out", "outdir"], "file", ERROR,
      "nosuch.toml: binding file not found"),
-    ("dsg-hil", ["run", *BUS, "--dbc", "renamed.dbc", "--binding", "renamed.binding.toml", *OUT], "file", ERROR,
-     "renamed.dbc: ecu-stub, the bundled TCU, speaks the shipped DBC's messages and signals by name"),
+    ("dsg-hil", ["run", *BUS, "--binding", "noaccel.binding.toml", *OUT], "file", ERROR,
+     "noaccel.binding.toml: quantities.a_x: not mapped, and ecu-stub reads it"),
+    # ecu-stub on a matrix: the same pair of files as the plant's, checked before the bus opens
+    ("ecu-stub", [*BUS, "--binding", "nosuch.toml", "--log", "t.log"], "file", ERROR,
+     "nosuch.toml: binding file not found"),
+    ("ecu-stub", [*BUS, "--binding", "noaccel.binding.toml", "--log", "t.log"], "file", ERROR,
+     "noaccel.binding.toml: quantities.a_x: not mapped, and ecu-stub reads it"),
+    ("ecu-stub", [*BUS, "--dbc", "renamed.dbc", "--log", "t.log"], "file", ERROR,
+     "renamed.dbc: does not fit the shipped binding: give its own (--binding);"),
+    ("ecu-stub", [*BUS, "--dbc", "small.dbc", "--binding", "renamed.binding.toml", "--log", "t.log"], "file", ERROR,
+     "renamed.binding.toml: send: message EMS_Engine is not in the database"),
     ("dsg-hil", ["binding", "check", "nosuch.dbc", "nocmd.binding.toml"], "file", ERROR,
      "nosuch.dbc: DBC file not found"),
     ("dsg-hil", ["binding", "check", "small.dbc", "nosuch.toml"], "file", ERROR,
      "nosuch.toml: binding file not found"),
     ("dsg-hil", ["binding", "check", "long.dbc", str(DEFAULT_BINDING)], "file", ERROR,
      "message PLANT_OIL_TEMP: 9 bytes on classic CAN (at most 8): a CAN FD message needs VFrameFormat CAN_FD"),
+    ("dsg-hil", ["binding", "check", "renamed.dbc", "simclash.binding.toml"], "file", ERROR,
+     "simclash.binding.toml: simulation.ids.SIM_SYNC: 0xC0 is the ID of EMS_Engine in the matrix"),
     ("dsg-hil", ["binding", "list", "small.dbc", "nosuch.toml"], "option", USAGE,
      "argument action: invalid choice: 'list'"),
     ("dsg-hil", ["run", "-i", "udp_multicast", "-c", "239.255.1.2", "--bus-kwargs", "port=abc", *OUT], "option",
@@ -331,7 +343,11 @@ def write_inputs(where: Path) -> None:
                                      encoding="utf-8")  # a DBC, without the plant's messages
     (where / "long.dbc").write_text(DEFAULT_DBC.read_text(encoding="utf-8").replace(
         "BO_ 272 PLANT_OIL_TEMP: 8 ", "BO_ 272 PLANT_OIL_TEMP: 9 "), encoding="utf-8")  # 9 bytes, not CAN FD
-    write_renamed_pair(where)  # renamed.dbc, renamed.binding.toml: another matrix, the plant bound to it
+    _, renamed = write_renamed_pair(where)  # renamed.dbc, renamed.binding.toml: another matrix, the plant bound to it
+    (where / "simclash.binding.toml").write_text(renamed.read_text(encoding="utf-8") + "\n[simulation]\n"
+                                                 "ids = { SIM_SYNC = 0x0C0 }\n", encoding="utf-8")  # EMS_Engine's ID
+    (where / "noaccel.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
+        'a_x = "PLANT_VEHICLE.LongAccel"\n', ""), encoding="utf-8")  # without a quantity only ecu-stub reads
     (where / "nocmd.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
         'P_CL_cmd = "TCU_CMD.P_CL_Cmd"\n', ""), encoding="utf-8")  # the shipped binding without a command
     space = 'name = "t"\nn = 2\nduration_s = 1.0\n[inputs]\ngrade_rad = {uniform = [-0.15, 0.1]}\n'

@@ -190,6 +190,48 @@ def test_the_binding_check_prints_the_guide_s_columns(tmp_path: Path) -> None:
     check_shown(shown, done.stdout)
 
 
+def test_the_binding_guide_s_run_moves_both_ends(tmp_path: Path) -> None:
+    """Its first line with another matrix and its binding for my_ecu's (the renamed pair of
+    tests/sim/test_binding_run.py: every name and ID other, km/h, kPa, K): the in-process ecu-stub on that matrix
+    creeps as on the shipped pair, nothing rejected (the ecu-stub line needs vcan0: parsed by test_blocks.py)."""
+    from tests.sim.test_binding_run import write_renamed_pair
+
+    line = sh_block("docs/how-to/binding.md", "dsg-hil run --dbc my_ecu.dbc")[0]
+    dbc, binding = write_renamed_pair(tmp_path)
+    other = run(line, tmp_path, {"my_ecu.dbc": str(dbc), "my_ecu.binding.toml": str(binding)})
+    assert other.returncode == 0, other.stderr[-2000:]
+    theirs = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
+    shipped = run(line, tmp_path, {"my_ecu.dbc": str(ROOT / "dbc" / "dsg_hil.dbc"),
+                                   "my_ecu.binding.toml": str(ROOT / "dbc" / "dsg_hil.binding.toml")})
+    assert shipped.returncode == 0, shipped.stderr[-2000:]
+    ours = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
+    assert "TCU_Command" in theirs["frames"]["by_message"] and theirs["frames"]["rejected"] == 0
+    assert theirs["frames"]["by_message"]["TCU_Command"]["taken"] > 0
+    assert len(theirs["handovers"]) == len(ours["handovers"]) >= 1
+    assert theirs["max_plate_temp_c"].keys() == ours["max_plate_temp_c"].keys()
+    assert all(abs(theirs["max_plate_temp_c"][k] - t) < 0.01 for k, t in ours["max_plate_temp_c"].items())
+    assert abs(theirs["creep_time_s"] - ours["creep_time_s"]) < 0.011
+
+
+def test_the_simulation_block_adds_the_simulation_database_s_messages() -> None:
+    """The page's [simulation] table names every message of the simulation database, each on its own 11-bit ID,
+    and its [lockstep] table has the shipped binding's keys with the tick on SIM_SYNC's signal."""
+    import cantools
+
+    from dsg_hil.protocol.binding import DEFAULT_BINDING
+
+    (block,) = [b for b in blocks("docs/how-to/binding.md", "toml") if b.startswith("[simulation]")]
+    shown = tomllib.loads(block)
+    sim = cantools.database.load_file(str(ROOT / "dbc" / "dsg_hil_sim.dbc"))
+    ids = shown["simulation"]["ids"]
+    assert set(ids) == {m.name for m in sim.messages}
+    assert len(set(ids.values())) == len(ids) and all(0 <= i < 0x800 for i in ids.values())
+    shipped = tomllib.loads(DEFAULT_BINDING.read_text(encoding="utf-8"))
+    assert set(shown["lockstep"]) == set(shipped["lockstep"])
+    message, signal_name = shown["lockstep"]["tick"].split(".")
+    assert signal_name in {s.name for s in sim.get_message_by_name(message).signals}
+
+
 def test_the_example_matrix_passes_the_binding_check() -> None:
     """The binding guide's check of the CAN FD example, from the checkout's root as the page's paths are: exit 0,
     each CAN FD message shown with its frame."""

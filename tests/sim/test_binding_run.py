@@ -1,25 +1,27 @@
-"""The plant on another communication matrix by configuration alone: a copy of the shipped DBC with every message
+"""Both ends on another communication matrix by configuration alone: a copy of the shipped DBC with every message
 and signal renamed, every ID moved and scalings changed (vehicle speed in km/h, the clutch pressures in kPa, the
-TCU's predicted plate temperatures in K), with its binding, runs the shipped creep in lock-step. ecu-stub speaks
-the shipped DBC only, so it answers through a gateway that decodes each frame with one matrix and encodes it with
-the other (:class:`Gateway`, quantities converted by the two bindings): the plant's frames, decoded with the
-renamed DBC and its binding, carry the physical values of the shipped pair's run."""
+TCU's predicted plate temperatures in K), with its binding, runs the shipped creep in lock-step, the plant and
+ecu-stub each reading the same pair of files: in one process, and as two processes (``dsg-hil plant`` and
+``ecu-stub``) on udp_multicast. The frames, decoded with the renamed DBC and its binding, carry the physical values
+of the shipped pair's run, and the plant's truth is the shipped run's."""
 
 from __future__ import annotations
 
-import itertools
+import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import can
 import pytest
 
-from dsg_hil.protocol import Codec, DecodedFrame, load_dbc
-from dsg_hil.protocol.binding import DEFAULT_BINDING, Binding, load_binding
+from dsg_hil.protocol.bus import UDP_MULTICAST, bus_args, fresh_udp_group
+
+from dsg_hil.protocol import load_dbc
+from dsg_hil.protocol.binding import DEFAULT_BINDING, Binding, check_binding, load_binding
 from dsg_hil.protocol.e2e import COUNTER, CRC
-from dsg_hil.protocol.logs import log_codec
 from dsg_hil.sim.run import RunConfig, open_run
-from ecu_stub.runner import TCU_USES, TcuRunner
 
 DURATION = 8.0  # s of the shipped creep: the TCU engages CL and creeps
 NEW = {  # shipped message -> (renamed, new ID)
@@ -36,7 +38,6 @@ NEW = {  # shipped message -> (renamed, new ID)
 RESCALED = {("PLANT_VEHICLE", "VehicleSpeed"): (3.6, 0.0, "km/h"), ("PLANT_PRESSURE", "P_CL"): (1e3, 0.0, "kPa"),
             ("PLANT_PRESSURE", "P_CH"): (1e3, 0.0, "kPa"), ("TCU_STATUS", "T_CL_Pred"): (1.0, 273.15, "K"),
             ("TCU_STATUS", "T_CH_Pred"): (1.0, 273.15, "K")}
-_channels = itertools.count()
 
 
 def renamed(signal: str) -> str:
@@ -70,53 +71,6 @@ def write_renamed_pair(tmp_path: Path) -> tuple[Path, Path]:
     return dbc, binding
 
 
-def _roles(binding: Binding) -> dict[tuple[str, str], tuple[str, float, float]]:
-    """(message, signal) -> (role, factor, offset): a quantity's name, or the lock-step signal's."""
-    roles = {key: (quantity, factor, binding.offsets.get(key, 0.0)) for key, (quantity, factor)
-             in binding.signals.items()}
-    roles[binding.sync] = ("tick", 1.0, 0.0)
-    roles[binding.echo] = ("echo", 1.0, 0.0)
-    return roles
-
-
-class Gateway(can.BusABC):
-    """ecu-stub's end of the bus, in the shipped DBC: frames from the bus (the renamed matrix) decoded, their
-    quantities converted and encoded in the shipped matrix (the counter kept, the CRC the shipped one's), and back."""
-
-    def __init__(self, bus: can.BusABC, shipped: Binding, other: Binding) -> None:
-        super().__init__(channel="gateway")
-        self.bus = bus
-        self.codecs = {"shipped": log_codec(shipped.db), "other": log_codec(other.db)}
-        roles = {"shipped": _roles(shipped), "other": _roles(other)}
-        self.by_role = {side: {role: (m, s, f, o) for (m, s), (role, f, o) in table.items()}
-                        for side, table in roles.items()}
-        self.roles = roles
-
-    def _translate(self, msg: can.Message, source: str, target: str) -> can.Message:
-        codec = self.codecs[source]
-        try:
-            frame: DecodedFrame = codec.decode(msg.arbitration_id, bytes(msg.data))
-        except Exception:  # noqa: BLE001 - not a frame of the matrix: as it is
-            return msg
-        values: dict[str, float] = {}
-        name = None
-        for signal, value in frame.values.items():
-            role, factor, offset = self.roles[source][frame.name, signal]
-            name, new_signal, new_factor, new_offset = self.by_role[target][role]
-            values[new_signal] = (value * factor + offset - new_offset) / new_factor
-        assert name is not None
-        data = self.codecs[target].encode(name, values, frame.counter)
-        return can.Message(arbitration_id=self.codecs[target].frame_id(name), data=data, is_extended_id=False,
-                           timestamp=msg.timestamp)
-
-    def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self.bus.send(self._translate(msg, "shipped", "other"), timeout)
-
-    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        msg = self.bus.recv(timeout)
-        return (None if msg is None else self._translate(msg, "other", "shipped")), False
-
-
 def quantities(frames: list[can.Message], binding: Binding) -> dict[str, list[tuple[float, float]]]:
     """By quantity, its (time, value in SI) of every frame (decoded with the binding's DBC)."""
     out: dict[str, list[tuple[float, float]]] = {}
@@ -143,19 +97,10 @@ def runs(tmp_path_factory):
         shipped_summary = run.run().as_json()
     shipped_frames = run.frames
     shipped, other = load_binding(), load_binding(binding_path, dbc=dbc)
-
-    gateways: list[Gateway] = []
-
-    def tcu(db, bus):
-        gateways.append(Gateway(bus, shipped, other))
-        return TcuRunner(Codec(load_dbc(), TCU_USES), gateways[-1])
-
-    config = RunConfig(duration=DURATION, dbc=dbc, binding=binding_path, capture=True, truth=True, tcu=tcu,
-                       bus={"interface": "virtual", "channel": f"binding-run-{next(_channels)}"}, direct=False)
+    config = RunConfig(duration=DURATION, dbc=dbc, binding=binding_path, capture=True, truth=True)
     with open_run(config) as run:
+        assert run.tcu.io.names[:4] == ("SIM_Step", "sTick", "TCU_Command", "sSyncEcho")  # ecu-stub, renamed
         other_summary = run.run().as_json()
-    for gateway in gateways:
-        gateway.shutdown()
     return (shipped, shipped_frames, shipped_summary), (other, run.frames, other_summary)
 
 
@@ -195,6 +140,51 @@ def test_the_creep_on_the_renamed_matrix_is_the_shipped_one(runs):
     assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0 and b["frames"]["received"] > 800
 
 
+def test_plant_and_ecu_stub_as_two_processes_on_the_renamed_matrix(tmp_path, runs):
+    """``dsg-hil plant`` and ``ecu-stub``, each given ``--dbc renamed.dbc --binding renamed.binding.toml``, on
+    udp_multicast: the creep of the in-process run (lock-step is the same whatever the bus)."""
+    (_, _, shipped), (_, _, in_process) = runs
+    dbc, binding = write_renamed_pair(tmp_path)
+    bus = bus_args({"interface": UDP_MULTICAST, **fresh_udp_group()})
+    pair = ["--dbc", str(dbc), "--binding", str(binding)]
+    summary = tmp_path / "summary.json"
+    tcu = subprocess.Popen([sys.executable, "-m", "ecu_stub", *bus, *pair, "--idle-exit", "10", "--quiet"],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        plant = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", *bus, *pair, "--mode", "lockstep",
+                                "--duration", f"{DURATION:g}", "--summary", str(summary), "--quiet"],
+                               capture_output=True, text=True, timeout=600)
+    finally:
+        tcu.terminate()
+        tcu_err = tcu.communicate(timeout=60)[1]
+    assert plant.returncode == 0, plant.stderr
+    assert "rejected 0" in tcu_err, tcu_err  # ecu-stub's closing counts: it read the renamed frames
+    b = json.loads(summary.read_text(encoding="utf-8"))
+    assert b["phases"] == shipped["phases"] == in_process["phases"]
+    for key in ("creep_time_s", "standstill_time_s", "slip_time_s", "max_plate_temp_c", "friction_energy_kj"):
+        assert b[key] == shipped[key], key
+    for clutch in ("CL", "CH"):
+        assert b["max_predicted_temp_c"][clutch] == pytest.approx(shipped["max_predicted_temp_c"][clutch], abs=0.05)
+    assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0
+
+
+def test_run_config_gives_the_pair_to_an_ecu_stub_process(tmp_path, runs):
+    """RunConfig(dbc=..., binding=...) on udp_multicast starts ecu-stub as a process with --dbc and --binding (the
+    files' absolute paths): it answers on the renamed matrix, and the creep is the shipped one."""
+    (_, _, shipped), _ = runs
+    dbc, binding = write_renamed_pair(tmp_path)
+    config = RunConfig(duration=DURATION, dbc=dbc, binding=binding, quiet=True,
+                       bus={"interface": UDP_MULTICAST, **fresh_udp_group()})
+    with open_run(config) as run:
+        command = run._process.command(run.bus_config)
+        summary = run.run().as_json()
+    assert command[command.index("--dbc") + 1] == str(dbc.resolve())
+    assert command[command.index("--binding") + 1] == str(binding.resolve())
+    assert summary["frames"]["rejected"] == summary["frames"]["unanswered_ticks"] == 0
+    for key in ("creep_time_s", "slip_time_s", "max_plate_temp_c", "friction_energy_kj"):
+        assert summary[key] == shipped[key], key
+
+
 @pytest.mark.parametrize("timeout_ms, events", [(None, 1), (50, 0)])
 def test_a_binding_s_timeout_is_the_command_s_deadline(tmp_path, timeout_ms, events):
     """TCU_CMD lost for 4 control periods (40 ms): past the default deadline (3 cycle times, 30 ms) the hydraulics
@@ -208,3 +198,83 @@ def test_a_binding_s_timeout_is_the_command_s_deadline(tmp_path, timeout_ms, eve
         summary = run.run().as_json()
     assert summary["frames"]["unanswered_ticks"] == 4
     assert summary["command_fallback"]["events"] == events
+
+
+@pytest.mark.parametrize("timeout_ms, dropouts", [(None, 1), (50, 0)])
+def test_a_binding_s_timeout_on_a_plant_message_is_ecu_stub_s_deadline(tmp_path, timeout_ms, dropouts):
+    """PLANT_VEHICLE lost for 4 control periods (40 ms) just after the launch: past ecu-stub's default deadline
+    (3 cycle times, 30 ms) its inputs are invalid and it opens the clutch for a cycle (FAULT); with the binding's
+    50 ms it controls on through the gap."""
+    binding = None
+    if timeout_ms is not None:
+        binding = tmp_path / "timeout.binding.toml"
+        binding.write_text(DEFAULT_BINDING.read_text(encoding="utf-8")
+                           + f"\n[messages.PLANT_VEHICLE]\ntimeout_ms = {timeout_ms}\n", encoding="utf-8")
+    with open_run(RunConfig(duration=1.5, binding=binding, faults=["drop:PLANT_VEHICLE@1-1.04"], capture=True)) as run:
+        run.run()
+    assert run.tcu.rx.states["PLANT_VEHICLE"].deadline == (timeout_ms or 30) / 1000
+    command = run.tcu.codec.message("TCU_CMD")
+    pressures = [command.decode(bytes(m.data))["P_CL_Cmd"] for m in run.frames if m.arbitration_id == command.frame_id]
+    engaged = next(k for k, p in enumerate(pressures) if p > 0.1)
+    assert sum(p == 0.0 for p in pressures[engaged:]) == dropouts
+
+
+SIM_IDS = {"SIM_SYNC": 0x010, "SIM_TRUTH_CL": 0x7F0, "SIM_TRUTH_CH": 0x7F1, "SIM_HEAT": 0x7F2}  # the binding's
+
+
+def write_matrix_without_simulation(tmp_path: Path) -> tuple[Path, Path]:
+    """The renamed matrix without its simulation frames (a vehicle's matrix), and its binding, which adds the
+    simulation database's on IDs of its own (SIM_SYNC the highest priority, 0x010)."""
+    dbc, binding = write_renamed_pair(tmp_path)
+    db = load_dbc(dbc)
+    db.messages[:] = [m for m in db.messages if not m.name.startswith("SIM_")]
+    db.refresh()
+    dbc.write_text(db.as_dbc_string(), encoding="utf-8")
+    text = binding.read_text(encoding="utf-8")
+    for shipped in SIM_IDS:
+        text = text.replace(f'"{NEW[shipped][0]}', f'"{shipped}')  # the names of the simulation database
+    text = re.sub(r'"SIM_(\w+)\.s(\w+)"', r'"SIM_\1.\2"', text)  # and of its signals
+    ids = ", ".join(f"{name} = 0x{frame_id:03X}" for name, frame_id in SIM_IDS.items())
+    binding.write_text(text + f"\n[simulation]\nids = {{ {ids} }}\n", encoding="utf-8")
+    return dbc, binding
+
+
+def test_the_simulation_frames_are_added_to_a_matrix_without_them(tmp_path, runs):
+    """A matrix with none of the simulation frames: the binding adds SIM_SYNC and the truth frames on its IDs, and
+    the plant and ecu-stub run the shipped creep on it in lock-step."""
+    (_, _, shipped), _ = runs
+    dbc, binding_path = write_matrix_without_simulation(tmp_path)
+    assert not any(m.name.startswith("SIM_") for m in load_dbc(dbc).messages)
+    binding = load_binding(binding_path, dbc=dbc)
+    assert {m.name: m.frame_id for m in binding.db.messages if m.name.startswith("SIM_")} == SIM_IDS
+    assert binding.sync == ("SIM_SYNC", "Tick")
+    with open_run(RunConfig(duration=DURATION, dbc=dbc, binding=binding_path, capture=True)) as run:
+        summary = run.run().as_json()
+    assert {msg.arbitration_id for msg in run.frames} >= set(SIM_IDS.values())
+    assert summary["phases"] == shipped["phases"]
+    for key in ("creep_time_s", "standstill_time_s", "slip_time_s", "max_plate_temp_c", "friction_energy_kj"):
+        assert summary[key] == shipped[key], key
+
+
+@pytest.mark.parametrize("ids, problem", [
+    ("SIM_SYNC = 0x0C0", "simulation.ids.SIM_SYNC: 0xC0 is the ID of EMS_Engine in the matrix"),
+    ("SIM_SYNC = 0x7E1", "simulation.ids.SIM_SYNC: 0x7E1 is the matrix's diagnostic request ID (DiagRequestId)"),
+    ("SIM_SYNC = 0x7F0, SIM_TRUTH_CL = 0x7F0", "simulation.ids.SIM_TRUTH_CL: 0x7F0 is SIM_SYNC's too"),
+    ("SIM_SYNC = 0x800", "simulation.ids.SIM_SYNC must be an 11-bit CAN ID (0x0-0x7FF), got 2048"),
+    ("SIM_CLOCK = 0x010", "simulation.ids.SIM_CLOCK: not a message of the simulation database"),
+])
+def test_binding_check_refuses_a_simulation_id_the_matrix_uses(tmp_path, ids, problem):
+    dbc, binding = write_matrix_without_simulation(tmp_path)
+    text = re.sub(r"ids = \{.*\}", f"ids = {{ {ids} }}", binding.read_text(encoding="utf-8"))
+    binding.write_text(text, encoding="utf-8")
+    found, problems = check_binding(binding, dbc=dbc)
+    assert found is None and any(problem in line for line in problems), problems
+
+
+def test_a_simulation_message_the_matrix_has_already_is_refused(tmp_path):
+    binding = tmp_path / "twice.binding.toml"
+    binding.write_text(DEFAULT_BINDING.read_text(encoding="utf-8") + "\n[simulation]\nids = { SIM_SYNC = 0x010 }\n",
+                       encoding="utf-8")
+    found, problems = check_binding(binding)
+    assert found is None and problems == [f"{binding}: simulation.ids.SIM_SYNC: the matrix has a message SIM_SYNC "
+                                          f"already"]
