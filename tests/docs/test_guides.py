@@ -216,13 +216,12 @@ def test_the_binding_guide_s_run_moves_both_ends(tmp_path: Path) -> None:
 def test_the_simulation_block_adds_the_simulation_database_s_messages() -> None:
     """The page's [simulation] table names every message of the simulation database, each on its own 11-bit ID,
     and its [lockstep] table has the shipped binding's keys with the tick on SIM_SYNC's signal."""
-    import cantools
-
+    from dsg_hil.protocol import load_dbc
     from dsg_hil.protocol.binding import DEFAULT_BINDING
 
     (block,) = [b for b in blocks("docs/how-to/binding.md", "toml") if b.startswith("[simulation]")]
     shown = tomllib.loads(block)
-    sim = cantools.database.load_file(str(ROOT / "dbc" / "dsg_hil_sim.dbc"))
+    sim = load_dbc(ROOT / "dbc" / "dsg_hil_sim.dbc")
     ids = shown["simulation"]["ids"]
     assert set(ids) == {m.name for m in sim.messages}
     assert len(set(ids.values())) == len(ids) and all(0 <= i < 0x800 for i in ids.values())
