@@ -220,6 +220,7 @@ def test_a_repaired_sensor_is_trusted_again_after_the_heal_time():
 
 
 def test_sensor_checks_replace_only_the_failing_values_and_name_them():
+    """(From 1 s: the first cycle is then not key-on's, whose oil temperatures would have to agree.)"""
     checks = SensorChecks(LAG, Q_P, I_A, Q_N, SHARE)
     good = {"P_CL": 0.3, "P_CH": 0.0, "ClutchInputSpeed": 149.3, "EngineSpeed": 800.0, "T_OilCL": 228.0,
             "T_OilCH": 200.0, "T_Sump": 130.0}
@@ -227,16 +228,16 @@ def test_sensor_checks_replace_only_the_failing_values_and_name_them():
     checks.commanded(0.3, 0.0)
     for k in range(100):
         values = dict(good)
-        assert checks.update(values, plate, k * DT) == [] and values == good
+        assert checks.update(values, plate, 1.0 + k * DT) == [] and values == good
     for k in range(100, 140):
         values = dict(good, T_OilCL=40.0, ClutchInputSpeed=0.0)
-        failing = checks.update(values, plate, k * DT)
+        failing = checks.update(values, plate, 1.0 + k * DT)
     assert failing == ["ClutchInputSpeed", "T_OilCL"]
     assert values["T_OilCL"] == 228.5 and values["ClutchInputSpeed"] == pytest.approx(800.0 / I_A)
     assert values["P_CL"] == 0.3 and values["T_OilCH"] == 200.0
     checks.reset()
     values = dict(good, T_OilCL=40.0)
-    assert checks.update(values, plate, 0.0) == [] and values["T_OilCL"] == 40.0
+    assert checks.update(values, plate, 1.0) == [] and values["T_OilCL"] == 40.0
 
 
 # ---- the closed loop: issue 18's stuck sensors -------------------------------------------------------------------
