@@ -133,7 +133,9 @@ before a second PLANT_OIL_TEMP frame can have (``now`` < :data:`OIL_FRAME_S`: in
   (reading g T in degC) passes with (1 - g) T0 within it and its error then grows with T / T0: not budgeted.
 * Reaction: as the fall check's (latched), but the plate estimate that the substitute keeps is started from the
   hottest a plate may start (:data:`START_PLATE_MAX_C`, the operating range's) or the readings, the larger: the
-  flagged clutch's plate is unobservable, so it is predicted adiabatic from the hottest credible start.
+  flagged clutch's plate is unobservable, so it is predicted adiabatic from the hottest credible start. Until the
+  fall check's start (after the start-up observer) the substitute is that start (or a hotter reading) alone: the
+  observer, which adds cooling / K of the oil's excess over the sump, would otherwise grow on its own estimate.
 
 Not covered: a value stuck at what the redundant information says (a sensor frozen at its last value while nothing
 changes); for the oil, all three sensors low together at key-on (a common-mode fault), and a TCU whose first frames
@@ -250,6 +252,7 @@ class OilCheck:
     largest_fall_k: float = 0.0  # its largest value (how close a run without a sensor fault came)
     fell_at: float | None = None  # when it passed OIL_FALL_K: the reading is not trusted again (a latched fault)
     keyon_failed: bool = False  # read too low at key-on (module docstring, 5): not trusted in this operation cycle
+    keyon_at: float | None = None  # the key-on check's time [s]
     start_c: float = START_PLATE_MAX_C  # the plate's hottest credible start: START_PLATE_MAX_C or the key-on readings
 
     def update(self, oil: float, sump: float, plate: float | None, dt: float, now: float) -> tuple[bool, float]:
@@ -271,9 +274,11 @@ class OilCheck:
                 if fall > OIL_FALL_K and self.fell_at is None:
                     self.fell_at = now
             failing = failing or self.fell_at is not None
-        if self.keyon_failed:  # the plate predicted adiabatic from its hottest credible start
+        if self.keyon_failed:  # the plate predicted adiabatic from its hottest credible start (module docstring, 5)
             start = self.start_c
-            return True, max(oil, sump, plate if plate is not None else start, start)
+            if plate is None or self.keyon_at is None or now - self.keyon_at < self.fall_from_s:
+                return True, max(oil, sump, start)  # (the start-up observer's estimate is not fed back to it)
+            return True, max(oil, sump, plate, start)
         return failing, max(oil, sump, plate if plate is not None else sump) if failing else oil
 
 
@@ -330,7 +335,7 @@ class SensorChecks:
         dt = MAX_DT_S if MAX_DT_S < elapsed else elapsed  # min(elapsed, MAX_DT_S)
         cmd, pressure, oil = self.cmd_mpa, self.pressure, self.oil
         if last is None and now < OIL_FRAME_S:
-            self.keyon(T_oil_CL, T_oil_CH, T_sump)
+            self.keyon(T_oil_CL, T_oil_CH, T_sump, now)
         bad_P_CL, P_CL = pressure["CL"].update(P_CL, cmd["CL"], dt, now, elapsed)
         bad_P_CH, P_CH = pressure["CH"].update(P_CH, cmd["CH"], dt, now, elapsed)
         bad_in, clutch_in = self.speed.update(clutch_in, engine, dt, now)
@@ -340,7 +345,7 @@ class SensorChecks:
             if bad_P_CL or bad_P_CH or bad_in or bad_T_CL or bad_T_CH else []
         return P_CL, P_CH, clutch_in, T_oil_CL, T_oil_CH, failing
 
-    def keyon(self, T_oil_CL: float, T_oil_CH: float, T_sump: float) -> None:
+    def keyon(self, T_oil_CL: float, T_oil_CH: float, T_sump: float, now: float = 0.0) -> None:
         """The key-on check (module docstring, 5) on the first frame's oil temperatures: a pack's reading more than
         :func:`keyon_tolerance_k` below the highest of the three is not trusted again in this operation cycle."""
         self.keyon_checked = True
@@ -349,6 +354,6 @@ class SensorChecks:
         tol = keyon_tolerance_k(hi)
         for c, T in (("CL", T_oil_CL), ("CH", T_oil_CH)):
             check = self.oil[c]
-            check.start_c = hi if hi > START_PLATE_MAX_C else START_PLATE_MAX_C
+            check.start_c, check.keyon_at = hi if hi > START_PLATE_MAX_C else START_PLATE_MAX_C, now
             if hi - T > tol:
                 check.keyon_failed = True
