@@ -86,6 +86,15 @@ def test_each_fault_sets_its_dtc_with_a_freeze_frame_of_the_plants_truth(dsg_hil
         assert_matches_truth(frame, result.truth, skip=(falsified,))
 
 
+def test_an_oil_sensor_low_from_key_on_confirms_its_dtc_at_once(dsg_hil_run):
+    """The key-on check (docs/safety.md, section 6) flags T_OilCL on the first cycle; its DTC is confirmed after its
+    debounce, 3 periods (the first period's count is the monitor's reference)."""
+    result = dsg_hil_run(faults=["offset:PLANT_OIL_TEMP.T_OilCL@0-,value=-30"], duration=1.0, log=None)
+    dtcs = confirmed(result)
+    assert set(dtcs) == {"P1715"} and dtcs["P1715"].freeze_frame["t"] <= 0.05
+    assert_matches_truth(dtcs["P1715"].freeze_frame, result.truth, skip=("T_OilCL",))
+
+
 def test_overheat_stop_and_vehicle_hold(dsg_hil_run):
     hot = dsg_hil_run(scenario=worst_case(10.0, [(1.0, True, 0.0, V_CREEP)], T_CL=228.0, T_CH=247.0, T_oil=130.0),
                       log=None)
