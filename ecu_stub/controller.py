@@ -75,7 +75,7 @@ from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque, sl
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 from .plausibility import REL_TOL
-from .sensor_checks import N_REL, OIL_FALL_K, OIL_FRAME_S, P_ABS_MPA, P_REL
+from .sensor_checks import N_REL, OIL_FALL_K, OIL_FRAME_S, P_ABS_MPA, P_REL, keyon_undetected_k
 
 __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "STALL_FRACTION",
            "STALL_S", "TcuInputs", "TcuOutputs"]
@@ -202,6 +202,7 @@ class CreepController:
         self.pedal_overrun = False  # the driver's pedal pressed but not holding the vehicle (_idle)
         self.heat_max = {"CL": 0.0, "CH": 0.0}  # the largest friction power since start-up, its error added [W]
         self.heat_error_k = {"CL": 0.0, "CH": 0.0}  # the prediction's error from undetected heat errors [K] (margin_k)
+        self.oil_error_k: float | None = None  # an oil reading's undetected error, from the key-on readings (margin_k)
 
     def recalibrate(self, cal: TcuCalibration) -> None:
         """Run on with ``cal`` from the next cycle (a calibration value changed at run time, :mod:`ecu_stub.xcp`),
@@ -242,6 +243,7 @@ class CreepController:
         included); at start-up, take them from the observer."""
         if self.first_seen is None:
             self.first_seen = now
+            self.oil_error_k = self.keyon_oil_error_k(inp)
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
@@ -388,16 +390,25 @@ class CreepController:
         P = max(self.P_cmd[clutch], inp.pressure_mpa(clutch))
         return 1.0 + self.heat_error_fraction(clutch, inp, P, self.thermal_slip_rpm(clutch))
 
+    def keyon_oil_error_k(self, inp: TcuInputs) -> float:
+        """The most an oil reading may be low from key-on on and pass unflagged [K] (docs/safety.md, section 6): the
+        key-on check's (:func:`~ecu_stub.sensor_checks.keyon_undetected_k` at the highest of the first cycle's
+        oil temperatures; a substitute among them is higher, so the margin larger), but at least the sensor's
+        accuracy at T_safe, ``strategy.oil_accuracy_k`` (a healthy sensor's error as the plate heats)."""
+        hi = max(inp.T_oil_CL_c, inp.T_oil_CH_c, inp.T_sump_c)
+        undetected, accuracy = keyon_undetected_k(hi), self.cal.strategy.oil_accuracy_k
+        return undetected if undetected > accuracy else accuracy
+
     def margin_k(self, clutch: str) -> float:
         """The thermal margin's error term ``e`` of the clutch [K] (docs/safety.md, section 6): the predictor's
-        identified error ``strategy.prediction_error_k``; an oil sensor's unobservable error
-        ``strategy.oil_accuracy_k`` (an offset present from start-up); the largest oil step the fall check lets
-        through, :data:`~ecu_stub.sensor_checks.OIL_FALL_K` plus the plate's rise over one oil frame
+        identified error ``strategy.prediction_error_k``; an oil sensor's undetected error from key-on,
+        :attr:`oil_error_k` (``strategy.oil_accuracy_k`` before the first cycle); the largest oil step the fall check
+        lets through, :data:`~ecu_stub.sensor_checks.OIL_FALL_K` plus the plate's rise over one oil frame
         (:data:`~ecu_stub.sensor_checks.OIL_FRAME_S`) at the largest heat since start-up (its undetected error
         added), in which a step hides; and :attr:`heat_error_k`, the prediction's own model driven by the heat's
         undetected error (:meth:`heat_error_fraction` x Q): C de/dt = dQ - K e, at most dQ / K."""
-        s, c = self.cal.strategy, self.cal.clutch(clutch)
-        return (s.prediction_error_k + s.oil_accuracy_k + OIL_FALL_K
+        s, c, oil = self.cal.strategy, self.cal.clutch(clutch), self.oil_error_k
+        return (s.prediction_error_k + (s.oil_accuracy_k if oil is None else oil) + OIL_FALL_K
                 + self.heat_max[clutch] / c.C_plate_j_k * OIL_FRAME_S
                 + self.heat_error_k[clutch])
 

@@ -108,12 +108,39 @@ rate (at the plate estimate), failing once it passes ``OIL_FALL_K``.
 
 What it does not see: a step within ``OIL_FALL_K`` plus the plate's rise over one PLANT_OIL_TEMP frame (100 ms; a
 step during a fast heating hides in it), a drift slower than ``FALL_GAIN`` x the passive cooling, and an offset
-present when it starts. The strategy's margin budgets the first and the last
+present when it starts (check 5). The strategy's margin budgets the first and the last
 (:meth:`ecu_stub.controller.CreepController.margin_k`); the drift stays assumed away (docs/safety.md, section 6).
 
+**5. The oil temperatures at key-on vs each other** (:meth:`SensorChecks.check`, ``keyon``). Once the TCU runs, an
+oil sensor's offset is unobservable: the oil leaving a pack sits at its plate's balance, and nothing else the TCU
+measures depends on the plate. At key-on it is not: the circuit's oil has stood mixed (the plant starts every oil
+node at the scenario's ``T_oil_c``: the packs' oil, the sump's, the radiator's), and the packs' oil leaves that
+temperature for its plate's only with the pack's oil time constant (0.17-0.18 s,
+``strategy.startup_observer_s``' derivation). So the key-on frame's ``T_OilCL``, ``T_OilCH`` and ``T_Sump`` read one
+temperature, each within its sensor's accuracy: the rule compares them on the TCU's first cycle, if that comes
+before a second PLANT_OIL_TEMP frame can have (``now`` < :data:`OIL_FRAME_S`: in lock-step the plant's time).
+
+* Tolerance :func:`keyon_tolerance_k` = 2 a(T) + 2 q: two healthy sensors of accuracy a(T) = :data:`CLASS_ABS_K`
+  + :data:`CLASS_REL` |T| (IEC 60751 class B, the calibration's ``strategy.oil_accuracy_k`` is its value at T_safe)
+  read one temperature at most that far apart, q = :data:`OIL_Q_K` half the DBC's step each; T the highest reading
+  (the larger tolerance). 1.7 K at 100 degC.
+* Rule: a pack's reading more than that below the **highest** of the three is not trusted for the rest of the
+  operation cycle (one-sided, the hazard's side: a reading too high only costs availability). The highest, not a
+  vote: two pack sensors low by about the same (two faults) would out-vote a right sump.
+* Undetected: with at least one of the other two sensors healthy (not reading more than a(T) low), a pack's reading
+  passes only if it is at most :func:`keyon_undetected_k` = tolerance + a(T) + q below the truth (2.55 K at
+  100 degC); an offset keeps that error as the plate heats, and the margin budgets it (``margin_k``). A gain g
+  (reading g T in degC) passes with (1 - g) T0 within it and its error then grows with T / T0: not budgeted.
+* Reaction: as the fall check's (latched), but the plate estimate that the substitute keeps is started from the
+  hottest a plate may start (:data:`START_PLATE_MAX_C`, the operating range's) or the readings, the larger: the
+  flagged clutch's plate is unobservable, so it is predicted adiabatic from the hottest credible start. Until the
+  fall check's start (after the start-up observer) the substitute is that start (or a hotter reading) alone: the
+  observer, which adds cooling / K of the oil's excess over the sump, would otherwise grow on its own estimate.
+
 Not covered: a value stuck at what the redundant information says (a sensor frozen at its last value while nothing
-changes), and, for the oil, a sensor already wrong when the TCU starts (the start-up observer takes the plate from
-it). There is no FAULT reaction here: each check has a conservative substitute that needs no other sensor.
+changes); for the oil, all three sensors low together at key-on (a common-mode fault), and a TCU whose first frames
+are not key-on's (a lost first PLANT_OIL_TEMP frame, a TCU started after the gearbox): the key-on check is then not
+made. There is no FAULT reaction here: each check has a conservative substitute that needs no other sensor.
 """
 
 from __future__ import annotations
@@ -123,9 +150,10 @@ from dataclasses import dataclass, field
 
 from .plausibility import MAX_DT_S, Sustained
 
-__all__ = ["ANGLE_RAD", "CHECKED", "FALL_GAIN", "FALL_START_TAU", "InputSpeedCheck", "N_ABS_RPM", "N_REL", "OIL_FALL_K",
-           "OIL_FRAME_S", "OIL_KS", "OIL_TOL_K", "OilCheck", "P_ABS_MPA", "P_IMPULSE_MPA_S", "P_REL", "PressureCheck",
-           "SensorChecks"]
+__all__ = ["ANGLE_RAD", "CHECKED", "CLASS_ABS_K", "CLASS_REL", "FALL_GAIN", "FALL_START_TAU", "InputSpeedCheck",
+           "N_ABS_RPM", "N_REL", "OIL_FALL_K", "OIL_FRAME_S", "OIL_KS", "OIL_Q_K", "OIL_TOL_K", "OilCheck", "P_ABS_MPA",
+           "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "START_PLATE_MAX_C", "SensorChecks", "keyon_tolerance_k",
+           "keyon_undetected_k", "oil_accuracy_at"]
 
 P_ABS_MPA = 0.02  # pressure sensor accuracy: 1 % of the DBC's 2-MPa range [MPa]
 P_REL = 0.05  # the valve's gain [1]
@@ -139,8 +167,29 @@ OIL_FALL_K = 0.5  # a reading's fall beyond FALL_GAIN x the plate's passive cool
 FALL_GAIN = 2.0  # the plate's passive cooling K_eff (T - T_sump) / C by the calibration, x2 for what it leaves out [1]
 FALL_START_TAU = 8.0  # the fall check starts 8 oil time constants (startup_observer_s / 5 each) after the first cycle
 OIL_FRAME_S = 0.1  # PLANT_OIL_TEMP's cycle time (DBC): a step hides in the plate's rise over one frame [s]
+CLASS_ABS_K = 0.3  # an oil sensor's accuracy, IEC 60751 class B: +-(0.3 K + 0.005 |T|) (the calibration's
+CLASS_REL = 0.005  # strategy.oil_accuracy_k is it at T_safe)
+OIL_Q_K = 0.05  # half the DBC's 0.1-K step of PLANT_OIL_TEMP's temperatures [K]
+START_PLATE_MAX_C = 150.0  # the hottest a plate may start (dsg_hil/sim/operating_range.py): a flagged clutch's start
 _RPM_TO_RAD_S = math.pi / 30.0
 CHECKED = ("P_CL", "P_CH", "ClutchInputSpeed", "T_OilCL", "T_OilCH")  # the signals checked, in this order
+
+
+def oil_accuracy_at(T_c: float) -> float:
+    """An oil sensor's accuracy at ``T_c`` [K]: IEC 60751 class B (module docstring, 5)."""
+    return CLASS_ABS_K + CLASS_REL * abs(T_c)
+
+
+def keyon_tolerance_k(T_hi_c: float) -> float:
+    """The most two healthy oil sensors read one temperature apart at key-on [K], at the highest reading ``T_hi_c``:
+    2 a(T) + 2 q (module docstring, 5)."""
+    return 2.0 * oil_accuracy_at(T_hi_c) + 2.0 * OIL_Q_K
+
+
+def keyon_undetected_k(T_hi_c: float) -> float:
+    """The most a pack's oil reading may be low and pass the key-on check [K], with one of the other two healthy:
+    the tolerance + that sensor's a(T) + the reading's own half step (module docstring, 5)."""
+    return keyon_tolerance_k(T_hi_c) + oil_accuracy_at(T_hi_c) + OIL_Q_K
 
 
 @dataclass(slots=True)
@@ -202,6 +251,9 @@ class OilCheck:
     fall_k: float = 0.0  # the reading's fall beyond FALL_GAIN x the passive cooling, a one-sided CUSUM [K]
     largest_fall_k: float = 0.0  # its largest value (how close a run without a sensor fault came)
     fell_at: float | None = None  # when it passed OIL_FALL_K: the reading is not trusted again (a latched fault)
+    keyon_failed: bool = False  # read too low at key-on (module docstring, 5): not trusted in this operation cycle
+    keyon_at: float | None = None  # the key-on check's time [s]
+    start_c: float = START_PLATE_MAX_C  # the plate's hottest credible start: START_PLATE_MAX_C or the key-on readings
 
     def update(self, oil: float, sump: float, plate: float | None, dt: float, now: float) -> tuple[bool, float]:
         """(failing, the oil temperature to use [degC]); ``plate``: the TCU's estimate, None before it has one (then
@@ -222,6 +274,11 @@ class OilCheck:
                 if fall > OIL_FALL_K and self.fell_at is None:
                     self.fell_at = now
             failing = failing or self.fell_at is not None
+        if self.keyon_failed:  # the plate predicted adiabatic from its hottest credible start (module docstring, 5)
+            start = self.start_c
+            if plate is None or self.keyon_at is None or now - self.keyon_at < self.fall_from_s:
+                return True, max(oil, sump, start)  # (the start-up observer's estimate is not fed back to it)
+            return True, max(oil, sump, plate, start)
         return failing, max(oil, sump, plate if plate is not None else sump) if failing else oil
 
 
@@ -238,6 +295,7 @@ class SensorChecks:
     cooling_per_s: dict[str, float] = field(default_factory=dict)  # by clutch: K_eff / C (none: no fall check)
     fall_from_s: float = 0.0  # the fall check's start after the first cycle [s]
     last_now: float | None = None
+    keyon_checked: bool = False  # the key-on check was made (the first cycle came with the first oil frame)
     cmd_mpa: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
     pressure: dict[str, PressureCheck] = field(init=False)
     speed: InputSpeedCheck = field(init=False)
@@ -252,7 +310,7 @@ class SensorChecks:
         self.speed = InputSpeedCheck(self.input_ratio, self.q_n_rpm)
         self.oil = {c: OilCheck(self.sump_share[c], self.cooling_per_s.get(c, 0.0), self.fall_from_s)
                     for c in ("CL", "CH")}
-        self.last_now, self.cmd_mpa = None, {"CL": 0.0, "CH": 0.0}
+        self.last_now, self.cmd_mpa, self.keyon_checked = None, {"CL": 0.0, "CH": 0.0}, False
 
     def commanded(self, P_CL_mpa: float, P_CH_mpa: float) -> None:
         """The commands the TCU sends this cycle (the pressures' model follows them from the next)."""
@@ -276,6 +334,8 @@ class SensorChecks:
         elapsed = 0.0 if last is None else now - last
         dt = MAX_DT_S if MAX_DT_S < elapsed else elapsed  # min(elapsed, MAX_DT_S)
         cmd, pressure, oil = self.cmd_mpa, self.pressure, self.oil
+        if last is None and now < OIL_FRAME_S:
+            self.keyon(T_oil_CL, T_oil_CH, T_sump, now)
         bad_P_CL, P_CL = pressure["CL"].update(P_CL, cmd["CL"], dt, now, elapsed)
         bad_P_CH, P_CH = pressure["CH"].update(P_CH, cmd["CH"], dt, now, elapsed)
         bad_in, clutch_in = self.speed.update(clutch_in, engine, dt, now)
@@ -284,3 +344,16 @@ class SensorChecks:
         failing = [name for name, bad in zip(CHECKED, (bad_P_CL, bad_P_CH, bad_in, bad_T_CL, bad_T_CH)) if bad] \
             if bad_P_CL or bad_P_CH or bad_in or bad_T_CL or bad_T_CH else []
         return P_CL, P_CH, clutch_in, T_oil_CL, T_oil_CH, failing
+
+    def keyon(self, T_oil_CL: float, T_oil_CH: float, T_sump: float, now: float = 0.0) -> None:
+        """The key-on check (module docstring, 5) on the first frame's oil temperatures: a pack's reading more than
+        :func:`keyon_tolerance_k` below the highest of the three is not trusted again in this operation cycle."""
+        self.keyon_checked = True
+        hi = T_oil_CL if T_oil_CL > T_oil_CH else T_oil_CH
+        hi = hi if hi > T_sump else T_sump
+        tol = keyon_tolerance_k(hi)
+        for c, T in (("CL", T_oil_CL), ("CH", T_oil_CH)):
+            check = self.oil[c]
+            check.start_c, check.keyon_at = hi if hi > START_PLATE_MAX_C else START_PLATE_MAX_C, now
+            if hi - T > tol:
+                check.keyon_failed = True

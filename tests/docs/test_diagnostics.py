@@ -45,7 +45,7 @@ def test_the_tables_hold_the_description_ecu_stub_serves() -> None:
     assert fields == [(f"0x{did.id:04X}", name) for did in description.dids.values()
                       for name in ([f.name for f in did.fields] or ["-"])]
     dtcs = _rows(reference.dtc_table())
-    assert len(dtcs) == len(description.dtcs) == 21
+    assert len(dtcs) == len(description.dtcs) == 23
     assert [(r[0], r[3], int(r[4])) for r in dtcs] == [(d.code, d.monitor, d.debounce) for d in description.dtcs]
     markdown = reference.on_page_markdown(page, None, None, None)
     assert "<!--" not in markdown and "0x0113 `time`" in markdown and "| `P1701` | 0x170100 |" in markdown

@@ -15,8 +15,10 @@ from dsg_hil.sim.scenario import parse_scenario
 from ecu_stub.calibration import load_calibration
 from ecu_stub.plausibility import HEAL_S
 from ecu_stub.runner import TCU_USES, TcuRunner
-from ecu_stub.sensor_checks import (ANGLE_RAD, FALL_GAIN, N_ABS_RPM, OIL_FALL_K, OIL_KS, OIL_TOL_K, P_ABS_MPA,
-                                    P_IMPULSE_MPA_S, P_REL, InputSpeedCheck, OilCheck, PressureCheck, SensorChecks)
+from ecu_stub.sensor_checks import (ANGLE_RAD, FALL_GAIN, N_ABS_RPM, OIL_FALL_K, OIL_FRAME_S, OIL_KS, OIL_TOL_K,
+                                    P_ABS_MPA, P_IMPULSE_MPA_S, P_REL, START_PLATE_MAX_C, InputSpeedCheck, OilCheck,
+                                    PressureCheck, SensorChecks, keyon_tolerance_k, keyon_undetected_k,
+                                    oil_accuracy_at)
 
 DT = 0.01  # TCU_CMD cycle [s]
 LAG = 0.05  # strategy.hydraulic_lag_s [s]
@@ -220,6 +222,7 @@ def test_a_repaired_sensor_is_trusted_again_after_the_heal_time():
 
 
 def test_sensor_checks_replace_only_the_failing_values_and_name_them():
+    """(From 1 s: the first cycle is then not key-on's, whose oil temperatures would have to agree.)"""
     checks = SensorChecks(LAG, Q_P, I_A, Q_N, SHARE)
     good = {"P_CL": 0.3, "P_CH": 0.0, "ClutchInputSpeed": 149.3, "EngineSpeed": 800.0, "T_OilCL": 228.0,
             "T_OilCH": 200.0, "T_Sump": 130.0}
@@ -227,16 +230,16 @@ def test_sensor_checks_replace_only_the_failing_values_and_name_them():
     checks.commanded(0.3, 0.0)
     for k in range(100):
         values = dict(good)
-        assert checks.update(values, plate, k * DT) == [] and values == good
+        assert checks.update(values, plate, 1.0 + k * DT) == [] and values == good
     for k in range(100, 140):
         values = dict(good, T_OilCL=40.0, ClutchInputSpeed=0.0)
-        failing = checks.update(values, plate, k * DT)
+        failing = checks.update(values, plate, 1.0 + k * DT)
     assert failing == ["ClutchInputSpeed", "T_OilCL"]
     assert values["T_OilCL"] == 228.5 and values["ClutchInputSpeed"] == pytest.approx(800.0 / I_A)
     assert values["P_CL"] == 0.3 and values["T_OilCH"] == 200.0
     checks.reset()
     values = dict(good, T_OilCL=40.0)
-    assert checks.update(values, plate, 0.0) == [] and values["T_OilCL"] == 40.0
+    assert checks.update(values, plate, 1.0) == [] and values["T_OilCL"] == 40.0
 
 
 # ---- the closed loop: issue 18's stuck sensors -------------------------------------------------------------------
@@ -337,3 +340,117 @@ def test_an_offset_the_old_checks_let_through_keeps_the_true_plate_under_t_safe(
     assert max(summary["max_plate_temp_c"].values()) <= 250.0
     assert set(summary["time_above_limit_s"].values()) == {0.0}
     assert all(n > 0 if signal == caught else n == 0 for signal, n in counts["implausible"].items())
+
+
+# ---- the key-on check: an oil sensor wrong from t = 0 (docs/safety.md, section 6) -----------------------------
+
+def test_the_key_on_tolerance_and_undetected_error_by_hand():
+    """Class B, +-(0.3 + 0.005 |T|) K, is the calibration's oil_accuracy_k at T_safe; at 100 degC two healthy sensors
+    read at most 2 x 0.8 K + two half steps (0.05 K) apart, and a low reading passes by at most that, a healthy
+    reference's 0.8 K and its own half step: 2.55 K."""
+    assert oil_accuracy_at(load_calibration().strategy.T_safe_c) == pytest.approx(
+        load_calibration().strategy.oil_accuracy_k, abs=1e-12)
+    assert keyon_tolerance_k(100.0) == pytest.approx(1.7, abs=1e-12)
+    assert keyon_undetected_k(100.0) == pytest.approx(2.55, abs=1e-12)
+
+
+def test_the_key_on_start_plate_is_the_operating_ranges():
+    from dsg_hil.sim.operating_range import OPERATING_RANGE
+
+    assert START_PLATE_MAX_C == OPERATING_RANGE["initial.T_CL_c"].hi == OPERATING_RANGE["initial.T_CH_c"].hi
+
+
+def keyon(T_CL: float, T_CH: float, T_sump: float, now: float = 0.0):
+    """One first cycle of the checks with these oil temperatures (no plate estimate yet): the failing and the oil
+    values used."""
+    checks = SensorChecks(LAG, Q_P, I_A, Q_N, SHARE)
+    values = {"P_CL": 0.0, "P_CH": 0.0, "ClutchInputSpeed": 149.3, "EngineSpeed": 800.0, "T_OilCL": T_CL,
+              "T_OilCH": T_CH, "T_Sump": T_sump}
+    failing = checks.update(values, None, now)
+    return failing, values["T_OilCL"], values["T_OilCH"], checks
+
+
+def test_the_key_on_check_flags_a_pack_reading_low_against_the_highest_and_nothing_within_the_tolerance():
+    tol = keyon_tolerance_k(100.0)
+    assert keyon(100.0 - 0.99 * tol, 100.0, 100.0)[0] == []  # within: healthy sensors
+    assert keyon(100.0, 100.0 - 0.99 * tol, 100.0)[0] == []
+    failing, T_CL, T_CH, checks = keyon(100.0 - 1.01 * tol, 100.0, 100.0)
+    assert failing == ["T_OilCL"] and T_CL == START_PLATE_MAX_C and T_CH == 100.0 and checks.keyon_checked
+    assert keyon(70.0, 75.0, 100.0)[0] == ["T_OilCL", "T_OilCH"]  # both low: the sump says so (two faults)
+    assert keyon(100.0, 100.0, 70.0)[0] == []  # a sump reading low flags nothing (its checks' safe side)
+    assert keyon(130.0, 100.0, 100.0)[0] == ["T_OilCH"]  # a reading too high costs the other pack (availability)
+    assert keyon(100.0, 100.0, 170.0)[1:3] == (170.0, 170.0)  # the hottest credible start: the readings if hotter
+    assert keyon(70.0, 100.0, 100.0, now=OIL_FRAME_S)[0] == []  # not key-on's frame: no key-on check
+    assert not keyon(70.0, 100.0, 100.0, now=OIL_FRAME_S)[3].keyon_checked
+
+
+def test_a_flagged_pack_stays_flagged_and_keeps_the_hottest_credible_value():
+    _, _, _, checks = keyon(70.0, 100.0, 100.0)
+    for k in range(1, 300):
+        values = {"P_CL": 0.0, "P_CH": 0.0, "ClutchInputSpeed": 149.3, "EngineSpeed": 800.0, "T_OilCL": 100.0,
+                  "T_OilCH": 100.0, "T_Sump": 100.0}
+        assert checks.update(values, {"CL": 160.0 + k * 0.1, "CH": 100.0}, k * DT) == ["T_OilCL"]
+        assert values["T_OilCL"] == 160.0 + k * 0.1 and values["T_OilCH"] == 100.0  # no cooling of CL's plate
+    checks.reset()
+    assert not checks.oil["CL"].keyon_failed and not checks.keyon_checked
+
+
+def keyon_creep(offsets: tuple[tuple[str, str, float], ...], T_CL: float = 150.0, T_CH: float = 150.0,
+                T_oil: float = 150.0, duration: float = 60.0):
+    """A creep on Table I's grade from the operating range's hottest start (plates and oil 150 degC) with the faults
+    (kind, MESSAGE.Signal, value) from t = 0 to the end: summary and the TCU's counts."""
+    text = (f'name = "key-on"\nduration_s = {duration}\ngrade_rad = 0.174\nengine_speed_rpm = 800.0\n'
+            f"[initial]\nT_CL_c = {T_CL}\nT_CH_c = {T_CH}\nT_oil_c = {T_oil}\nv_mps = 0.0\n"
+            "[[driver]]\nt_s = 0.0\ncreep_request = false\nbrake = 1.0\ndesired_speed_mps = 0.0\n"
+            "[[driver]]\nt_s = 1.0\ncreep_request = true\nbrake = 0.0\ndesired_speed_mps = 0.206\n")
+    for kind, target, value in offsets:
+        text += (f'[[fault]]\nkind = "{kind}"\ntarget = "{target}"\nvalue = {value}\nstart_s = 0.0\n'
+                 f"end_s = {duration}\n")
+    tcus: list[TcuRunner] = []
+
+    def factory(db, bus):
+        tcus.append(TcuRunner(Codec(db, TCU_USES), bus))
+        return tcus[0]
+    run = run_closed_loop(parse_scenario(text, "key-on"), load_params(), tcu_factory=factory)
+    return run.summary, tcus[0].frame_counts()
+
+
+CL_OIL, CH_OIL = "PLANT_OIL_TEMP.T_OilCL", "PLANT_OIL_TEMP.T_OilCH"
+KEYON = {  # from t = 0; (faults, the start (T_CL, T_CH), the run's length, the signals flagged): the true plate
+    # on the TCU before (0772015)
+    "T_OilCL -30 K": ((("offset", CL_OIL, -30.0),), (150.0, 150.0), 60.0, {"T_OilCL"}),  # CL 271.94 degC
+    "T_OilCL -10 K": ((("offset", CL_OIL, -10.0),), (150.0, 150.0), 60.0, {"T_OilCL"}),  # CL 251.83 degC
+    "T_OilCL gain 0.9": ((("gain", CL_OIL, 0.9),), (150.0, 150.0), 60.0, {"T_OilCL"}),  # CL 267.47 degC
+    "T_OilCH -30 K": ((("offset", CH_OIL, -30.0),), (240.0, 150.0), 100.0, {"T_OilCH"}),  # CH 272.04 degC
+    "T_OilCL -20 K and T_OilCH -25 K": ((("offset", CL_OIL, -20.0), ("offset", CH_OIL, -25.0)), (150.0, 150.0),
+                                        60.0, {"T_OilCL", "T_OilCH"}),  # CL 261.82 degC (CH's oil check caught)
+}
+
+
+@pytest.mark.parametrize("name", sorted(KEYON))
+def test_an_oil_sensor_wrong_from_key_on_keeps_the_true_plate_under_t_safe(name):
+    """Wrong from t = 0, an oil reading took the plate estimate down with it (unobservable once running): on the
+    TCU before, from the range's hottest start, the true plate passed 250 degC (:data:`KEYON`). The
+    key-on check finds the reading below the other oil temperatures and predicts that plate adiabatic from the
+    hottest credible start (T_OilCH's case: CL from 240 degC, beyond the range but unflagged, hands over at once)."""
+    faults, (T_CL, T_CH), duration, flagged = KEYON[name]
+    summary, counts = keyon_creep(faults, T_CL, T_CH, duration=duration)
+    assert max(summary["max_plate_temp_c"].values()) <= 250.0
+    assert set(summary["time_above_limit_s"].values()) == {0.0}
+    assert {signal for signal, n in counts["implausible"].items() if n} == flagged
+    assert summary["creep_time_s"] > 5.0  # the other clutch, or the flagged one from its hottest start, creeps
+
+
+def test_an_oil_sensor_reading_high_from_key_on_costs_the_other_pack_not_the_plate():
+    """A reading too high is the safe side for its own plate; at key-on it makes the other pack's reading look low:
+    that one is then predicted adiabatic (availability, not safety)."""
+    summary, counts = keyon_creep((("offset", CL_OIL, 30.0),))
+    assert max(summary["max_plate_temp_c"].values()) <= 250.0
+    assert {signal for signal, n in counts["implausible"].items() if n} == {"T_OilCH"}
+
+
+def test_without_a_sensor_fault_the_key_on_check_flags_nothing_whatever_the_start():
+    """A cold pack in hot oil and a hot pack in cold oil: at key-on the oil stands mixed, so no reading differs."""
+    for T_CL, T_CH, T_oil in ((40.0, 150.0, 150.0), (150.0, 40.0, 40.0)):
+        summary, counts = keyon_creep((), T_CL, T_CH, T_oil, duration=5.0)
+        assert set(counts["implausible"].values()) == {0}, (T_CL, T_CH, T_oil)

@@ -51,7 +51,8 @@ def assert_matches_truth(frame, truth, skip=()):
 # truth); by when after the fault began [s] the check must have failed for its debounce: a timeout 3 cycle times +
 # 1 period, an E2E failure 3 rejected frames, the speed vote and the speed check at the first frames, the oil check
 # within its 100-ms frames, the pressure check once its integral (0.075 MPa s) is filled by the 0.3-MPa offset
-# beyond its tolerance (about 0.3 s)
+# beyond its tolerance (about 0.3 s), an output speed out-voted once the vote's distance (0.04 m) is filled by its
+# +30 r/min beyond 3 % of the 0.2-m/s creep (CL: 0.108 m/s at the wheel, 0.39 s; CH: 0.187 m/s, 0.22 s), + 3 periods
 FAULTS = [
     ("drop:PLANT_VEHICLE@2-2.5", {"U1103"}, None, 0.05),
     ("corrupt_crc:PLANT_SPEEDS@2-2.5", {"U1102", "U1202"}, None, 0.05),
@@ -62,6 +63,8 @@ FAULTS = [
     ("offset:PLANT_PRESSURE.P_CL@2-2.5,value=0.3", {"P1712"}, "P_CL", 0.4),
     ("stuck:PLANT_SPEEDS.ClutchInputSpeed@2-2.5,value=0", {"P1714"}, "ClutchInputSpeed", 0.15),
     ("stuck:PLANT_OIL_TEMP.T_OilCL@2-2.5,value=20", {"P1715"}, "T_OilCL", 0.25),
+    ("offset:PLANT_SPEEDS.CLOutputSpeed@2-2.5,value=30", {"P1717"}, "CLOutputSpeed", 0.45),
+    ("offset:PLANT_SPEEDS.CHOutputSpeed@2-2.5,value=30", {"P1718"}, "CHOutputSpeed", 0.3),
     ("delay:PLANT_SPEEDS@2-2.5,delay_s=0.02", set(), None, 0.0),
     ("duplicate:PLANT_SPEEDS@2-2.5", set(), None, 0.0),
     ("flood@2-2.5,rate=2", set(), None, 0.0),
@@ -81,6 +84,15 @@ def test_each_fault_sets_its_dtc_with_a_freeze_frame_of_the_plants_truth(dsg_hil
         # confirmed no sooner than its debounce allows after the fault began, and in time
         assert START + (debounce - 1) * 0.01 - 1e-9 <= frame["t"] <= START + within_s
         assert_matches_truth(frame, result.truth, skip=(falsified,))
+
+
+def test_an_oil_sensor_low_from_key_on_confirms_its_dtc_at_once(dsg_hil_run):
+    """The key-on check (docs/safety.md, section 6) flags T_OilCL on the first cycle; its DTC is confirmed after its
+    debounce, 3 periods (the first period's count is the monitor's reference)."""
+    result = dsg_hil_run(faults=["offset:PLANT_OIL_TEMP.T_OilCL@0-,value=-30"], duration=1.0, log=None)
+    dtcs = confirmed(result)
+    assert set(dtcs) == {"P1715"} and dtcs["P1715"].freeze_frame["t"] <= 0.05
+    assert_matches_truth(dtcs["P1715"].freeze_frame, result.truth, skip=("T_OilCL",))
 
 
 def test_overheat_stop_and_vehicle_hold(dsg_hil_run):
