@@ -263,3 +263,28 @@ def test_faults_on_the_example_s_fd_frames(message, signal, value):
         assert sorted(rx.rejected) == expected, fault
         assert statuses == ([NEW, NEW, NEW] if not expected else
                             [REJECTED] * 3 if expected == ["crc"] else [NEW, REJECTED, REJECTED])
+
+
+@pytest.mark.parametrize("dlc", [12, 64, 5])
+def test_wrong_dlc_gives_a_can_fd_length_on_an_fd_message(dlc):
+    """``wrong_dlc`` on the 16-byte TCU_Demand with a CAN FD length (or a short one): a CAN FD frame of that length,
+    which the receiver rejects as ``dlc``; a CAN FD length on a classic message is refused before the run."""
+    from dsg_hil.protocol.faults import FaultInjector
+    from dsg_hil.protocol.faults.spec import FaultError, check_faults, parse_fault
+    from dsg_hil.protocol.frame import data_frame
+    from dsg_hil.protocol.validity import REJECTED, RxMonitor
+
+    other = load_binding(BINDING, dbc=DBC)
+    codec = Codec(other.db, other.uses, protection=other.protection)
+    spec = parse_fault(f"wrong_dlc:TCU_Demand,dlc={dlc},side=tcu")  # (dct_fd's senders are GBX_SIM and TCM)
+    assert check_faults([spec], other.db)["tcu"] == [spec]
+    injector = FaultInjector(other.db, [spec], protections=codec.protections())
+    frame_id = codec.frame_id("TCU_Demand")
+    (out,) = injector.apply(data_frame(frame_id, codec.encode("TCU_Demand", {"PressReqA": 500.0}, 0), 0.0,
+                                       fd=codec.fd), 0.0)
+    assert out.is_fd and out.bitrate_switch and len(out.data) == dlc
+    rx = RxMonitor(codec, ["TCU_Demand"])
+    assert rx.take(out, 0.0)[0] == REJECTED and dict(rx.rejected) == {"dlc": 1}
+    if dlc > 8:
+        with pytest.raises(FaultError, match=f"dlc {dlc} is a CAN FD length, and EMS_TorqueSpeed is a classic CAN"):
+            check_faults([parse_fault(f"wrong_dlc:EMS_TorqueSpeed,dlc={dlc},side=plant")], other.db)
