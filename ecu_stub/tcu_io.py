@@ -152,8 +152,8 @@ SHIPPED = TcuIO(shipped_binding())  # the shipped DBC with its binding
 def _numbers(quantity: str) -> dict[str, int]:
     """The value table (VAL_) of ``quantity``'s signal in the shipped DBC: {name: number}."""
     message, signal = SHIPPED.where[quantity]
-    table = shipped_binding().db.get_message_by_name(message).get_signal_by_name(signal).choices or {}
-    return {str(name): int(value) for value, name in table.items()}
+    table = shipped_binding().db.get_message_by_name(message).get_signal_by_name(signal).choices
+    return {str(name): int(value) for value, name in (table or {}).items()}
 
 
 # the numbers of the TCU's states and active clutch, on any matrix: the quantities tcu_state and active_clutch
