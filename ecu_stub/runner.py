@@ -39,10 +39,10 @@ from typing import Any, cast
 import can
 
 from dsg_hil.common.units import CV
-from dsg_hil.protocol import Codec, ProtocolError, RxMonitor, TxScheduler
+from dsg_hil.protocol import Codec, RxMonitor, TxScheduler
 from dsg_hil.protocol.diag import diag_ids, load_description
 from dsg_hil.protocol.frame import FrameListener, data_frame
-from dsg_hil.protocol.lockstep import Frames, LockstepResponder, Received, choices, frame_io
+from dsg_hil.protocol.lockstep import Frames, LockstepResponder, Received, frame_io
 from dsg_hil.protocol.validity import RxState, all_valid
 
 from .calibration import TcuCalibration
@@ -52,7 +52,7 @@ from .diag.server import response_frame
 from .interface import SidePort, TcuController
 from .plausibility import BRAKE_SETTLE_S, PeakHold, SpeedVoter, Verdict
 from .sensor_checks import CHECKED, FALL_START_TAU, SensorChecks
-from .tcu_io import SHIPPED, TcuIO
+from .tcu_io import CLUTCH_VALUES, SHIPPED, STATE_VALUES, TcuIO
 
 __all__ = ["FAULT_IMPLAUSIBLE", "REQUIRED", "TCU_RX", "TCU_TX", "TCU_USES", "TX_VALUES", "TcuRunner"]
 
@@ -92,12 +92,10 @@ class TcuRunner:
         command = io.names[2]
         self.cycle = codec.cycle_time(command)
         self.cycle_ms = codec.cycle_time_ms(command)
-        self.states = choices(codec, *io.where["tcu_state"]) if "tcu_state" in io.where else {}
-        self.clutches = choices(codec, *io.where["active_clutch"]) if "active_clutch" in io.where else {}
-        missing = {"IDLE", "ENGAGE", "CREEP", "HANDOVER", "STOPPED_OVERHEAT", "FAULT"} - set(self.states)
-        if missing or {"NONE", "CL", "CH"} - set(self.clutches):
-            raise ProtocolError(f"DBC {io.names[4]} lacks VAL_ entries the TCU needs: "
-                                f"{sorted(missing or {'NONE', 'CL', 'CH'} - set(self.clutches))}")
+        # the state's and active clutch's numbers: the quantities' (the shipped DBC's VAL_ numbering, which the
+        # plant reads on any matrix: dsg_hil.protocol.binding.QUANTITIES), whatever the matrix's own value tables
+        # name them (e.g. "Creeping" for CREEP)
+        self.states, self.clutches = dict(STATE_VALUES), dict(CLUTCH_VALUES)
         # the plant's values in the TCU's units (see inputs): (index of the message in REQUIRED, signal, k, c)
         self._inputs = io.inputs
         self._v_index = io.inputs[4][0]  # the message of VehicleSpeed (its counter: the speed vote)

@@ -23,7 +23,7 @@ from cantools.database.can import Database
 
 from dsg_hil.protocol.binding import QUANTITIES, UNITS, Binding, BindingError, load_binding, shipped_binding
 
-__all__ = ["INPUTS", "OUTPUTS", "SHIPPED", "TcuIO", "edge", "from_binding", "tcu_io"]
+__all__ = ["CLUTCH_VALUES", "INPUTS", "OUTPUTS", "SHIPPED", "STATE_VALUES", "TcuIO", "edge", "from_binding", "tcu_io"]
 
 # the quantities the TCU reads, in the order :meth:`ecu_stub.runner.TcuRunner.inputs` unpacks them: its unit there
 INPUTS: dict[str, str] = {
@@ -147,3 +147,16 @@ def tcu_io(binding: str | Path | None = None, dbc: str | Path | None = None, db:
 
 
 SHIPPED = TcuIO(shipped_binding())  # the shipped DBC with its binding
+
+
+def _numbers(quantity: str) -> dict[str, int]:
+    """The value table (VAL_) of ``quantity``'s signal in the shipped DBC: {name: number}."""
+    message, signal = SHIPPED.where[quantity]
+    table = shipped_binding().db.get_message_by_name(message).get_signal_by_name(signal).choices
+    return {str(name): int(value) for value, name in (table or {}).items()}
+
+
+# the numbers of the TCU's states and active clutch, on any matrix: the quantities tcu_state and active_clutch
+# are these numbers (the plant reads them so), whatever a matrix's own value table calls them
+STATE_VALUES: dict[str, int] = _numbers("tcu_state")
+CLUTCH_VALUES: dict[str, int] = _numbers("active_clutch")

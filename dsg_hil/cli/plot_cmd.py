@@ -6,13 +6,17 @@ from __future__ import annotations
 import argparse
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..common.errors import InputError, LogError
 from ..common.files import check_output_path
 from . import command_help
 from .common import progress
 
-__all__ = ["PANELS", "add_subparser", "plot_log", "series"]
+if TYPE_CHECKING:
+    from ..protocol.binding import Binding
+
+__all__ = ["PANELS", "add_subparser", "carriers", "plot_log", "series"]
 
 # (title, y label, [(MESSAGE.Signal, legend)]): what a panel shows of the log, each signal when the log has it
 PANELS = (
@@ -36,30 +40,60 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("-o", "--output", metavar="FILE",
                         help="the image (by extension: .png, .pdf, .svg ...; default: LOG with .png)")
     parser.add_argument("--dbc", metavar="FILE", help="DBC file (default: dbc/dsg_hil.dbc shipped with dsg-hil)")
+    parser.add_argument("--binding", metavar="FILE",
+                        help="binding TOML of the DBC: the log is of another matrix (its frames checked by the "
+                             "binding's protection, e.g. AUTOSAR E2E), each quantity plotted from the signal that "
+                             "carries it, in the units above (default: the shipped DBC's signals)")
     parser.set_defaults(func=_do_plot)
 
 
-def series(log: str | Path, db: object) -> dict[str, tuple[list[float], list[float]]]:
+def series(log: str | Path, db: object, binding: Binding | None = None) -> dict[str, tuple[list[float], list[float]]]:
     """Every signal of :data:`PANELS` the log holds: ``MESSAGE.Signal`` -> (times [s] from the first frame, values
-    in the DBC's units); read whole first, so a bad log fails before anything is drawn."""
+    in the DBC's units); read whole first, so a bad log fails before anything is drawn. ``binding`` (a loaded
+    binding of ``db``): the log is of that matrix; each of :data:`PANELS`' signals is the one that carries its
+    quantity there, converted to the shipped signal's unit (:func:`carriers`)."""
     from ..protocol.logs import decoded_frames, log_codec  # noqa: PLC0415 - cantools when the command runs
 
     wanted = {key for _, _, signals in PANELS for key, _ in signals}
+    if binding is None:
+        codec, convert = log_codec(db), {key: (key, 1.0, 0.0) for key in wanted}  # type: ignore[arg-type]
+    else:
+        codec, convert = log_codec(binding.db, binding.protection), carriers(binding, wanted)
     out: dict[str, tuple[list[float], list[float]]] = {}
     t0: float | None = None
-    for timestamp, frame in decoded_frames(log, log_codec(db)):  # type: ignore[arg-type]
+    for timestamp, frame in decoded_frames(log, codec):
         if frame is None:
             continue
         t0 = timestamp if t0 is None else t0
         for name, value in frame.values.items():
-            key = f"{frame.name}.{name}"
-            if key in wanted:
+            found = convert.get(f"{frame.name}.{name}")
+            if found is not None:
+                key, k, c = found
                 times, values = out.setdefault(key, ([], []))
                 times.append(timestamp - t0)
-                values.append(float(value))
+                values.append(float(value) * k + c)
     if not out:
-        raise LogError(f"{log}: none of the signals plotted ({', '.join(sorted(wanted))}): not a run of this DBC")
+        shown = sorted(convert) if binding is not None else sorted(wanted)
+        raise LogError(f"{log}: none of the signals plotted ({', '.join(shown)}): not a run of this DBC")
     return out
+
+
+def carriers(binding: Binding, wanted: Iterable[str]) -> dict[str, tuple[str, float, float]]:
+    """By ``MESSAGE.Signal`` of ``binding``'s matrix that carries the quantity of one of the shipped signals
+    ``wanted``: (that shipped signal, k, c), its value times k plus c in the shipped signal's unit (both signals'
+    conversions to SI composed)."""
+    from ..protocol.binding import shipped_binding  # noqa: PLC0415
+
+    shipped = shipped_binding()
+    where = {quantity: key for key, (quantity, _) in binding.signals.items()}
+    found: dict[str, tuple[str, float, float]] = {}
+    for (message, signal), (quantity, f_shipped) in shipped.signals.items():
+        key = f"{message}.{signal}"
+        if key in set(wanted) and quantity in where:
+            f_other = binding.signals[where[quantity]][1]
+            o_other, o_shipped = binding.offsets.get(where[quantity], 0.0), shipped.offsets.get((message, signal), 0.0)
+            found[".".join(where[quantity])] = (key, f_other / f_shipped, (o_other - o_shipped) / f_shipped)
+    return found
 
 
 def plot_log(data: dict[str, tuple[list[float], list[float]]], title: str, output: Path) -> None:
@@ -97,6 +131,7 @@ def _draw(ax: object, data: dict[str, tuple[list[float], list[float]]], signals:
 def _do_plot(args: argparse.Namespace) -> int:
     from ..paper.plots import require_matplotlib  # noqa: PLC0415
     from ..protocol import load_dbc  # noqa: PLC0415
+    from ..protocol.binding import load_binding  # noqa: PLC0415
 
     output = args.output if args.output is not None else str(Path(args.log).with_suffix(".png"))
     check_output_path("--output" if args.output is not None else "LOG.png", output)
@@ -107,7 +142,9 @@ def _do_plot(args: argparse.Namespace) -> int:
     if Path(output).suffix.lower().removeprefix(".") not in kinds:
         raise InputError(f"{'--output' if args.output is not None else 'LOG.png'} {output}: the image's extension "
                          f"is one of {', '.join(f'.{kind}' for kind in sorted(kinds))}")
-    data = series(args.log, load_dbc(args.dbc))
+    db = load_dbc(args.dbc)
+    binding = None if args.binding is None else load_binding(args.binding, db=db)
+    data = series(args.log, db, binding)
     plot_log(data, Path(args.log).name, Path(output))
     progress(f"wrote {output}")
     return 0

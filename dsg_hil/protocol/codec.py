@@ -139,6 +139,7 @@ class Codec:
         self.fd: dict[int, bool] = {}  # the CAN FD messages used: by frame ID, their bit-rate switch
         self._multiplexer: dict[str, str] = {}  # multiplexed messages: their multiplexer signal
         self._pages: dict[str, list[int]] = {}  # ... and its values, the pages sent in turn
+        self._pages_sent: dict[str, int] = {}  # ... and its frames encoded so far without a page given
         self._padding: dict[str, bytes] = {}  # CAN FD messages of a length no DLC codes: the zeros sent after them
         use_plans = PLANS_COMPILED if plans is None else plans
         self._by_name: dict[str, Message] = {}
@@ -227,6 +228,14 @@ class Codec:
         """Every message's protection, by name (e.g. for the fault injector of a node's frames)."""
         return {name: self._protection[message.frame_id] for name, message in self._by_name.items()}
 
+    def complete_values(self, name: str) -> int:
+        """A multiplexed message's number of values (every page's signals and the multiplexer, not the
+        protection's), which its frames give a page at a time; 0 for any other message (each frame gives all)."""
+        if name not in self._multiplexer:
+            return 0
+        message = self._by_name[name]
+        return len({signal.name for signal in message.signals} - self._carriers[message.frame_id])
+
     def cycle_time(self, name: str) -> float:
         """The message's GenMsgCycleTime [s]."""
         return self.cycle_time_ms(name) / CV.S_TO_MS
@@ -287,7 +296,7 @@ class Codec:
         message = self._by_name[name]
         protection, carriers = self._protection[message.frame_id], self._carriers[message.frame_id]
         data: dict[str, float] = {}
-        page = self._page(message, values, counter)
+        page = self._page(message, values)
         for signal in message.signals:
             if page is not None and signal.multiplexer_ids is not None and page not in signal.multiplexer_ids:
                 continue  # (another page's)
@@ -305,17 +314,20 @@ class Codec:
             data[self._multiplexer[message.name]] = page
         return protection.seal(message.encode(data, strict=True, scaling=True), counter)
 
-    def _page(self, message: Message, values: Mapping[str, float], counter: int) -> int | None:
+    def _page(self, message: Message, values: Mapping[str, float]) -> int | None:
         """A multiplexed message's page (its multiplexer's value) to send: the one ``values`` give, else the
-        pages in turn, by the frame's counter (None: not multiplexed)."""
+        pages in turn, by a count of the message's frames of its own (None: not multiplexed). Not by the frame's
+        counter: a counter whose modulus the number of pages does not divide (Profile 11's 0-14 with two pages)
+        would send a page twice in a row when it wraps."""
         multiplexer = self._multiplexer.get(message.name)
         if multiplexer is None:
             return None
         given = values.get(multiplexer)
         if given is not None and math.isfinite(given):
             return int(given)
-        pages = self._pages[message.name]
-        return pages[counter % len(pages)]
+        pages, sent = self._pages[message.name], self._pages_sent.get(message.name, 0)
+        self._pages_sent[message.name] = sent + 1
+        return pages[sent % len(pages)]
 
     def _decode_reference(self, message: Message, data: bytes) -> DecodedFrame:  # (a frame unpadded: _unpadded)
         frame_id = message.frame_id

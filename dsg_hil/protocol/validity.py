@@ -50,6 +50,10 @@ class RxState:
     max_delta: int = MAX_DELTA
     counted: bool = True
     timeout: float | None = None  # [s]: the deadline if given (a binding's), else TIMEOUT_CYCLES cycle times
+    # a multiplexed message: how many values a whole reading has (every page's signals and the multiplexer); a
+    # frame's page updates its values, the other pages' keep theirs, and the message is received (fresh, valid)
+    # from the frame that completes the first reading on. 0: not multiplexed (each frame holds every value)
+    complete: int = 0
     last_time: float | None = None
     last_counter: int | None = None
     values: dict[str, float] = field(default_factory=dict)
@@ -83,8 +87,13 @@ class RxState:
         if self.counted:
             self.last_counter = counter
             self.last_data = data
+        if self.complete:  # (a new dict: decoded frames are shared, only read)
+            self.values = {**self.values, **frame.values}
+            if len(self.values) < self.complete:
+                return None  # (its counter taken; the message not received until its every page has come)
+        else:
+            self.values = frame.values
         self.last_time = now
-        self.values = frame.values
         self.received += 1
         return None
 
@@ -121,7 +130,7 @@ class RxMonitor:
             protection = codec.protection(name)
             modulus = protection.counter_modulus
             self.states[name] = RxState(name, codec.cycle_time(name), modulus or 1, protection.max_delta, modulus > 0,
-                                        codec.timeout(name))
+                                        codec.timeout(name), codec.complete_values(name))
         self._ids = {codec.frame_id(name): name for name in names}
         self._by_id: dict[int, tuple[RxState, Callable[[bytes], DecodedFrame], dict[bytes, DecodedFrame]]] = {
             frame_id: (self.states[name], codec.decoder(frame_id), {})  # take: one look-up per frame
@@ -196,7 +205,8 @@ class RxMonitor:
             self._reject(state, extra[0], f"{frame.name}: {failed}")
             return REJECTED, None
         last_counter = state.last_counter
-        if last_counter is not None and (frame.counter - last_counter) % state.counter_modulus == 1:
+        if last_counter is not None and (frame.counter - last_counter) % state.counter_modulus == 1 \
+                and not state.complete:
             state.last_counter, state.last_data, state.last_time = frame.counter, data, now  # update's usual step,
             state.values = frame.values  # written out (every frame)
             state.received += 1

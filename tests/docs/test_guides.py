@@ -274,3 +274,58 @@ def test_the_layout_tree_is_the_checkout_s() -> None:
     packages = {f"{p.parent.relative_to(ROOT)}/" for p in ROOT.glob("dsg_hil/*/__init__.py")}
     assert packages - set(named) == set()
 
+
+
+EXAMPLE_README = "dbc/examples/dct_fd/README.md"
+
+
+def test_the_example_readme_s_run_and_plot(tmp_path: Path) -> None:
+    """The dct_fd README's first block as written, from the repository's root: the pair passes the check, the 40-s
+    creep runs on it (ecu-stub in the process, on dct_fd), nothing rejected, CL then CH, CL engaged 50 ms later
+    than on the shipped pair (the README says so); the plot of its .blf log is written."""
+    lines = sh_block(EXAMPLE_README, "dsg-hil binding check")
+    assert [line.split()[1] for line in lines] == ["binding", "run", "plot"]
+    replace = {name: str(tmp_path / name) for name in ("creep.blf", "summary.json", "creep.png")}
+    for line in lines:
+        if line.split()[1] == "plot":
+            pytest.importorskip("matplotlib", reason="the plots extra is not installed")
+        done = run(line, ROOT, replace)
+        assert done.returncode == 0, (line, done.stderr[-2000:])
+    summary = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
+    assert summary["frames"]["rejected"] == summary["frames"]["unanswered_ticks"] == 0
+    assert summary["frames"]["by_message"]["TCU_Demand"]["taken"] > 3900
+    assert [p["clutch"] for p in summary["phases"]] == ["CL", "CH"]
+    shipped = run("dsg-hil run --duration 40 --summary shipped.json", tmp_path)
+    assert shipped.returncode == 0, shipped.stderr[-2000:]
+    ours = json.loads((tmp_path / "shipped.json").read_text(encoding="utf-8"))
+    assert summary["phases"][0]["start_s"] - ours["phases"][0]["start_s"] == pytest.approx(0.05, abs=1e-9)
+    assert (tmp_path / "creep.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_example_readme_s_two_processes(tmp_path: Path) -> None:
+    """The README's two-process block on a fresh udp_multicast group and port: ecu-stub in the background on dct_fd,
+    the plant's lock-step run against it, nothing rejected at either end."""
+    from dsg_hil.protocol.bus import fresh_udp_group
+
+    lines = sh_block(EXAMPLE_README, "ecu-stub -i udp_multicast")
+    fresh = fresh_udp_group()
+    group, port = fresh["channel"], f"port={fresh['port']}"
+    summary = tmp_path / "summary.json"
+
+    def words(line: str) -> list[str]:
+        found = [group if w == "239.255.12.34" else str(summary) if w == "summary.json" else w
+                 for w in shlex.split(line.rstrip("& "), comments=True)]
+        return [*found, "--bus-kwargs", port]
+
+    tcu = subprocess.Popen([*words(lines[0]), "--idle-exit", "10"], cwd=ROOT, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        plant = subprocess.run(words(lines[1]), cwd=ROOT, capture_output=True, text=True, timeout=600, env=ENV)
+    finally:
+        tcu.send_signal(signal.SIGTERM)
+        tcu_err = tcu.communicate(timeout=60)[1]
+    assert plant.returncode == 0, plant.stderr[-2000:]
+    assert "rejected 0" in tcu_err, tcu_err
+    result = json.loads(summary.read_text(encoding="utf-8"))
+    assert result["frames"]["rejected"] == result["frames"]["unanswered_ticks"] == 0
+    assert [p["clutch"] for p in result["phases"]] == ["CL"]

@@ -47,7 +47,9 @@ def fenced_blocks(path: Path) -> list[Block]:
 
 
 def pages() -> list[Path]:
-    return [p for p in (ROOT / "README.md", ROOT / "CONTRACT.md") if p.exists()] + sorted((ROOT / "docs").rglob("*.md"))
+    """The user docs: the landing page, the contract, the site's pages, the example matrices' READMEs."""
+    return [p for p in (ROOT / "README.md", ROOT / "CONTRACT.md") if p.exists()] \
+        + sorted((ROOT / "docs").rglob("*.md")) + sorted((ROOT / "dbc" / "examples").rglob("README.md"))
 
 
 # What a block is. RUN: a test runs it as shown (the entry says what it replaces: a fresh port, a file). Not run, each
@@ -126,6 +128,14 @@ ENTRIES = [
       (f"{GUIDES}::test_the_simulation_block_adds_the_simulation_database_s_messages",)),
     E("docs/how-to/binding.md", "dsg-hil binding check dbc/examples/dct_fd/", RUN,
       (f"{GUIDES}::test_the_example_matrix_passes_the_binding_check",)),
+    # the example matrices
+    E("dbc/examples/dct_fd/README.md", "dsg-hil binding check dbc/examples/dct_fd/", RUN,
+      (f"{GUIDES}::test_the_example_readme_s_run_and_plot",)),
+    E("dbc/examples/dct_fd/README.md", "ecu-stub -i udp_multicast", RUN,
+      (f"{GUIDES}::test_the_example_readme_s_two_processes",), "on a fresh group and port"),
+    E("dbc/examples/dct_fd/README.md", "sudo ip link set vcan0 mtu 72", VCAN,
+      ("dsg_hil/e2e/test_second_matrix.py::test_plant_and_ecu_stub_on_the_second_matrix_over_vcan0",),
+      "root and vcan0: the VM suite runs the two processes on vcan0 with this pair (dsg-hil vcan)"),
     E("docs/how-to/diag-command.md", "pip install 'dsg-hil[diag]'", INSTALL, why="an extra; the dev extra has it"),
     E("docs/how-to/diag-command.md", "ecu-stub -i udp_multicast -c 239.255.12.34", RUN,
       (f"{GUIDES}::test_the_diag_guide_s_session_prints_what_it_shows",), "on a fresh port"),

@@ -1,16 +1,15 @@
 """The plant on the second example matrix (``dbc/examples/dct_fd``: other IDs and names, Motorola byte order, other
 scalings and offsets, CAN FD messages of 12 and 16 bytes, AUTOSAR E2E Profile 5 on the TCU's frames and 11 on the
-sensor frames, a multiplexed message) runs the default creep in lock-step in one process, by its binding alone.
-ecu-stub speaks the shipped DBC, so it answers through a gateway (:class:`MatrixGateway`) that decodes each frame
-with one matrix and encodes it in the other, keeping each side's counters and the multiplexed pages' last values
-(a frame of the shipped matrix sent once all its values are known): the plant's truth is the shipped pair's, one oil
-cycle later."""
+sensor frames, a multiplexed message) runs the default creep by its binding alone, driven by ecu-stub built only
+from the same pair of files: in lock-step and in real time in one process, and as two processes (``dsg-hil plant``
+and ``ecu-stub``) on udp_multicast with CAN FD frames. The plant's truth is the shipped pair's, but for the
+multiplexed oil message: ecu-stub's inputs are whole once its last page has come, one cycle of it after the first."""
 
 from __future__ import annotations
 
-import collections
-import itertools
-from collections import deque
+import json
+import subprocess
+import sys
 from importlib import resources
 from pathlib import Path
 
@@ -19,98 +18,32 @@ import pytest
 
 from dsg_hil.protocol import Codec
 from dsg_hil.protocol.binding import Binding, check_binding, load_binding
+from dsg_hil.protocol.bus import UDP_MULTICAST, bus_args, fresh_udp_group
 from dsg_hil.protocol.logs import decoded_frames, log_codec
 from dsg_hil.sim.run import RunConfig, open_run
-from ecu_stub.runner import TCU_USES, TcuRunner
+from dsg_hil.sim.scenario import load_scenario
 
 EXAMPLE = resources.files("dsg_hil") / "data" / "examples" / "dct_fd"
 DBC, BINDING = Path(str(EXAMPLE / "dct_fd.dbc")), Path(str(EXAMPLE / "dct_fd.binding.toml"))
-DURATION = 8.0  # s of the default creep: the TCU engages CL and creeps
-_channels = itertools.count()
+DURATION = 40.0  # s of the default creep: CL engages, creeps, hands over to CH
+SHORT = 8.0  # s: the two-process run (CL engages and creeps)
+OIL = "TCM_OilTemps"  # the multiplexed message
+STATUS_CYCLE = 0.1  # s: TCU_STATUS's and TCU_Info's cycle (test_the_status_cycles_are_the_same)
 
 
-def _roles(binding: Binding) -> dict[tuple[str, str], tuple[str, float, float]]:
-    """(message, signal) -> (role, factor, offset): a quantity's name, or the lock-step signal's."""
-    roles = {key: (quantity, factor, binding.offsets.get(key, 0.0)) for key, (quantity, factor)
-             in binding.signals.items()}
-    roles[binding.sync] = ("tick", 1.0, 0.0)
-    roles[binding.echo] = ("echo", 1.0, 0.0)
-    return roles
+def pages(binding: Binding) -> list[int]:
+    """The multiplexed oil message's pages."""
+    message = binding.db.get_message_by_name(OIL)
+    return sorted({page for signal in message.signals for page in signal.multiplexer_ids or ()})
 
 
-class MatrixGateway(can.BusABC):
-    """ecu-stub's end of the bus, in the shipped matrix: each frame from the bus (the example matrix) decoded, its
-    quantities converted and encoded in the shipped matrix, and back. Each side's frames get the gateway's own
-    counters (the two matrices' counters count differently: 4 bits, Profile 11's 0..14, Profile 5's 8 bits); a
-    frame repeated byte for byte (a lock-step re-send) gives the frame it gave before; a multiplexed message's
-    signals of the pages not in a frame keep their last values."""
-
-    def __init__(self, bus: can.BusABC, shipped: Binding, other: Binding) -> None:
-        super().__init__(channel="gateway")
-        self.bus = bus
-        self.codecs = {"shipped": log_codec(shipped.db), "other": log_codec(other.db, other.protection)}
-        roles = {"shipped": _roles(shipped), "other": _roles(other)}
-        self.by_role = {side: {role: (m, s, f, o) for (m, s), (role, f, o) in table.items()}
-                        for side, table in roles.items()}
-        self.roles = roles
-        self.counters: dict[str, int] = {}
-        self.needed = {side: collections.Counter(m for m, _, _, _ in table.values())
-                       for side, table in self.by_role.items()}  # by side, by message: its signals with a role
-        # by side, by message: the message of the other side whose frame sends it (the last of its sources, in
-        # the order the plant sends them): one frame per cycle, as the receiver's lock-step expects
-        self.emitter: dict[str, dict[str, str]] = {"shipped": {}, "other": {}}
-        for side, source, binding in (("shipped", "other", other), ("other", "shipped", shipped)):
-            for message in [*binding.tx, *binding.rx, binding.sync[0]]:
-                for (m, _), (role, _, _) in roles[source].items():
-                    if m == message:
-                        self.emitter[side][self.by_role[side][role][0]] = message
-        self.last: dict[int, tuple[bytes, list[can.Message]]] = {}  # by frame ID: the last frame in, the ones it gave
-        self.queue: deque[can.Message] = deque()  # translated frames not yet received
-        self.values: dict[str, dict[str, float]] = {}  # by message of the target side: its last values
-
-    def _translate(self, msg: can.Message, source: str, target: str) -> list[can.Message]:
-        """The frames of the target side that carry what ``msg`` carries (a sensor frame of one matrix may feed
-        two messages of the other: one frame of each, its signals from other frames their last values)."""
-        data = bytes(msg.data)
-        last = self.last.get(msg.arbitration_id)
-        if last is not None and last[0] == data:
-            return last[1]
-        frame = self.codecs[source].decode(msg.arbitration_id, data)
-        names: list[str] = []
-        for signal, value in frame.values.items():
-            if (frame.name, signal) not in self.roles[source]:
-                continue  # (a multiplexer)
-            role, factor, offset = self.roles[source][frame.name, signal]
-            name, new_signal, new_factor, new_offset = self.by_role[target][role]
-            self.values.setdefault(name, {})[new_signal] = (value * factor + offset - new_offset) / new_factor
-            if name not in names:
-                names.append(name)
-        codec, out = self.codecs[target], []
-        t_ms = round(msg.timestamp * 1000)  # simulated time (lock-step stamps, preserved by the virtual bus)
-        for name in names:
-            if self.emitter[target].get(name, frame.name) != frame.name or t_ms % codec.cycle_time_ms(name) \
-                    or len(self.values[name]) < self.needed[target][name]:
-                continue  # (sent with the last of its sources, at its own cycle, once every value is known)
-            modulus = codec.protection(name).counter_modulus or 1
-            counter = self.counters[name] = (self.counters.get(name, -1) + 1) % modulus
-            frame_id = codec.frame_id(name)
-            out.append(can.Message(arbitration_id=frame_id, data=codec.encode(name, self.values[name], counter),
-                                   is_extended_id=False, is_fd=frame_id in codec.fd,
-                                   bitrate_switch=codec.fd.get(frame_id, False), timestamp=msg.timestamp))
-        self.last[msg.arbitration_id] = (data, out)
-        return out
-
-    def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        for out in self._translate(msg, "shipped", "other"):
-            self.bus.send(out, timeout)
-
-    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        while not self.queue:  # (a frame that gives none, e.g. a multiplexed page not sent on: the next one)
-            msg = self.bus.recv(timeout)
-            if msg is None:
-                return None, False
-            self.queue.extend(self._translate(msg, "other", "shipped"))
-        return self.queue.popleft(), False
+def oil_delay(binding: Binding) -> float:
+    """[s]: how much later than on the shipped matrix ecu-stub's inputs are first whole: the shipped oil frame
+    carries every oil temperature from t = 0, the multiplexed one a page per frame, the last page's first frame
+    (pages - 1) cycles of the message later."""
+    cycle = binding.db.get_message_by_name(OIL).cycle_time
+    assert cycle is not None
+    return (len(pages(binding)) - 1) * cycle / 1000
 
 
 def test_the_example_passes_binding_check():
@@ -146,47 +79,46 @@ def test_the_example_shares_nothing_with_the_shipped_matrix():
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    with open_run(RunConfig(duration=DURATION, capture=True, truth=True)) as run:
+    with open_run(RunConfig(duration=DURATION)) as run:
         shipped_summary = run.run().as_json()
-    shipped, other = load_binding(), load_binding(BINDING, dbc=DBC)
-    gateways: list[MatrixGateway] = []
-
-    def tcu(db, bus):
-        gateways.append(MatrixGateway(bus, shipped, other))
-        return TcuRunner(Codec(shipped.db, TCU_USES), gateways[-1])
-
+    other = load_binding(BINDING, dbc=DBC)
     log = tmp_path_factory.mktemp("dct_fd") / "creep.blf"
-    bus = {"interface": "virtual", "channel": f"dct-fd-{next(_channels)}", "preserve_timestamps": True}
-    config = RunConfig(duration=DURATION, dbc=DBC, binding=BINDING, capture=True, truth=True, tcu=tcu, log=log,
-                       bus=bus, direct=False)
+    config = RunConfig(duration=DURATION, dbc=DBC, binding=BINDING, capture=True, log=log)
     with open_run(config) as run:
+        assert run.tcu.io.names[:4] == ("SIM_Step", "StepCnt", "TCU_Demand", "StepEcho")  # ecu-stub, on dct_fd
         other_summary = run.run().as_json()
-    for gateway in gateways:
-        gateway.shutdown()
     return shipped_summary, (other, run.frames, other_summary, log)
 
 
-def test_the_creep_on_the_example_matrix_is_the_shipped_one(runs):
-    """The same creep as on the shipped matrix, shifted by one oil cycle: the TCU's first complete oil reading
-    takes both pages of the multiplexed message (page 1 at 50 ms), which the gateway hands on at the shipped
-    message's next cycle (100 ms), so the TCU engages CL exactly 0.1 s later. The plant's truth differs by no more
-    than 0.1 s of the shipped run's slip gives (its mean friction power, its mean heating rate of the plates) and
-    the commands' and sensors' quantisation; nothing is rejected."""
-    a, (_, _, b, _) = runs
-    assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0 and b["frames"]["received"] > 800
-    assert [p["clutch"] for p in b["phases"]] == [p["clutch"] for p in a["phases"]] == ["CL"]
-    (pa,), (pb,) = a["phases"], b["phases"]
-    shift = 0.1  # s: the shipped PLANT_OIL_TEMP's cycle
-    assert pb["start_s"] == pytest.approx(pa["start_s"] + shift, abs=1e-9)
-    assert b["creep_time_s"] == pytest.approx(a["creep_time_s"] - shift, abs=1e-9)
-    assert b["standstill_time_s"] == pytest.approx(a["standstill_time_s"] + shift, abs=1e-9)
-    power = a["friction_energy_kj"]["CL"] / pa["duration_s"]  # kW: the shipped slip's mean friction power
-    start = a["max_plate_temp_c"]["CH"]  # degC: the plates' temperature at the start (CH never slips)
-    heating = (a["max_plate_temp_c"]["CL"] - start) / pa["duration_s"]  # K/s: the shipped slip's mean heating
-    assert abs(b["friction_energy_kj"]["CL"] - a["friction_energy_kj"]["CL"]) <= power * shift
-    assert abs(b["max_plate_temp_c"]["CL"] - a["max_plate_temp_c"]["CL"]) <= heating * shift
-    assert b["max_plate_temp_c"]["CH"] == a["max_plate_temp_c"]["CH"]  # (CH never slips)
-    assert b["max_predicted_temp_c"]["CH"] == pytest.approx(a["max_predicted_temp_c"]["CH"], abs=0.5)  # 0.5 K steps
+def same_creep(a: dict, b: dict, delay: float) -> None:
+    """``b``'s creep is ``a``'s but for ecu-stub's inputs being whole ``delay`` later: CL engages exactly that much
+    later (the closed loop is otherwise the same), so the creep is that much shorter and the standstill longer;
+    the handovers are the same, each within ``delay`` of its time; each phase's friction energy and each clutch's
+    peak plate temperature differ by no more than ``delay`` of the shipped phase's mean friction power and
+    heating rate; the TCU's predicted peaks also by half of either matrix's step of the status signal."""
+    assert [p["clutch"] for p in b["phases"]] == [p["clutch"] for p in a["phases"]]
+    assert b["phases"][0]["start_s"] == pytest.approx(a["phases"][0]["start_s"] + delay, abs=1e-9)
+    assert b["creep_time_s"] == pytest.approx(a["creep_time_s"] - delay, abs=1e-9)
+    assert b["standstill_time_s"] == pytest.approx(a["standstill_time_s"] + delay, abs=1e-9)
+    assert [(h["from"], h["to"]) for h in b["handovers"]] == [(h["from"], h["to"]) for h in a["handovers"]]
+    for pa, pb in zip(a["phases"][1:], b["phases"][1:]):  # (the plant's own phase boundaries, to the ms)
+        assert abs(pb["start_s"] - pa["start_s"]) <= delay + 1e-9
+    for ha, hb in zip(a["handovers"], b["handovers"]):  # (as the status frames, each STATUS_CYCLE, tell them)
+        assert abs(hb["t_s"] - ha["t_s"]) <= delay + STATUS_CYCLE + 1e-9
+    steps = 0.5 * (0.1 + 0.5)  # K: half the steps of TCU_STATUS.T_CL_Pred (0.1 degC) and TCU_Info.T_ClutchA_Est
+    scenario = load_scenario()
+    initial = {"CL": scenario.T_CL_c, "CH": scenario.T_CH_c}
+    for k, phase in enumerate(a["phases"]):  # (each clutch slips in one phase of the default creep)
+        clutch, duration = phase["clutch"], phase["duration_s"]
+        start = a["phases"][k - 1][f"T_{clutch}_end_c"] if k else initial[clutch]  # degC: at the phase's start
+        power = a["friction_energy_kj"][clutch] / a["slip_time_s"][clutch]  # kW: mean while it slips
+        assert abs(b["friction_energy_kj"][clutch] - a["friction_energy_kj"][clutch]) <= power * delay + 0.05
+        heating = (phase[f"T_{clutch}_end_c"] - start) / duration  # K/s: the phase's mean
+        assert heating > 0.0
+        bound = heating * delay
+        assert abs(b["max_plate_temp_c"][clutch] - a["max_plate_temp_c"][clutch]) <= bound + 0.01, clutch
+        assert abs(b["max_predicted_temp_c"][clutch] - a["max_predicted_temp_c"][clutch]) <= bound + steps + 0.05
+    assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0
 
 
 def test_every_frame_is_in_its_message_s_format(runs):
@@ -197,9 +129,75 @@ def test_every_frame_is_in_its_message_s_format(runs):
         seen.setdefault(message.name, set()).add((msg.is_fd, msg.bitrate_switch, len(msg.data)))
     assert seen["TCM_ShaftSpeeds"] == {(True, True, 12)} and seen["TCU_Demand"] == {(True, True, 16)}
     assert seen["SIM_ClutchA"] == {(True, False, 16)} and seen["EMS_TorqueSpeed"] == {(False, False, 8)}
-    pages = [other.db.get_message_by_name("TCM_OilTemps").decode(bytes(m.data))["OilTemp_Page"] for m in frames
-             if m.arbitration_id == 0x0E1]
-    assert {str(p) for p in pages} == {"ClutchOil", "SumpCooler"}
+    sent = [int(other.db.get_message_by_name(OIL).decode(bytes(m.data), decode_choices=False)["OilTemp_Page"])
+            for m in frames if m.arbitration_id == 0x0E1]
+    # the pages in turn, also where Profile 11's 0-14 counter wraps (page 0 is not sent twice in a row)
+    assert len(sent) > 15 and sent == [pages(other)[k % 2] for k in range(len(sent))]
+
+
+def test_the_status_cycles_are_the_same():
+    for binding, status in ((load_binding(), "TCU_STATUS"), (load_binding(BINDING, dbc=DBC), "TCU_Info")):
+        assert binding.db.get_message_by_name(status).cycle_time == STATUS_CYCLE * 1000
+
+
+def test_ecu_stub_on_the_example_matrix_drives_the_shipped_creep_in_lockstep(runs):
+    """ecu-stub built from dct_fd's DBC and binding alone, in lock-step in one process: the shipped creep, its
+    engagement one oil cycle later (the multiplexed message's second page, 50 ms)."""
+    a, (other, _, b, _) = runs
+    assert oil_delay(other) == 0.05
+    assert [p["clutch"] for p in a["phases"]] == ["CL", "CH"] and len(a["handovers"]) == 1
+    same_creep(a, b, oil_delay(other))
+    assert b["frames"]["received"] > 4000
+
+
+def test_ecu_stub_on_the_example_matrix_in_real_time():
+    """The same pair in real time, in one process on python-can's virtual bus (ecu-stub on its own clock, no
+    SIM_Step frames): short, no assertion on timing; nothing rejected at either end, ecu-stub reads every sensor
+    frame and engages CL, the frames in their formats."""
+    bus = {"interface": "virtual", "channel": "dct-fd-realtime", "preserve_timestamps": True}
+    config = RunConfig(duration=4.0, dbc=DBC, binding=BINDING, mode="realtime", capture=True, bus=bus)
+    with open_run(config) as run:
+        summary = run.run().as_json()
+        tcu = run.tcu
+    assert summary["frames"]["rejected"] == 0 and tcu.rx.rejected_total == 0
+    other = load_binding(BINDING, dbc=DBC)
+    assert all(tcu.rx.states[name].received > 0 for name in tcu.io.required)
+    assert [p["clutch"] for p in summary["phases"]][:1] == ["CL"]  # ecu-stub's commands engaged CL
+    demand = other.db.get_message_by_name("TCU_Demand")
+    assert {(m.is_fd, len(m.data)) for m in run.frames if m.arbitration_id == demand.frame_id} == {(True, 16)}
+    assert not any(m.arbitration_id == other.db.get_message_by_name("SIM_Step").frame_id for m in run.frames)
+
+
+def test_plant_and_ecu_stub_as_two_processes_on_the_example_matrix(tmp_path, runs):
+    """``dsg-hil plant`` and ``ecu-stub``, each given ``--dbc dct_fd.dbc --binding dct_fd.binding.toml``, on
+    udp_multicast (CAN FD frames, the bus opened for them by both): lock-step is the same whatever the bus, so the
+    creep is the in-process run's over the same time, and the shipped pair's within :func:`same_creep`."""
+    other = runs[1][0]
+    with open_run(RunConfig(duration=SHORT)) as run:
+        shipped = run.run().as_json()
+    with open_run(RunConfig(duration=SHORT, dbc=DBC, binding=BINDING)) as run:
+        in_process = run.run().as_json()
+    bus = bus_args({"interface": UDP_MULTICAST, **fresh_udp_group()})
+    pair = ["--dbc", str(DBC), "--binding", str(BINDING)]
+    summary, log = tmp_path / "summary.json", tmp_path / "creep.log"
+    tcu = subprocess.Popen([sys.executable, "-m", "ecu_stub", *bus, *pair, "--idle-exit", "10", "--quiet"],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        plant = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", *bus, *pair, "--mode", "lockstep",
+                                "--duration", f"{SHORT:g}", "--summary", str(summary), "--log", str(log),
+                                "--quiet"], capture_output=True, text=True, timeout=600)
+    finally:
+        tcu.terminate()
+        tcu_err = tcu.communicate(timeout=60)[1]
+    assert plant.returncode == 0, plant.stderr
+    assert "rejected 0" in tcu_err, tcu_err  # ecu-stub's closing counts: it read the dct_fd frames
+    b = json.loads(summary.read_text(encoding="utf-8"))
+    for key in ("phases", "creep_time_s", "standstill_time_s", "slip_time_s", "max_plate_temp_c",
+                "friction_energy_kj", "max_predicted_temp_c"):
+        assert b[key] == in_process[key], key
+    same_creep(shipped, b, oil_delay(other))
+    fd = {(line.split()[2].split("#")[0], "##" in line) for line in log.read_text().splitlines()}
+    assert ("1C4", True) in fd and ("0B2", True) in fd and ("0A4", False) in fd  # candump -L: CAN FD as ID##
 
 
 def test_the_log_of_the_example_run_decodes_with_its_binding(runs):
@@ -265,3 +263,28 @@ def test_faults_on_the_example_s_fd_frames(message, signal, value):
         assert sorted(rx.rejected) == expected, fault
         assert statuses == ([NEW, NEW, NEW] if not expected else
                             [REJECTED] * 3 if expected == ["crc"] else [NEW, REJECTED, REJECTED])
+
+
+@pytest.mark.parametrize("dlc", [12, 64, 5])
+def test_wrong_dlc_gives_a_can_fd_length_on_an_fd_message(dlc):
+    """``wrong_dlc`` on the 16-byte TCU_Demand with a CAN FD length (or a short one): a CAN FD frame of that length,
+    which the receiver rejects as ``dlc``; a CAN FD length on a classic message is refused before the run."""
+    from dsg_hil.protocol.faults import FaultInjector
+    from dsg_hil.protocol.faults.spec import FaultError, check_faults, parse_fault
+    from dsg_hil.protocol.frame import data_frame
+    from dsg_hil.protocol.validity import REJECTED, RxMonitor
+
+    other = load_binding(BINDING, dbc=DBC)
+    codec = Codec(other.db, other.uses, protection=other.protection)
+    spec = parse_fault(f"wrong_dlc:TCU_Demand,dlc={dlc},side=tcu")  # (dct_fd's senders are GBX_SIM and TCM)
+    assert check_faults([spec], other.db)["tcu"] == [spec]
+    injector = FaultInjector(other.db, [spec], protections=codec.protections())
+    frame_id = codec.frame_id("TCU_Demand")
+    (out,) = injector.apply(data_frame(frame_id, codec.encode("TCU_Demand", {"PressReqA": 500.0}, 0), 0.0,
+                                       fd=codec.fd), 0.0)
+    assert out.is_fd and out.bitrate_switch and len(out.data) == dlc
+    rx = RxMonitor(codec, ["TCU_Demand"])
+    assert rx.take(out, 0.0)[0] == REJECTED and dict(rx.rejected) == {"dlc": 1}
+    if dlc > 8:
+        with pytest.raises(FaultError, match=f"dlc {dlc} is a CAN FD length, and EMS_TorqueSpeed is a classic CAN"):
+            check_faults([parse_fault(f"wrong_dlc:EMS_TorqueSpeed,dlc={dlc},side=plant")], other.db)

@@ -16,9 +16,10 @@ One fault is a :class:`FaultSpec`. It comes from a scenario TOML table, a comman
 
 Keys besides kind, target and the window: ``probability`` (all kinds), ``delay_s`` (delay), ``value`` (stuck: the
 value held; offset: what is added, in the signal's DBC unit; gain: the non-zero factor the physical value is
-multiplied by), ``dlc`` (wrong_dlc, default 7), ``rate`` (flood: unknown-ID frames per frame the node sends, default
-10), ``frame_id`` (flood, default 0x5A5; must not be in the DBC),
-``side`` (the node whose sent frames are changed; default: the DBC sender of the target message, "plant" for flood).
+multiplied by), ``dlc`` (wrong_dlc: the frame's length in bytes, default 7; 0-8, and on a CAN FD message also
+12, 16, 20, 24, 32, 48 or 64), ``rate`` (flood: unknown-ID frames per frame the node sends, default 10),
+``frame_id`` (flood, default 0x5A5; must not be in the DBC), ``side`` (the node whose sent frames are changed;
+default: the DBC sender of the target message, "plant" for flood).
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ if TYPE_CHECKING:
 
 from ...common.errors import InputError
 
-__all__ = ["FaultError", "FaultSpec", "KINDS", "SIDES", "SIGNAL_KINDS", "check_against_dbc", "check_faults",
+__all__ = ["CLASSIC_LENGTHS", "FD_LENGTHS", "FaultError", "FaultSpec", "KINDS", "SIDES", "SIGNAL_KINDS",
+           "check_against_dbc", "check_faults",
            "fault_from_mapping", "fault_side", "parse_fault"]
 
 KINDS = {
@@ -51,6 +53,8 @@ KINDS = {
     "flood": "each frame the node sends is followed by `rate` frames of an unknown ID with random data",
 }
 SIGNAL_KINDS = {"stuck", "offset", "gain", "out_of_range"}
+CLASSIC_LENGTHS = tuple(range(9))  # a classic CAN frame's data lengths [bytes]
+FD_LENGTHS = (*CLASSIC_LENGTHS, 12, 16, 20, 24, 32, 48, 64)  # a CAN FD frame's (DLC 9-15 code 12-64)
 SIDES = {"PLANT": "plant", "TCU": "tcu"}  # DBC node -> side
 _ALIASES = {"p": "probability", "delay": "delay_s", "id": "frame_id", "start": "start_s", "end": "end_s"}
 
@@ -143,8 +147,9 @@ def fault_from_mapping(table: Mapping[str, Any], where: str = "fault") -> FaultS
         raise FaultError(f"{where}: window must satisfy 0 <= start_s < end_s, got {spec.start_s:g}-{spec.end_s:g}")
     if spec.delay_s < 0.0:
         raise FaultError(f"{where}: delay_s must not be negative")
-    if not 0 <= spec.dlc <= 8:
-        raise FaultError(f"{where}: dlc must be within 0-8 (classic CAN), got {spec.dlc}")
+    if spec.dlc not in FD_LENGTHS:
+        raise FaultError(f"{where}: dlc must be a frame length: 0-8, or on a CAN FD message 12, 16, 20, 24, 32, 48 "
+                         f"or 64, got {spec.dlc}")
     if not 1 <= spec.rate <= 1000:
         raise FaultError(f"{where}: rate must be within 1-1000, got {spec.rate}")
     if not 0 <= spec.frame_id <= 0x7FF:
@@ -224,6 +229,9 @@ def check_against_dbc(spec: FaultSpec, db: Database, where: str = "fault") -> No
         message = db.get_message_by_name(spec.message)
     except KeyError:
         raise FaultError(f"{where}: message {spec.message!r} is not in the DBC") from None
+    if spec.kind == "wrong_dlc" and spec.dlc not in CLASSIC_LENGTHS and not message.is_fd:
+        raise FaultError(f"{where}: dlc {spec.dlc} is a CAN FD length, and {spec.message} is a classic CAN message "
+                         f"(0-8)")
     if spec.signal is not None:
         try:
             signal = message.get_signal_by_name(spec.signal)

@@ -39,7 +39,8 @@ def test_toml_table_same_as_cli():
     ("drop:TCU_CMD,probability=often", "must be a number"),
     ("drop:TCU_CMD,colour=red", "unknown key 'colour'"),
     ("drop:TCU_CMD,fast", "key=value"),
-    ("wrong_dlc:TCU_CMD,dlc=9", "dlc"),
+    ("wrong_dlc:TCU_CMD,dlc=9", "dlc must be a frame length: 0-8, or on a CAN FD message 12, 16"),
+    ("wrong_dlc:TCU_CMD,dlc=65", "dlc must be a frame length"),
     ("flood:TCU_CMD", "flood takes no target"),
     ("flood,rate=1.5", "whole number"),
     ("gain:PLANT_OIL_TEMP.T_OilCL", "gain needs a non-zero value"),  # the default value 0 would zero it
