@@ -24,6 +24,13 @@ ARXML, BINDING = EXAMPLE / "tcu.arxml", EXAMPLE / "tcu.binding.toml"
 DURATION = 8.0  # s of the shipped creep: the TCU engages CL and creeps
 
 
+def test_the_example_is_made_from_the_shipped_dbc():
+    """tcu.arxml is tests/sim/arxml_example.py's text of today's shipped DBC (regenerate it there if the DBC moves)."""
+    from tests.sim.arxml_example import arxml_from_dbc
+
+    assert ARXML.read_text(encoding="utf-8") == arxml_from_dbc(load_dbc())
+
+
 def test_cantools_reads_the_arxml_with_its_e2e_data_and_cycle_times():
     db = load_dbc(ARXML)
     command, engine = db.get_message_by_name("TCU_CMD"), db.get_message_by_name("PLANT_ENGINE")
