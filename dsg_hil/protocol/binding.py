@@ -192,6 +192,12 @@ class Binding:
         """Every message the plant's codec uses: the ones sent, the tick's, the ones read."""
         return {**self.tx, self.sync[0]: (self.sync[1],), **self.rx}
 
+    @property
+    def sides(self) -> dict[str, str]:
+        """Whose frames each message is: "plant" for the ones it sends (the tick's too), "tcu" for the ones it reads
+        (a fault's side where the database's senders are not PLANT and TCU)."""
+        return {**dict.fromkeys((*self.tx, self.sync[0]), "plant"), **dict.fromkeys(self.rx, "tcu")}
+
 
 def _fail(path: str, text: str) -> BindingError:
     return BindingError(f"{path}: {text}")

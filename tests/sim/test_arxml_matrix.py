@@ -88,3 +88,18 @@ def test_the_tcus_frames_carry_the_arxmls_profile_5(runs):
     assert all(end_to_end.check_profile5_crc(f, command) for f in frames)
     other = protection_for(command, {"profile": "P05", "data_id": 0x1201})
     assert all(other.cause(f) == "crc" for f in frames)
+
+
+def test_a_fault_on_the_arxml_takes_its_side_from_the_binding():
+    """The ARXML names no PLANT or TCU node: a fault's side is the binding's (read: the TCU's, sent: the plant's);
+    without a binding it must be given."""
+    from dsg_hil.protocol.faults import FaultError, check_faults, parse_fault
+
+    db = load_dbc(ARXML)
+    binding = load_binding(BINDING, db=db)
+    faults = [parse_fault("corrupt_crc:TCU_CMD@5-5.05"), parse_fault("drop:PLANT_SPEEDS@1-2")]
+    by_side = check_faults(faults, binding.db, binding.sides)
+    assert [f.message for f in by_side["tcu"]] == ["TCU_CMD"] and [f.message for f in by_side["plant"]] == [
+        "PLANT_SPEEDS"]
+    with pytest.raises(FaultError, match="names no sender PLANT or TCU for TCU_CMD: give side"):
+        check_faults(faults[:1], db)
