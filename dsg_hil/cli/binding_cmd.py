@@ -1,4 +1,5 @@
-"""``dsg-hil binding check DBC BINDING``: a binding checked against its database before anything runs."""
+"""``dsg-hil binding check DBC BINDING``: a binding checked against its database before anything runs.
+``dsg-hil binding init DBC``: a binding's skeleton for a database, printed (:mod:`dsg_hil.protocol.skeleton`)."""
 
 from __future__ import annotations
 
@@ -22,11 +23,15 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                                         "a message or signal not in the database, a unit that does not convert, "
                                         "a range or resolution that cannot carry the quantity's, a quantity the "
                                         "plant needs unmapped, a message without a cycle time, a protection that "
-                                        "does not fit its frame. With none, print the mapping as a table.")
-    parser.add_argument("action", choices=("check",), help="check: the binding against the database")
+                                        "does not fit its frame. With none, print the mapping as a table. "
+                                        "init: print a binding's skeleton for the database (every quantity of the "
+                                        "plant, the ones it needs marked, under each the signals that can carry "
+                                        "it, commented out): dsg-hil binding init my_ecu.dbc > my_ecu.binding.toml")
+    parser.add_argument("action", choices=("check", "init"),
+                        help="check: the binding against the database; init: a binding's skeleton for it")
     parser.add_argument("dbc", metavar="DBC", help="the communication matrix (DBC, or ARXML through cantools)")
-    parser.add_argument("binding", metavar="BINDING", help="the binding TOML")
-    parser.set_defaults(func=_do_binding)
+    parser.add_argument("binding", metavar="BINDING", nargs="?", help="the binding TOML (check only)")
+    parser.set_defaults(func=_do_binding, parser=parser)
 
 
 def mapping_rows(binding: Binding) -> list[tuple[str, ...]]:
@@ -60,7 +65,14 @@ def _do_binding(args: argparse.Namespace) -> int:
     from ..protocol import load_dbc  # noqa: PLC0415 - cantools at run time only
     from ..protocol.binding import BindingError, check_binding  # noqa: PLC0415
 
+    if (args.action == "check") != (args.binding is not None):
+        args.parser.error("check takes DBC and BINDING" if args.action == "check" else "init takes DBC only")
     db = load_dbc(args.dbc)
+    if args.action == "init":
+        from ..protocol.skeleton import binding_skeleton  # noqa: PLC0415
+
+        sys.stdout.write(binding_skeleton(db, args.dbc))
+        return 0
     binding, problems = check_binding(args.binding, db)
     if binding is None:
         for line in problems[:-1]:

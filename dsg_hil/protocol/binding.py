@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any
 
 import cantools
-from cantools.database.can import Database
+from cantools.database.can import Database, Signal
 
 from ..common.units import CV
 from .codec import ProtocolError, frame_length, load_dbc
@@ -52,7 +52,8 @@ from .profiles import protection_for
 from .ranges import signal_range
 
 __all__ = ["DEFAULT_BINDING", "QUANTITIES", "SIM_DATABASE", "UNITS", "Binding", "BindingError", "Quantity",
-           "check_binding", "conversion", "load_binding", "shipped_binding"]
+           "add_simulation", "check_binding", "conversion", "load_binding", "shipped_binding",
+           "signal_fit"]
 
 DEFAULT_BINDING = resources.files("dsg_hil") / "data" / "dsg_hil.binding.toml"  # of dbc/dsg_hil.binding.toml
 # the simulation database (of dbc/dsg_hil_sim.dbc): the lock-step tick (SIM_SYNC) and the truth frames, which a
@@ -191,6 +192,12 @@ class Binding:
         """Every message the plant's codec uses: the ones sent, the tick's, the ones read."""
         return {**self.tx, self.sync[0]: (self.sync[1],), **self.rx}
 
+    @property
+    def sides(self) -> dict[str, str]:
+        """Whose frames each message is: "plant" for the ones it sends (the tick's too), "tcu" for the ones it reads
+        (a fault's side where the database's senders are not PLANT and TCU)."""
+        return {**dict.fromkeys((*self.tx, self.sync[0]), "plant"), **dict.fromkeys(self.rx, "tcu")}
+
 
 def _fail(path: str, text: str) -> BindingError:
     return BindingError(f"{path}: {text}")
@@ -282,7 +289,7 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
         if unknown:
             raise _fail(name, f"unknown key {unknown[0]!r} (send, read, quantities, lockstep, messages, simulation)")
         if "simulation" in data:
-            _add_simulation(name, data["simulation"], db, problems)
+            add_simulation(name, data["simulation"], db, problems)
         send, read = _names(name, data, "send", db, problems), _names(name, data, "read", db, problems)
         both = sorted(set(send) & set(read))
         if both:
@@ -313,16 +320,9 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
         message, signal, unit, factor, offset = found
         mapped[message, signal] = (quantity, factor, offset)
         units[quantity] = unit
-        spec = QUANTITIES[quantity]
         dbc_signal = db.get_message_by_name(message).get_signal_by_name(signal)
-        lo, hi = (factor * v + offset for v in signal_range(dbc_signal))
-        carries = f"{message}.{signal} carries"
-        if lo > spec.lo + 1e-9 * max(1.0, abs(spec.lo)) or hi < spec.hi - 1e-9 * max(1.0, abs(spec.hi)):
-            problem(f"{key}: {carries} {_num(lo)}..{_num(hi)} {spec.unit}, {quantity} needs "
-                    f"{_num(spec.lo)}..{_num(spec.hi)} {spec.unit}")
-        if abs(dbc_signal.scale * factor) > spec.resolution * (1 + 1e-9):
-            problem(f"{key}: {carries} steps of {_num(abs(dbc_signal.scale * factor))} {spec.unit}, {quantity} "
-                    f"needs {_num(spec.resolution)} {spec.unit} or finer")
+        for text in signal_fit(quantity, dbc_signal, factor, offset):
+            problem(f"{key}: {message}.{signal} carries {text}")
     for quantity, spec in QUANTITIES.items():
         if spec.required and quantity not in units:
             problem(f"quantities: {quantity} is not mapped (the plant needs it)")
@@ -365,7 +365,22 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
                    protection, units, timeouts), []
 
 
-def _add_simulation(path: str, table: object, db: Database, problems: list[str]) -> None:
+def signal_fit(quantity: str, signal: Signal, factor: float, offset: float) -> list[str]:
+    """Why ``signal`` (its value times ``factor`` plus ``offset`` in the quantity's unit) cannot carry ``quantity``:
+    a range that ends inside the quantity's (:data:`QUANTITIES`), steps coarser than its resolution; [] if it can."""
+    spec = QUANTITIES[quantity]
+    lo, hi = (factor * v + offset for v in signal_range(signal))
+    found = []
+    if lo > spec.lo + 1e-9 * max(1.0, abs(spec.lo)) or hi < spec.hi - 1e-9 * max(1.0, abs(spec.hi)):
+        found.append(f"{_num(lo)}..{_num(hi)} {spec.unit}, {quantity} needs {_num(spec.lo)}..{_num(spec.hi)} "
+                     f"{spec.unit}")
+    if abs(signal.scale * factor) > spec.resolution * (1 + 1e-9):
+        found.append(f"steps of {_num(abs(signal.scale * factor))} {spec.unit}, {quantity} needs "
+                     f"{_num(spec.resolution)} {spec.unit} or finer")
+    return found
+
+
+def add_simulation(path: str, table: object, db: Database, problems: list[str]) -> None:
     """The ``simulation`` table: each message of ``ids`` copied from :data:`SIM_DATABASE` into ``db`` on its ID.
     An ID the matrix uses (a message's, or its diagnostic request or response ID), one given twice, a message the
     matrix has already or the simulation database lacks: a problem each (appended to ``problems``; not added)."""

@@ -220,7 +220,7 @@ class Run:
         self.tcu: Any = None
         specs = [parse_fault(f) if isinstance(f, str) else f
                  for f in (self.scenario.faults if config.faults is None else config.faults)]
-        self.faults_by_side = check_faults(specs, self.db)
+        self.faults_by_side = check_faults(specs, self.db, self.binding.sides if self.binding is not None else None)
         self.calibration = self._calibration()
         self.bus_config, direct = self._bus_config()
         self.interface = bus_name(self.bus_config)

@@ -37,15 +37,15 @@ def page_blocks(language: str, page: Path) -> list[str]:
 
 
 def command_lines() -> list[tuple[str, list[str]]]:
-    """The dsg-hil, ecu-stub and identification commands of every sh block (a '$ ' prompt, comments, '&&' and
-    'source <(...)' taken apart), with where they are."""
+    """The dsg-hil, ecu-stub and identification commands of every sh block (a '$ ' prompt, comments, '&&',
+    'source <(...)' and a '> FILE' redirection taken apart), with where they are."""
     found = []
     for page, block in blocks("sh"):
         for line in block.splitlines():
             line = line.removeprefix("$ ").replace("source <(", "").replace(")", " ") if "<(" in line else \
                 line.removeprefix("$ ")
             for part in re.split(r"&&|\|", line):
-                words = shlex.split(part, comments=True)
+                words = shlex.split(part.split(" > ")[0], comments=True)  # a redirection is the shell's
                 if words[:1] in (["dsg-hil"], ["ecu-stub"]) or words[:3] == ["python", "-m", "ecu_stub.identify"]:
                     found.append((f"{page.relative_to(ROOT)}: {part.strip()}", words))
     return found

@@ -240,6 +240,93 @@ def test_the_example_matrix_passes_the_binding_check() -> None:
     assert "FD(" in done.stdout and done.stdout.splitlines()[0].startswith("quantity")
 
 
+# -- connect your ECU ------------------------------------------------------------------------------------------
+
+ECU_PAGE = "docs/tutorials/connect-ecu.md"
+ECU_EXAMPLE = ROOT / "dbc" / "examples" / "arxml"
+
+
+def ecu_words(tmp_path: Path) -> dict[str, str]:
+    """The page's database for the example's (absolute), and the example's binding copied in as my_ecu's."""
+    (tmp_path / "my_ecu.binding.toml").write_bytes((ECU_EXAMPLE / "tcu.binding.toml").read_bytes())
+    return {"dbc/examples/arxml/tcu.arxml": str(ECU_EXAMPLE / "tcu.arxml")}
+
+
+def test_the_ecu_tutorial_s_skeleton_and_check_run(tmp_path: Path) -> None:
+    """binding init writes the skeleton whose lines the page shows; binding check on the example's binding prints
+    the page's table and last line; without T_CL_pred it exits 2 with the page's line."""
+    words = ecu_words(tmp_path)
+    (line,) = sh_block(ECU_PAGE, "dsg-hil binding init")
+    command, _, target = line.partition(" > ")
+    (tmp_path / "my_ecu.binding.toml").unlink()
+    done = run(command, tmp_path, words)
+    assert done.returncode == 0, done.stderr
+    (tmp_path / target.strip()).write_text(done.stdout, encoding="utf-8")
+    (shown,) = [b for b in blocks(ECU_PAGE, "text") if b.startswith("# P_CL_cmd")]
+    check_shown(shown, done.stdout)
+    words = ecu_words(tmp_path)
+    (line,) = sh_block(ECU_PAGE, "dsg-hil binding check")
+    done = run(line, tmp_path, words)
+    assert done.returncode == 0, done.stderr
+    (shown,) = [b for b in blocks(ECU_PAGE, "text") if b.startswith("quantity")]
+    check_shown(shown, done.stdout)
+    binding = tmp_path / "my_ecu.binding.toml"
+    binding.write_text("".join(row for row in binding.read_text(encoding="utf-8").splitlines(keepends=True)
+                               if not row.startswith("T_CL_pred")), encoding="utf-8")
+    done = run(line, tmp_path, words)
+    (shown,) = [b for b in blocks(ECU_PAGE, "text") if b.startswith("error:")]
+    assert done.returncode == 2 and done.stderr.strip() == shown.strip() and done.stdout == ""
+
+
+def test_the_ecu_tutorial_s_binding_is_the_example_s() -> None:
+    """The page's binding is the example's, shortened: each of its lines is one of the file's, and it is TOML."""
+    (block,) = [b for b in blocks(ECU_PAGE, "toml") if b.startswith("send = [")]
+    tomllib.loads(block)
+    rows = (ECU_EXAMPLE / "tcu.binding.toml").read_text(encoding="utf-8").splitlines()
+    assert [row for row in block.splitlines() if row and row not in rows] == []
+
+
+def test_the_ecu_tutorial_s_protection_tables_are_the_arxml_s() -> None:
+    """The page's DBC tables give the protection the ARXML gives those messages (layout, data ID, length)."""
+    from dsg_hil.protocol import load_dbc
+    from dsg_hil.protocol.profiles import protection_for
+
+    (block,) = [b for b in blocks(ECU_PAGE, "toml") if b.startswith("[messages.TCU_CMD]")]
+    tables = tomllib.loads(block)["messages"]
+    db = load_dbc(ECU_EXAMPLE / "tcu.arxml")
+    assert len(tables) == 2
+    for name, table in tables.items():
+        message = db.get_message_by_name(name)
+        assert protection_for(message, table["protection"]) == protection_for(message), name
+
+
+def test_the_ecu_tutorial_s_runs_and_rejects(tmp_path: Path) -> None:
+    """The lock-step run on the example's pair: every frame taken. The run with the CRC fault, then the page's
+    Python on its summary: it prints the page's line (the TCU_CMD frames rejected for their CRC)."""
+    words = ecu_words(tmp_path)
+    lines = [b for b in blocks(ECU_PAGE, "sh") if b.startswith("dsg-hil run --dbc")]
+    assert len(lines) == 2 and "--fault" not in lines[0] and "--fault" in lines[1]
+    done = run(lines[0].strip(), tmp_path, words)
+    assert done.returncode == 0, done.stderr[-2000:]
+    frames = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))["frames"]
+    assert frames["rejected"] == 0 and frames["by_message"]["TCU_CMD"]["taken"] == 1000
+    done = run(lines[1].strip(), tmp_path, words)
+    assert done.returncode == 0, done.stderr[-2000:]
+    (python,) = blocks(ECU_PAGE, "python")
+    printed = subprocess.run([str(BIN / "python"), "-c", python], cwd=tmp_path, capture_output=True, text=True,
+                             timeout=60, env=ENV)
+    assert printed.returncode == 0, printed.stderr
+    (shown,) = [b for b in blocks(ECU_PAGE, "text") if b.startswith("TCU_CMD")]
+    assert printed.stdout == shown
+
+
+def test_the_ecu_tutorial_s_vcan_lines_are_the_vcan_suite_s() -> None:
+    """The vcan0 block (not run here) is the one dsg_hil/e2e/test_connect_ecu.py runs, line for line."""
+    from dsg_hil.e2e import test_connect_ecu
+
+    assert sh_block(ECU_PAGE, "ecu-stub -i socketcan") == [test_connect_ecu.ECU_LINE, test_connect_ecu.PLANT_LINE]
+
+
 def test_the_xcp_guide_s_commands_run(tmp_path: Path) -> None:
     """The first line serves XCP on the DBC's default IDs (on a fresh group and port; stopped once it says so); the
     A2L line writes the file. The third, on vcan0, is parsed by test_blocks.py."""

@@ -65,6 +65,9 @@ NOT_RUN = {OUTPUT, EXCERPT, VCAN, PARSED, STUDY, INSTALL, DIAGRAM, CITATION, FOR
 PARSE_TEST = "tests/docs/test_blocks.py::test_every_documented_command_line_parses"
 QUICK_START = "tests/docs/test_blocks.py::test_the_quick_start_run_prints_what_the_readme_shows"
 GUIDES = "tests/docs/test_guides.py"
+ECU = "docs/tutorials/connect-ecu.md"
+ECU_CHECK, ECU_RUNS = (f"{GUIDES}::test_the_ecu_tutorial_s_skeleton_and_check_run",
+                       f"{GUIDES}::test_the_ecu_tutorial_s_runs_and_rejects")
 
 
 @dataclass(frozen=True)
@@ -99,6 +102,20 @@ ENTRIES = [
       ("dsg_hil/e2e/test_end_to_end.py::test_the_tutorial_s_run_on_vcan0",), "needs vcan0 (run with --duration)"),
     E("docs/tutorials/vcan.md", "dsg-hil plant --interface socketcan --channel vcan0", VCAN,
       ("dsg_hil/e2e/conftest.py::lockstep",), "needs vcan0: the suite's lock-step pair is this plant and ecu-stub"),
+    E(ECU, "dsg-hil binding init dbc/examples/arxml/", RUN, (ECU_CHECK,), "the output redirected by the test"),
+    E(ECU, "# P_CL_cmd (required)", OUTPUT, (ECU_CHECK,)),
+    E(ECU, "send = [", EXCERPT, (f"{GUIDES}::test_the_ecu_tutorial_s_binding_is_the_example_s",)),
+    E(ECU, "dsg-hil binding check dbc/examples/arxml/", RUN, (ECU_CHECK,), "the example's binding as my_ecu's"),
+    E(ECU, "quantity           dir", OUTPUT, (ECU_CHECK,)),
+    E(ECU, "error: my_ecu.binding.toml: quantities: T_CL_pred", OUTPUT, (ECU_CHECK,)),
+    E(ECU, "[messages.TCU_CMD]", EXCERPT, (f"{GUIDES}::test_the_ecu_tutorial_s_protection_tables_are_the_arxml_s",)),
+    E(ECU, "dsg-hil run --dbc dbc/examples/arxml/", RUN, (ECU_RUNS,), "the example's binding as my_ecu's"),
+    E(ECU, "ecu-stub -i socketcan -c vcan0 --dbc dbc/examples/arxml/", VCAN,
+      ("dsg_hil/e2e/test_connect_ecu.py::test_the_ecu_tutorial_s_pair_on_vcan0_in_real_time",
+       f"{GUIDES}::test_the_ecu_tutorial_s_vcan_lines_are_the_vcan_suite_s"), "needs vcan0 (the suite's --duration)"),
+    E(ECU, "dsg-hil plant -i socketcan -c can0 --dbc my_ecu.dbc", PARSED, why="the user's ECU, bus and files"),
+    E(ECU, "import json", RUN, (ECU_RUNS,)),
+    E(ECU, "TCU_CMD {'crc'", OUTPUT, (ECU_RUNS,)),
     E("docs/tutorials/sweep.md", "pip install 'dsg-hil[sweep]'", PARSED,
       why="an overview: an install, the user's spaces (SPACE.toml, SOBOL.toml), a cluster's address and 200-run "
           "sweeps; each line parsed, the sweeps themselves run at a smaller size by tests/sweep"),

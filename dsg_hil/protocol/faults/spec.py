@@ -193,8 +193,10 @@ def parse_fault(text: str) -> FaultSpec:
     return fault_from_mapping(table, where)
 
 
-def fault_side(spec: FaultSpec, db: Database) -> str:
-    """Whose frames the fault changes: ``spec.side``, else the DBC sender of its message ("plant" for flood)."""
+def fault_side(spec: FaultSpec, db: Database, sides: Mapping[str, str] | None = None) -> str:
+    """Whose frames the fault changes: ``spec.side``, else the DBC sender of its message ("plant" for flood), else
+    ``sides``' (by message, "plant" or "tcu": a binding's, the messages it sends and reads; another matrix's nodes
+    are not PLANT and TCU)."""
     if spec.side is not None:
         return spec.side
     if spec.kind == "flood":
@@ -203,17 +205,21 @@ def fault_side(spec: FaultSpec, db: Database) -> str:
         raise FaultError(f"{spec.origin}: {spec.kind} needs a target MESSAGE")
     senders = db.get_message_by_name(spec.message).senders
     side = SIDES.get(senders[0]) if senders else None
+    if side is None and sides is not None:
+        side = sides.get(spec.message)
     if side is None:
         raise FaultError(f"{spec.origin}: the DBC names no sender PLANT or TCU for {spec.message}: give side")
     return side
 
 
-def check_faults(specs: Iterable[FaultSpec], db: Database) -> dict[str, list[FaultSpec]]:
-    """Check every specification against the DBC; the specifications by side ("plant", "tcu")."""
+def check_faults(specs: Iterable[FaultSpec], db: Database, sides: Mapping[str, str] | None = None
+                 ) -> dict[str, list[FaultSpec]]:
+    """Check every specification against the DBC; the specifications by side ("plant", "tcu"; ``sides``: by
+    message, where the DBC's senders do not say, see :func:`fault_side`)."""
     by_side: dict[str, list[FaultSpec]] = {"plant": [], "tcu": []}
     for spec in specs:
         check_against_dbc(spec, db, spec.origin)
-        by_side[fault_side(spec, db)].append(spec)
+        by_side[fault_side(spec, db, sides)].append(spec)
     return by_side
 
 
