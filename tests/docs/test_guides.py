@@ -416,3 +416,17 @@ def test_the_example_readme_s_two_processes(tmp_path: Path) -> None:
     result = json.loads(summary.read_text(encoding="utf-8"))
     assert result["frames"]["rejected"] == result["frames"]["unanswered_ticks"] == 0
     assert [p["clutch"] for p in result["phases"]] == ["CL"]
+
+
+def test_the_arxml_readme_s_check_and_run(tmp_path: Path) -> None:
+    """The ARXML example's README block as written, from the repository's root: the pair passes the check, and the
+    10-s creep on it (ecu-stub in the process, its E2E profiles and data IDs from the ARXML) rejects nothing and
+    engages CL as on the shipped pair."""
+    lines = sh_block("dbc/examples/arxml/README.md", "dsg-hil binding check")
+    assert [line.split()[1] for line in lines] == ["binding", "run"]
+    for line in lines:
+        done = run(f"{line} --summary {tmp_path / 'summary.json'}" if " run " in line else line, ROOT)
+        assert done.returncode == 0, (line, done.stderr[-2000:])
+    summary = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
+    assert summary["frames"]["rejected"] == summary["frames"]["unanswered_ticks"] == 0
+    assert [p["clutch"] for p in summary["phases"]] == ["CL"]

@@ -150,6 +150,8 @@ ENTRIES = [
       (f"{GUIDES}::test_the_example_readme_s_run_and_plot",)),
     E("dbc/examples/dct_fd/README.md", "ecu-stub -i udp_multicast", RUN,
       (f"{GUIDES}::test_the_example_readme_s_two_processes",), "on a fresh group and port"),
+    E("dbc/examples/arxml/README.md", "dsg-hil binding check dbc/examples/arxml/", RUN,
+      (f"{GUIDES}::test_the_arxml_readme_s_check_and_run",), "the run with --summary added, to check it"),
     E("dbc/examples/dct_fd/README.md", "sudo ip link set vcan0 mtu 72", VCAN,
       ("dsg_hil/e2e/test_second_matrix.py::test_plant_and_ecu_stub_on_the_second_matrix_over_vcan0",),
       "root and vcan0: the VM suite runs the two processes on vcan0 with this pair (dsg-hil vcan)"),
