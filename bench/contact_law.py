@@ -11,7 +11,7 @@ functions; ``PLANT`` reproduces the compiled plant to rounding) with three choic
 * ``law="mean"``: stick/slip on the MEAN contact velocity over the step, v_mean = V (Phi_int x + Gamma_int u) / dt
   (linear in the torques as v_end is, the same projected Gauss-Seidel). A torque held over the step does work
   f dt v_mean, so a stuck contact does none and a slipping one dissipates |f| dt |v_mean|, at any step.
-* ``law="mixed"`` (the plant's since issue 16 item 2): the clutches on the mean, the vehicle on its END speed
+* ``law="mixed"`` (the plant's law): the clutches on the mean, the vehicle on its END speed
   (dsg_hil.physics.powertrain.law_rows). On the mean, a held vehicle's end speed flipped sign each step
   (v_end = -v_start: its speed is near-linear within a step), an undamped mode at the Nyquist frequency (braked
   from 0.2 m/s: +-0.34 mm/s, tau ~ 120 s); on its end speed a held vehicle ends every step at rest.
@@ -218,7 +218,7 @@ def map_of_step(stepper: Stepper, y0: np.ndarray, inputs: PlantInputs, stuck: tu
 
 
 def side_by_side(held: dict, locked: dict, dt: float = 1e-3) -> dict:
-    """The modes issue 16 asks to see side by side, continuous vs the old law vs the plant at ``dt``: the 88-Hz mode
+    """The modes side by side, continuous vs the old law vs the plant at ``dt``: the 88-Hz mode
     of the held vehicle (Hz, damping %, 1/e decay time 1/(zeta omega) [s], the amplitude left after 12 s) and the
     shuffle with CL locked (Hz, damping %), from :func:`linearised_modes`."""
     def nearest(modes: list | str, hz: float) -> tuple[float, float]:

@@ -1,5 +1,5 @@
 #!/bin/sh
-# Re-identify the TCU calibration on the current plant (issue 18): record the identification runs (eleven of creep,
+# Re-identify the TCU calibration on the current plant: record the identification runs (eleven of creep,
 # 44 short torque handovers, 34 launches meant to be handed over to a cool CH: heavy, cold, at low slip, at high
 # pressure or slow and steep, 27 of which are with today's TCU; ecu_stub/data/identification) in lock-step with the
 # bundled ecu-stub and its current calibration, then fit and write the calibration, with the commit and calibration
@@ -12,7 +12,7 @@
 # PYTHON: the interpreter (default: python). About 3.5 min on one core (1 min creep runs, 2.5 min handovers and
 # heavy launches, fit).
 # Re-run after any plant change, then
-# tests/sim/test_closed_loop.py, tests/ecu_stub and tests/paper (docs/safety.md, section 1).
+# tests/sim/test_closed_loop.py, tests/ecu_stub and tests/paper (docs/safety.md, the thermal bound).
 set -eu
 check=
 if [ "${1:-}" = "--check" ]; then check=1; shift; fi

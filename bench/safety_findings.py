@@ -20,7 +20,7 @@ from pathlib import Path
 from dsg_hil.results.thresholds import SAFETY_TEMPERATURE_C
 from dsg_hil.sweep.page import HANDOVER_DRIVABLE_PCT, ROLLBACK_DRIVABLE_MPS
 
-USED_C = 235.0  # the hotter clutch used to at least this before an overheat stop (issue 18)
+USED_C = 235.0  # the hotter clutch used to at least this before an overheat stop (used to its limit)
 
 
 def findings(out: Path) -> dict:

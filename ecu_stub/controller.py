@@ -89,7 +89,7 @@ BRAKE_PRESSED_PCT = 5.0
 CLUTCH_OPEN_MPA = 0.02  # measured piston pressure under which a clutch carries next to nothing (downhill check)
 _RPM_TO_RAD_S = CV.RPM_TO_RAD_S
 SETTLED_FRACTION = 0.05  # a creep within 5 % of its target (reference ramp done) has settled on the road load
-RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (issue 18: +-20 %), speeding up
+RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (+-20 %), speeding up
 STALL_FRACTION = 0.5  # stalled: under half the target speed with the wheel force at the clutch's capacity ...
 STALL_S = 1.0  # ... for this long (10 time constants of the speed loop, 1/9.7 rad/s: not a transient)
 SATURATED_FRACTION = 0.98  # the wheel force at its limit: within 2 % of the capacity (which moves with the slip)
@@ -234,7 +234,7 @@ class CreepController:
         """The clutch input speed [r/min] of the thermal model (the prediction's heat, the monitor's and the handover
         limit's): the larger of ``ClutchInputSpeed`` and ``EngineSpeed`` / i_a (``vehicle.input_ratio``), the larger
         slip. The input speed check (:mod:`ecu_stub.sensor_checks`) lets ClutchInputSpeed read up to 40 r/min low,
-        a third of a creep's heat; the engine's speed covers that (docs/safety.md, section 6)."""
+        a third of a creep's heat; the engine's speed covers that (docs/safety.md)."""
         n_in, via_engine = inp.clutch_in_rpm, inp.engine_speed_rpm / self.cal.vehicle.input_ratio
         return n_in if n_in > via_engine else via_engine
 
@@ -391,7 +391,7 @@ class CreepController:
         return 1.0 + self.heat_error_fraction(clutch, inp, P, self.thermal_slip_rpm(clutch))
 
     def keyon_oil_error_k(self, inp: TcuInputs) -> float:
-        """The most an oil reading may be low from key-on on and pass unflagged [K] (docs/safety.md, section 6): the
+        """The most an oil reading may be low from key-on on and pass unflagged [K] (docs/safety.md): the
         key-on check's (:func:`~ecu_stub.sensor_checks.keyon_undetected_k` at the highest of the first cycle's
         oil temperatures; a substitute among them is higher, so the margin larger), but at least the sensor's
         accuracy at T_safe, ``strategy.oil_accuracy_k`` (a healthy sensor's error as the plate heats)."""
@@ -400,7 +400,7 @@ class CreepController:
         return undetected if undetected > accuracy else accuracy
 
     def margin_k(self, clutch: str) -> float:
-        """The thermal margin's error term ``e`` of the clutch [K] (docs/safety.md, section 6): the predictor's
+        """The thermal margin's error term ``e`` of the clutch [K] (docs/safety.md): the predictor's
         identified error ``strategy.prediction_error_k``; an oil sensor's undetected error from key-on,
         :attr:`oil_error_k` (``strategy.oil_accuracy_k`` before the first cycle); the largest oil step the fall check
         lets through, :data:`~ecu_stub.sensor_checks.OIL_FALL_K` plus the plate's rise over one oil frame
@@ -742,7 +742,7 @@ class CreepController:
         himself (a standing one stays held when his foot comes off), and his pedal does hold it: a pedal counted
         as pressed (``BRAKE_PRESSED_PCT``) but too light for the slope, the vehicle over its target by more than
         the drivability band (:data:`RUNAWAY_FRACTION`; over a standstill if none is asked) and speeding up, is
-        overruled: the brake is requested until the vehicle stands (:attr:`pedal_overrun`; issue 37: 6 % on
+        overruled: the brake is requested until the vehicle stands (:attr:`pedal_overrun`; without it, 6 % on
         -0.30 rad ran away to 8.5 m/s)."""
         self.state, self.active = "IDLE", "NONE"
         self._open_both()

@@ -81,7 +81,7 @@ SMOOTHING = 0.1  # weight of the first-difference penalty per grid node (relativ
 # (14,258 samples, 1,260 in crossovers): RMS 0.00298 (0.003), 0.00264 (0.01), 0.00242 (0.03), 0.00229 (0.1),
 # 0.00240 (0.3), 0.00287 (1.0); on the first 25 (fourteen handover runs): 0.00312, 0.00287, 0.00276, 0.00273,
 # 0.00290, 0.00342.
-# History: 0.02 until the plant's contact law (issue 16), whose scatter the map then followed into bumps that made
+# History: 0.02 until the plant's present contact law, whose scatter the map then followed into bumps that made
 # the speed controller hunt (settled tracking 6.6 mm/s RMS, tests/sim/test_closed_loop.py allows 5); 0.2 after it,
 # chosen by hand from 0.02, 0.2 and 1.0 on the old, coarser P grid and penalty.
 ERROR_FACTOR = 2.0  # prediction_error_k: the replay's worst error times this (conditions between/beyond the runs)

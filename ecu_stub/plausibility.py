@@ -1,6 +1,6 @@
 """Plausibility of the vehicle speed: ``PLANT_VEHICLE.VehicleSpeed`` voted against the two clutch-output speeds.
 
-A frame with a valid CRC and counter can still carry a wrong value (a stuck or offset sensor): issue 18's sweep
+A frame with a valid CRC and counter can still carry a wrong value (a stuck or offset sensor): the safety sweep
 found ``VehicleSpeed`` stuck at 0 for 3.1 s while creeping downhill, and the speed controller, believing the
 vehicle stopped, drove it to 0.97 m/s with 0.37 m/s requested. The TCU has two redundant measures of the same
 speed from the DBC: ``PLANT_SPEEDS.CLOutputSpeed`` and ``CHOutputSpeed``. Both sub-gearboxes keep their gear
@@ -58,7 +58,7 @@ sensor fault never reaches the bound, so it gives the very same inputs, and fram
 
 **An impossible step substitutes at once** (:func:`plausible_step`). The vote needs its 40 mm: a VehicleSpeed stuck
 at 0 while creeping at 0.187 m/s took 0.15-0.2 s, in which the speed controller, believing the vehicle stopped,
-tripled the clutch force: a light vehicle (5,086 kg on 0.1 rad, found by a 1,000-run sample of issue 18's space)
+tripled the clutch force: a light vehicle (5,086 kg on 0.1 rad, found by a 1,000-run sample of the safety space)
 reached 0.759 m/s before the substitute brought it back. But VehicleSpeed is the speed of the vehicle's mass, the
 most inert state of the driveline (the shafts ring, it does not), and without a brake nothing decelerates a vehicle
 faster than the slope and the rolling resistance: dv/dt >= -g (sin a + f cos a) = -3.60 m/s^2 on the steepest grade

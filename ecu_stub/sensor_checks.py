@@ -1,10 +1,10 @@
 """Plausibility of the TCU's thermal inputs: the measured pressures, the clutch input speed and the oil leaving each
-clutch, each checked against redundant information the TCU has (issue 18).
+clutch, each checked against redundant information the TCU has.
 
 The plate prediction (:mod:`ecu_stub.clutch_model`) and the thermal monitor use ``P_CL/P_CH`` (the heat is
 mu k_geom P |slip|), ``ClutchInputSpeed`` (the slip) and ``T_OilCL/T_OilCH`` (the plate cools towards them). A
 frame with a valid CRC and counter can carry a wrong value: on a 20-s creep from CL 228 degC / CH 245 degC / oil
-130 degC on Table I's grade (docs/safety.md, section 4) ``T_OilCL`` stuck at 40 degC took CL's true plate to
+130 degC on Table I's grade, without these checks, ``T_OilCL`` stuck at 40 degC took CL's true plate to
 300 degC, ``P_CL`` stuck at 0 to 253 degC. Each check below is debounced as the speed vote
 (:mod:`ecu_stub.plausibility`): a one-sided CUSUM of the excess beyond a tolerance, failing once it passes a bound
 that a sensor without a fault cannot reach, and for :data:`~ecu_stub.plausibility.HEAL_S` after (a cycle counts at
@@ -86,8 +86,8 @@ hazard); hotter is on the safe side.
 
 **4. The oil's fall vs the plate's fastest passive cooling** (:class:`OilCheck`, ``cooling_per_s``). Check 3
 compares the reading with a balance built from the TCU's own plate estimate, which follows the reading (CL's
-plate-oil time constant 1.5 s): an offset from an onset passed it up to 16 K on CL, 12 K on CH (docs/safety.md,
-section 6). But the oil leaving a pack sits at its balance with the plate (CL: 99.6 % plate), and without friction
+plate-oil time constant 1.5 s): an offset from an onset passed it up to 16 K on CL, 12 K on CH (docs/safety.md).
+But the oil leaving a pack sits at its balance with the plate (CL: 99.6 % plate), and without friction
 heat a plate cools at most at K_eff (T - T_sump) / C, K_eff = K cooling / (K + cooling) (the balance eliminated:
 CL 3.4 W/K over 1,378 J/K, 0.37 K/s at 150 K over the sump; CH 69 W/K over 6,908 J/K, 1.5 K/s); with heat, slower.
 So a reading that falls faster has stepped: a one-sided CUSUM of the reading's fall beyond ``FALL_GAIN`` x that
@@ -109,7 +109,7 @@ rate (at the plate estimate), failing once it passes ``OIL_FALL_K``.
 What it does not see: a step within ``OIL_FALL_K`` plus the plate's rise over one PLANT_OIL_TEMP frame (100 ms; a
 step during a fast heating hides in it), a drift slower than ``FALL_GAIN`` x the passive cooling, and an offset
 present when it starts (check 5). The strategy's margin budgets the first and the last
-(:meth:`ecu_stub.controller.CreepController.margin_k`); the drift stays assumed away (docs/safety.md, section 6).
+(:meth:`ecu_stub.controller.CreepController.margin_k`); the drift stays assumed away (docs/safety.md).
 
 **5. The oil temperatures at key-on vs each other** (:meth:`SensorChecks.check`, ``keyon``). Once the TCU runs, an
 oil sensor's offset is unobservable: the oil leaving a pack sits at its plate's balance, and nothing else the TCU

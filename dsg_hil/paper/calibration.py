@@ -159,7 +159,7 @@ class Target:
         return Check(self.key, self.simulated(r), self.published, self.tolerance)
 
 
-# Section V.B's timeline (Figs. 8-12) with issue 7's bands: the targets of calibrate_vehicle_thermal.
+# Section V.B's timeline (Figs. 8-12) with its bands: the targets of calibrate_vehicle_thermal.
 TIMELINE_TARGETS: tuple[Target, ...] = (
     Target("creep_time_s", CREEP_TIME_S, TOL_CREEP_TIME_REL * CREEP_TIME_S,
            lambda r: r.creep_time if r.stopped else float("inf")),
@@ -186,7 +186,7 @@ RISE_KEYS = tuple(f"cases.{r.case}.temperature_rise_c" for r in RIG_CASES)  # wh
 
 
 def timeline_checks(r: CreepResult) -> list[Check]:
-    """Section V.B's timeline: the simulated numbers beside the published ones, with issue 7's bands."""
+    """Section V.B's timeline: the simulated numbers beside the published ones, with their bands."""
     return [t.check(r) for t in TIMELINE_TARGETS]
 
 

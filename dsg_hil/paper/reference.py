@@ -43,12 +43,12 @@ CREEP_MU_CH = (0.063, 0.075)  # start, end
 CREEP_P_CH_MPA = (0.75, 0.65)  # start, end
 CREEP_T_START_C = 100.0  # both clutches start at 100 degC (CL heats 100 -> 250)
 
-# Done-when bands of issue 2 (|simulated - published|).
+# Bands of the rig comparison, Section III.C (|simulated - published|).
 TOL_RISE_C = 4.0
 TOL_TORQUE_REL = 0.07
 TOL_MU = 0.004
 
-# Section V.B: the creep timeline (Figs. 8-12) and the done-when bands of issue 7.
+# Section V.B: the creep timeline (Figs. 8-12) and its bands.
 CREEP_TIME_S = 174.0  # until the stop
 CREEP_SLIP_TIME_S = {"CL": 43.5, "CH": 130.5}
 CREEP_T_CL_AT_FIRST_CH_LIMIT_C = 205.5  # CL when CH first reaches 250 degC

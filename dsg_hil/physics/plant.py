@@ -12,7 +12,7 @@ Each step (inputs held over it, zero-order hold):
 3. the friction heat (4), M times the exact integral of the slip over the step, and the hydraulic losses drive
    the exact step of the thermal network; the pressures take their exact first-order step.
 
-The contact law a 1-ms step can carry (issue 16): stick/slip of a clutch is decided on its MEAN slip over the
+The contact law a 1-ms step can carry: stick/slip of a clutch is decided on its MEAN slip over the
 step, ``V (Phi_int x + Gamma_int u) / dt`` (exact, linear in the torques as the end velocity is), so a locked
 clutch does no work and a slipping one dissipates exactly |M| times its slip integral: the energy closes at any
 step. The vehicle's is decided on its speed at the step's END, so a held vehicle ends every step at rest (on its

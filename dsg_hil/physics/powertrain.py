@@ -175,7 +175,7 @@ def law_rows(end: tuple[np.ndarray, np.ndarray], integral: tuple[np.ndarray, np.
     so a held vehicle ends every step at rest. On the mean, a held vehicle that entered the step moving would end
     it moving the other way as fast (v_end = -v_start for its near-linear speed within a step: its inertia is the
     vehicle's), and that reversal is an undamped mode at the step's Nyquist frequency: braked from 0.2 m/s, the
-    speed rang at +-0.34 mm/s decaying with tau ~ 120 s, read as roll-back (issue 16). The clutches' sides are light
+    speed rang at +-0.34 mm/s decaying with tau ~ 120 s, read as roll-back. The clutches' sides are light
     and stiffly coupled: a locked clutch's end slip stays at ~1e-6 rad/s on the mean law, which keeps the shuffle
     and the 88-Hz mode (bench/contact_law.py)."""
     L_x = np.vstack([V[:2] @ integral[0] / dt, V[2:] @ end[0]])

@@ -69,7 +69,7 @@ __all__ = ["CLUTCHES", "ESTABLISHED", "MIN_PHASE_S", "P_ENGAGED", "SAFETY_TEMPER
 BATCH_ROWS = 256  # RunSummary.on_period: rows held for one CreepMetrics.add_rows call, at most
 GUARDED = ("FAULT", "STOPPED_OVERHEAT")  # TCU states in which the vehicle's roll-back counts as the TCU's
 HANDOVER_AFTER_S = 1.0  # a handover's speed is judged through the crossover and this long after it
-HANDOVER_BAND = 0.2  # ... if it began with the speed within this fraction of the desired speed (issue 18's band)
+HANDOVER_BAND = 0.2  # ... if it began with the speed within this fraction of the desired speed (the drivability band)
 _IN_ACC_ORDER = itemgetter(*ACC)  # values by accumulator name -> the tuple in the order of creep_rows' acc
 _ACC_UNPACKED = ("slip_CL", "slip_CH", "overlap", "max_T_CL", "max_T_CH", "above_CL", "above_CH", "energy_CL",
                  "energy_CH", "rollback_speed", "rollback_distance", "creep", "standstill", "moved", "sq_speed_error",

@@ -22,7 +22,7 @@ __all__ = ["HANDOVER_DRIVABLE_PCT", "ROLLBACK_DRIVABLE_MPS", "drivability_lines"
            "write_page"]
 
 WORST = 10  # rows in the table of the hottest runs
-ROLLBACK_DRIVABLE_MPS = 0.01  # issue 18's drivability target: at most 10 mm/s backwards at a brake release
+ROLLBACK_DRIVABLE_MPS = 0.01  # the drivability target: at most 10 mm/s backwards at a brake release
 HANDOVER_DRIVABLE_PCT = 20.0  # ... and the speed within +-20 % of the desired speed through handovers
 
 

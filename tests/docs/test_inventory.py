@@ -213,9 +213,21 @@ ENTRIES = [
     E("docs/explanation/lockstep.md", "sequenceDiagram", DIAGRAM, why="Mermaid"),
     E("docs/index.md", "flowchart LR", DIAGRAM, why="Mermaid"),
     E("docs/index.md", "pip install . && dsg-hil run", RUN, (QUICK_START, ".ci/run"), "the README's quick start"),
+    E("docs/safety.md", "B_c = T_pred,c", FORMULA, why="the thermal monitor's bound (ecu_stub/monitor.py)"),
+    E("docs/safety.md", "T_pred ≥ T_safe", FORMULA, why="the hand-over limit (CreepController.limit)"),
+    E("docs/safety.md", "f = P_REL", FORMULA, why="the heat's error (CreepController.heat_error_fraction)"),
+    E("docs/safety.md", "e_c   = prediction_error_k", FORMULA, why="the margin's term (CreepController.margin_k)"),
+    E("docs/safety.md", "dsg-hil run --summary s.json --fault 'offset:", PARSED,
+      why="two default-scenario runs; tests/ecu_stub/test_sensor_checks.py runs such faults closed-loop"),
+    E("docs/safety.md", "dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n 1000", PARSED,
+      why="1,000 creeps of 240 s each take hours; tests/sweep runs sweeps of the same engine on a few short runs"),
     E("docs/safety.md", "python bench/latent_findings.py --n 300", STUDY,
       ("tests/test_bench.py::test_latent_findings_counts_the_runs_by_their_latent_faults",),
-      "two studies of 300 runs, 25-40 minutes each"),
+      "a study of 300 runs, 20-40 minutes"),
+    E("docs/safety.md", "python bench/latent_findings.py --n 1000", STUDY,
+      ("tests/test_bench.py::test_latent_findings_counts_the_runs_by_their_latent_faults",
+       "tests/sweep/test_engines.py::test_the_benches_over_a_sweep_read_it_and_repeat_its_runs"),
+      "the proof run: 10,000 runs and a 1,000-trial search, many hours on two cores"),
 ]
 
 

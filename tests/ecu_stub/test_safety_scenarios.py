@@ -203,7 +203,7 @@ def test_sample_found_a_clutch_that_cannot_carry_the_vehicle_stops_it_rather_tha
     assert s["stop_reason"] == "STOPPED_OVERHEAT"  # before: vehicle_stopped at 17.1 s, creep requested
     assert s["tcu_stop_time_s"] <= 17.1  # before the vehicle came to rest under the creep request
     # CL used to its limit first (not giving up early): >= 235 degC before the margin budgeted the sensor errors the
-    # checks let through (docs/safety.md, section 6), 234.1 degC since
+    # checks let through (docs/safety.md), 234.1 degC since
     assert s["max_plate_temp_c"]["CL"] >= 233.0
     assert s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["rollback_guarded_m"] <= LIMITS["rollback_m"]
 
@@ -374,7 +374,7 @@ def test_sample_found_a_monitor_stop_ramps_the_carrying_clutch_out_while_the_bra
                    "driver.drag_onset_s": 146.70062291890727, "driver.drag_duration_s": 181.6071015444852})
     assert s["stop_reason"] == "STOPPED_OVERHEAT" and s["handovers"] == []
     assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS  # before: -11.8 mm/s at 8.7 s
-    # (235 degC before the margin budgeted the sensor errors the checks let through, docs/safety.md section 6)
+    # (235 degC before the margin budgeted the sensor errors the checks let through, docs/safety.md)
     assert 233.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["time_above_limit_s"]["CL"] == 0.0
 
 
@@ -391,7 +391,7 @@ def test_sample_found_a_partner_at_its_capacity_is_not_handed_the_vehicle():
                    "driver.stop_s": 4.362994694889822})
     assert s["handovers"] == [] and s["stop_reason"] == "STOPPED_OVERHEAT"  # before: CL -> CH at 6.4 s
     assert s["tcu_stop_time_s"] <= 9.4  # the stop comes no later than the stall's (at 9.4 s, the vehicle at 8 mm/s)
-    # (235 degC before the margin budgeted the sensor errors the checks let through, docs/safety.md section 6)
+    # (235 degC before the margin budgeted the sensor errors the checks let through, docs/safety.md)
     assert 233.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C
 
 

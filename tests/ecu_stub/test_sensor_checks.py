@@ -314,7 +314,7 @@ def test_a_valve_that_builds_no_pressure_keeps_the_launch_on_the_brake():
     assert summary["rollback_m"] <= 0.005 and summary["creep_time_s"] == 0.0
 
 
-# ---- the closed loop: offsets within the checks' tolerances (docs/safety.md, section 6) -------------------------
+# ---- the closed loop: offsets within the checks' tolerances (docs/safety.md) -------------------------------------
 
 OFFSETS = {  # issue's findings on the default scenario; the true plate on this 30-s creep with the TCU before
     "T_OilCL -14 K": ((("PLANT_OIL_TEMP.T_OilCL", -14.0),), "T_OilCL"),  # CL 260.60 degC
@@ -342,7 +342,7 @@ def test_an_offset_the_old_checks_let_through_keeps_the_true_plate_under_t_safe(
     assert all(n > 0 if signal == caught else n == 0 for signal, n in counts["implausible"].items())
 
 
-# ---- the key-on check: an oil sensor wrong from t = 0 (docs/safety.md, section 6) -----------------------------
+# ---- the key-on check: an oil sensor wrong from t = 0 (docs/safety.md) -----------------------------------------
 
 def test_the_key_on_tolerance_and_undetected_error_by_hand():
     """Class B, +-(0.3 + 0.005 |T|) K, is the calibration's oil_accuracy_k at T_safe; at 100 degC two healthy sensors

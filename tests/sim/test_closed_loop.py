@@ -125,7 +125,7 @@ def test_hot_cl_hands_over_to_ch_and_the_truth_stays_under_250(hot_run, request)
     assert max(trace.T_CL) <= T_SAFE and max(trace.T_CH) <= T_SAFE
     # and not given up early: CL was used to within 15 K of the limit; in the heavy, fast launch within 20 K since the
     # margin budgets the sensor errors the plausibility checks let through, which grow with a launch's heat
-    # (docs/safety.md, section 6: handed over at 230.4 degC, 238.1 before)
+    # (docs/safety.md: handed over at 230.4 degC, 238.1 before)
     used_k = 20.0 if request.node.callspec.id == "steep, fast, heavy" else 15.0
     assert s["handovers"][0]["T_CL_c"] >= T_SAFE - used_k
 
@@ -133,7 +133,7 @@ def test_hot_cl_hands_over_to_ch_and_the_truth_stays_under_250(hot_run, request)
 def test_speed_stays_within_20_percent_of_its_target_through_the_handover(hot_run, request):
     if request.node.callspec.id == "steep, fast, heavy":  # known cost, open: not counted as passing
         request.applymarker(pytest.mark.xfail(strict=True, reason=(
-            "the margin for undetected sensor errors (docs/safety.md, section 6) lowers CL's limit by about 8 K at "
+            "the margin for undetected sensor errors (docs/safety.md) lowers CL's limit by about 8 K at "
             "this launch's heat: CL from 228 degC hands over during the launch, the speed 0.148-0.408 m/s against "
             "0.4")))
     _, trace, _ = hot_run

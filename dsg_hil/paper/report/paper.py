@@ -1,7 +1,7 @@
 """The paper's numbers that ``dsg-hil report`` checks, with their bands and the reason for each gap, as data.
 
-Every published number and its band comes from :mod:`dsg_hil.paper.reference` (Section III.C with the bands of issue 2,
-Section V.B with those of issue 7); none is fitted to a run, but some were consumed by a calibration of the
+Every published number and its band comes from :mod:`dsg_hil.paper.reference` (Section III.C and Section V.B,
+each with its bands); none is fitted to a run, but some were consumed by a calibration of the
 parameters: each row's status, ``fitted`` (naming the calibration and the quantities it set) or ``predicted``, is
 derived from :data:`dsg_hil.paper.calibration.CALIBRATIONS`. ``REASONS`` holds the text of the reason column, one
 entry per key, for every number that misses its band; a log that ends before any stop gets that reason instead.

@@ -87,7 +87,7 @@ def test_each_fault_sets_its_dtc_with_a_freeze_frame_of_the_plants_truth(dsg_hil
 
 
 def test_an_oil_sensor_low_from_key_on_confirms_its_dtc_at_once(dsg_hil_run):
-    """The key-on check (docs/safety.md, section 6) flags T_OilCL on the first cycle; its DTC is confirmed after its
+    """The key-on check (docs/safety.md) flags T_OilCL on the first cycle; its DTC is confirmed after its
     debounce, 3 periods (the first period's count is the monitor's reference)."""
     result = dsg_hil_run(faults=["offset:PLANT_OIL_TEMP.T_OilCL@0-,value=-30"], duration=1.0, log=None)
     dtcs = confirmed(result)
