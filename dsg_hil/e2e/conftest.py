@@ -119,12 +119,16 @@ def sent_by(db, node: str) -> set[int]:
 
 
 def parse_candump(path: Path) -> list[tuple[float, int, bytes]]:
+    """(time, ID, data) of each frame of a ``candump -L`` log: "(t) vcan0 ID#DATA", a CAN FD frame "ID##<flags>DATA"
+    (its flags nibble dropped)."""
     frames = []
     for line in path.read_text().splitlines():
         parts = line.split()
         if len(parts) < 3 or "#" not in parts[2]:
             continue
         ident, data = parts[2].split("#", 1)
+        if data.startswith("#"):  # CAN FD: one hex digit of flags (BRS, ESI) before the data
+            data = data[2:]
         frames.append((float(parts[0].strip("()")), int(ident, 16), bytes.fromhex(data)))
     return frames
 
