@@ -10,9 +10,9 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   at a desired speed of 0 is a stand: held, no launch. The hold ends when a launch's pre-fill carries the vehicle.
 * ENGAGE: on the creep request, the on-coming clutch (CL first) is filled at once to the pressure that carries the
   pre-fill's wheel force (:meth:`CreepController.prefill_force`: for the grade the accelerometer read at the
-  standstill, the heaviest vehicle until a settled creep has shown this one's weight); the brake request is dropped
-  when the measured pressure has reached it (never on a pressure the runner's plausibility check found
-  implausible: :mod:`ecu_stub.sensor_checks`).
+  standstill, the heaviest vehicle until a creep settled or stood still has shown this one's weight); the brake
+  request is dropped when the measured pressure has reached it (never on a pressure the runner's plausibility check
+  found implausible: :mod:`ecu_stub.sensor_checks`).
 * CREEP: a PI controller on vehicle speed sets the wheel force (its reference reaches the desired speed along a
   ramp of ``launch.accel_mps2``, so a launch or a new desired speed is no step); the active clutch's pressure
   follows from the TCU's model of that clutch (torque = mu(T, slip, P) k_geom P, the speed ratio to the wheel,
@@ -707,15 +707,16 @@ class CreepController:
 
     def _learn_standstill(self, inp: TcuInputs, now: float) -> None:
         """A creep whose vehicle stood still for ``STOOD_S`` with no brake on (requested or pressed) and nothing
-        learned from a settled creep: its wheel force held this vehicle, so it lies within the window
+        learned from a settled creep, the force under the clutch's capacity (at it, the commanded force is not the
+        transmitted one: :meth:`_stalled`): its wheel force held this vehicle, so it lies within the window
         m g (sin a +- f0 cos a) where a standing vehicle stays, the middle of which is m g sin a: the weight the
         pre-fill needs (:meth:`prefill_force`), learned as a load per weight of sin a. A creep that never settles
-        (a target the clutch reaches only when hot, the monitor's stop first) otherwise leaves every later launch
-        on the heaviest vehicle's pre-fill. Measured (the safety sweep's r00408: 10.8 t on 0.279 rad, beyond the
-        0.25 rad the grade is read up to, stop-and-go at 0.0255 m/s): each of 7 launches rolled back 12-15 mm,
-        0.080 m in all (limit 0.05 m)."""
+        (the monitor stops the clutch before the vehicle reaches its target) otherwise leaves every later launch
+        on the heaviest vehicle's pre-fill. Found by the safety proof sweep (r00408: 10.8 t on 0.279 rad, beyond
+        the 0.25 rad the grade is read up to, stop-and-go at 0.0255 m/s): each of 7 launches rolled back
+        12-15 mm, 0.080 m in all (limit 0.05 m); now the first only, 12 mm."""
         if self.load_settled or self.sin_grade is None or inp.v_mps != 0.0 or self.brake_request \
-                or inp.brake_pct > 0.0:
+                or inp.brake_pct > 0.0 or self.F_cmd >= SATURATED_FRACTION * self.pid.out_max:
             self.stood_since = None
             return
         if self.stood_since is None:
@@ -734,8 +735,9 @@ class CreepController:
         rolling resistance of (13)). Nothing learned, the mass is unknown: the heaviest vehicle's
         ``vehicle.m_max_kg`` g (sin a - f cos a), so that no vehicle rolls back faster and faster (a lighter one is
         held better: up to tan a = 2 f with a mass range of +-50 %, it is not pushed beyond its own road load).
-        After a creep settled on its target (:meth:`_learn_road_load`) the weight is known: m g sin a, the middle of
-        the window where a standing vehicle stays. Never below ``launch.F_prefill_n``, the pre-fill of a gentle or
+        After a creep settled on its target (:meth:`_learn_road_load`) or stood still under its force
+        (:meth:`_learn_standstill`) the weight is known: m g sin a, the middle of the window where a standing
+        vehicle stays. Never below ``launch.F_prefill_n``, the pre-fill of a gentle or
         unknown grade. Measured (the 5,000-run sample's r02259: 9.4 t on 0.236 rad, creep toggled with the brake
         every 2.8 s at 0.055 m/s, never settled): the fixed pre-fill let it roll back about 3 mm at up to 28 mm/s at
         every launch, 0.132 m in all."""
