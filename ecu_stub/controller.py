@@ -10,9 +10,9 @@ No bus, no clock: time is passed in, so the strategy is tested with a fake clock
   at a desired speed of 0 is a stand: held, no launch. The hold ends when a launch's pre-fill carries the vehicle.
 * ENGAGE: on the creep request, the on-coming clutch (CL first) is filled at once to the pressure that carries the
   pre-fill's wheel force (:meth:`CreepController.prefill_force`: for the grade the accelerometer read at the
-  standstill, the heaviest vehicle until a settled creep has shown this one's weight); the brake request is dropped
-  when the measured pressure has reached it (never on a pressure the runner's plausibility check found
-  implausible: :mod:`ecu_stub.sensor_checks`).
+  standstill, the heaviest vehicle until a creep settled or stood still has shown this one's weight); the brake
+  request is dropped when the measured pressure has reached it (never on a pressure the runner's plausibility check
+  found implausible: :mod:`ecu_stub.sensor_checks`).
 * CREEP: a PI controller on vehicle speed sets the wheel force (its reference reaches the desired speed along a
   ramp of ``launch.accel_mps2``, so a launch or a new desired speed is no step); the active clutch's pressure
   follows from the TCU's model of that clutch (torque = mu(T, slip, P) k_geom P, the speed ratio to the wheel,
@@ -89,6 +89,7 @@ BRAKE_PRESSED_PCT = 5.0
 CLUTCH_OPEN_MPA = 0.02  # measured piston pressure under which a clutch carries next to nothing (downhill check)
 _RPM_TO_RAD_S = CV.RPM_TO_RAD_S
 SETTLED_FRACTION = 0.05  # a creep within 5 % of its target (reference ramp done) has settled on the road load
+STOOD_S = 0.5  # a creep whose vehicle stood this long, brakes off, stood on its force (_learn_standstill)
 RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (+-20 %), speeding up
 STALL_FRACTION = 0.5  # stalled: under half the target speed with the wheel force at the clutch's capacity ...
 STALL_S = 1.0  # ... for this long (10 time constants of the speed loop, 1/9.7 rad/s: not a transient)
@@ -194,9 +195,11 @@ class CreepController:
         self.monitor = ThermalMonitor(self.cal)
         self.bound = {"CL": 0.0, "CH": 0.0}  # the monitor's bound of the last cycle [degC]
         self.inp = TcuInputs(plant_valid=False)  # the inputs of the last cycle
-        self.F_creep = 0.0  # wheel force of the last creep settled on its target [N] (prefill_force)
-        self.creep_load = 0.0  # that creep's road load per unit weight, sin a + f cos a (prefill_force)
+        self.F_creep = 0.0  # wheel force of the last creep settled on its target, or stood still [N] (prefill_force)
+        self.creep_load = 0.0  # its load per unit weight: sin a + f cos a settled, sin a stood (prefill_force)
         self.sin_grade: float | None = None  # the grade's sine, read at the last held standstill (prefill_force)
+        self.stood_since: float | None = None  # CREEP, VehicleSpeed 0 and no brake since (_learn_standstill)
+        self.load_settled = False  # F_creep is a settled creep's, not a standstill's (_learn_standstill)
         self.slip_mean: dict[str, float] | None = None  # the clutches' slips low-passed [r/min] (mean_slip_rpm)
         self.stalled_since: float | None = None  # CREEP at the clutch's capacity under half the target (_stalled)
         self.pedal_overrun = False  # the driver's pedal pressed but not holding the vehicle (_idle)
@@ -549,6 +552,7 @@ class CreepController:
             if (not self.brake_request and self.v_ref == inp.desired_speed_mps > 0.0
                     and abs(v_err) <= SETTLED_FRACTION * inp.desired_speed_mps):
                 self._learn_road_load()
+            self._learn_standstill(inp, now)
             self.P_cmd[self.active] = self.pressure_for(self.active, self.F_cmd, inp)
             self.P_cmd[OTHER[self.active]] = 0.0
         elif self.state == "HANDOVER":
@@ -682,7 +686,7 @@ class CreepController:
         """A launch on ``clutch``: ENGAGE, the pre-fill's force (:meth:`prefill_force`), no dwell running; a pedal
         overrun ends with it (the pedal it overruled is off)."""
         self.state, self.active, self.near_limit_since, self.stalled_since = "ENGAGE", clutch, None, None
-        self.pedal_overrun = False
+        self.pedal_overrun, self.stood_since = False, None
         self.F_cmd = self.prefill_force()
 
     def _read_grade(self, inp: TcuInputs) -> None:
@@ -699,6 +703,26 @@ class CreepController:
         through the same model). Learned only on a grade read at a standstill."""
         if self.sin_grade is not None:
             self.F_creep, self.creep_load = self.F_cmd, self._load_per_weight(self.sin_grade)
+            self.load_settled = True
+
+    def _learn_standstill(self, inp: TcuInputs, now: float) -> None:
+        """A creep whose vehicle stood still for ``STOOD_S`` with no brake on (requested or pressed) and nothing
+        learned from a settled creep, the force under the clutch's capacity (at it, the commanded force is not the
+        transmitted one: :meth:`_stalled`): its wheel force held this vehicle, so it lies within the window
+        m g (sin a +- f0 cos a) where a standing vehicle stays, the middle of which is m g sin a: the weight the
+        pre-fill needs (:meth:`prefill_force`), learned as a load per weight of sin a. A creep that never settles
+        (the monitor stops the clutch before the vehicle reaches its target) otherwise leaves every later launch
+        on the heaviest vehicle's pre-fill. Found by the safety proof sweep (r00408: 10.8 t on 0.279 rad, beyond
+        the 0.25 rad the grade is read up to, stop-and-go at 0.0255 m/s): each of 7 launches rolled back
+        12-15 mm, 0.080 m in all (limit 0.05 m); now the first only, 12 mm."""
+        if self.load_settled or self.sin_grade is None or inp.v_mps != 0.0 or self.brake_request \
+                or inp.brake_pct > 0.0 or self.F_cmd >= SATURATED_FRACTION * self.pid.out_max:
+            self.stood_since = None
+            return
+        if self.stood_since is None:
+            self.stood_since = now
+        elif now - self.stood_since >= STOOD_S:
+            self.F_creep, self.creep_load = self.F_cmd, self.sin_grade
 
     def _load_per_weight(self, s: float) -> float:
         """Road load per unit weight on a grade of sine ``s``, sin a + f cos a (f: ``vehicle.f_roll``)."""
@@ -711,8 +735,9 @@ class CreepController:
         rolling resistance of (13)). Nothing learned, the mass is unknown: the heaviest vehicle's
         ``vehicle.m_max_kg`` g (sin a - f cos a), so that no vehicle rolls back faster and faster (a lighter one is
         held better: up to tan a = 2 f with a mass range of +-50 %, it is not pushed beyond its own road load).
-        After a creep settled on its target (:meth:`_learn_road_load`) the weight is known: m g sin a, the middle of
-        the window where a standing vehicle stays. Never below ``launch.F_prefill_n``, the pre-fill of a gentle or
+        After a creep settled on its target (:meth:`_learn_road_load`) or stood still under its force
+        (:meth:`_learn_standstill`) the weight is known: m g sin a, the middle of the window where a standing
+        vehicle stays. Never below ``launch.F_prefill_n``, the pre-fill of a gentle or
         unknown grade. Measured (the 5,000-run sample's r02259: 9.4 t on 0.236 rad, creep toggled with the brake
         every 2.8 s at 0.055 m/s, never settled): the fixed pre-fill let it roll back about 3 mm at up to 28 mm/s at
         every launch, 0.132 m in all."""
