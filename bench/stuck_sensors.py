@@ -11,13 +11,13 @@ Cases: none, and SIGNAL=VALUE of tests/ecu_stub/test_sensor_checks.py's STUCK pl
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: its tests' scenarios
 
+from _cases import parse_cases  # noqa: E402  (bench/, the script's directory)
 from tests.ecu_stub.test_sensor_checks import STUCK, hot_creep  # noqa: E402
 
 EXTRA = {"EngineSpeed=0": ("PLANT_ENGINE.EngineSpeed", 0.0), "EngineSpeed=3000": ("PLANT_ENGINE.EngineSpeed", 3000.0)}
@@ -27,21 +27,16 @@ CASES = {"none": None, **{f"{s}={v:g}": (t, v) for s, (t, v) in STUCK.items()}, 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("cases", nargs="*", metavar="CASE", help=f"cases (default: all): {' '.join(CASES)}")
-    ap.add_argument("--json", action="store_true", help="one JSON object instead of a line per case")
-    args = ap.parse_args()
-    if unknown := [c for c in args.cases if c not in CASES]:
-        ap.error(f"unknown case(s): {' '.join(unknown)}")
+    names, as_json = parse_cases(__doc__ or "", CASES)
     rows = []
-    for name in args.cases or list(CASES):
+    for name in names:
         summary, counts = hot_creep(stuck=CASES[name])
         rows.append({"case": name, "max_plate_temp_c": summary["max_plate_temp_c"],
                      "time_above_limit_s": summary["time_above_limit_s"], "stop_reason": summary["stop_reason"],
                      "implausible": {k: n for k, n in counts["implausible"].items() if n}})
-        if not args.json:
+        if not as_json:
             print(json.dumps(rows[-1]), flush=True)
-    if args.json:
+    if as_json:
         print(json.dumps({"cases": rows}))
 
 

@@ -10,7 +10,6 @@ seconds above 250 degC and the stop time.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -18,6 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: its tests' scenarios
 
+from _cases import parse_cases  # noqa: E402  (bench/, the script's directory)
 from dsg_hil.sim.scenario import load_scenario  # noqa: E402
 from tests.sim.test_closed_loop import Trace, closed_loop, creep_scenario  # noqa: E402
 
@@ -69,20 +69,15 @@ CASES = {
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("cases", nargs="*", metavar="CASE", help=f"cases (default: all): {' '.join(CASES)}")
-    ap.add_argument("--json", action="store_true", help="one JSON object instead of a line per case")
-    args = ap.parse_args()
-    if unknown := [c for c in args.cases if c not in CASES]:
-        ap.error(f"unknown case(s): {' '.join(unknown)}")
+    names, as_json = parse_cases(__doc__ or "", CASES)
     found = {}
-    for name in args.cases or list(CASES):
+    for name in names:
         scenario, mass = CASES[name]()
         s, trace, _ = closed_loop(scenario, mass)
         found[name] = metrics(s, trace)
-        if not args.json:
+        if not as_json:
             print(name, json.dumps(found[name]), flush=True)
-    if args.json:
+    if as_json:
         print(json.dumps({"cases": found}))
 
 
