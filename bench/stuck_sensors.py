@@ -16,8 +16,9 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: its tests' scenarios
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # bench/: _cases (also under python -P)
 
-from _cases import parse_cases  # noqa: E402  (bench/, the script's directory)
+from _cases import parse_cases  # noqa: E402
 from tests.ecu_stub.test_sensor_checks import STUCK, hot_creep  # noqa: E402
 
 EXTRA = {"EngineSpeed=0": ("PLANT_ENGINE.EngineSpeed", 0.0), "EngineSpeed=3000": ("PLANT_ENGINE.EngineSpeed", 3000.0)}

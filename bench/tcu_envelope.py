@@ -16,8 +16,9 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: its tests' scenarios
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # bench/: _cases (also under python -P)
 
-from _cases import parse_cases  # noqa: E402  (bench/, the script's directory)
+from _cases import parse_cases  # noqa: E402
 from dsg_hil.sim.scenario import load_scenario  # noqa: E402
 from tests.sim.test_closed_loop import Trace, closed_loop, creep_scenario  # noqa: E402
 
