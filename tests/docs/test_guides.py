@@ -430,3 +430,34 @@ def test_the_arxml_readme_s_check_and_run(tmp_path: Path) -> None:
     summary = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
     assert summary["frames"]["rejected"] == summary["frames"]["unanswered_ticks"] == 0
     assert [p["clutch"] for p in summary["phases"]] == ["CL"]
+
+
+def test_the_sweep_tutorial_s_sweep_runs_and_ends_as_the_page_says(tmp_path: Path) -> None:
+    """The tutorial's eight-run sweep as written (its results directory in a temporary one): it ends with the
+    verdict the page quotes, and writes the page it names."""
+    pytest.importorskip("distributed", reason="the sweep extra is not installed")
+    (line,) = sh_block("docs/tutorials/sweep.md", "dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n 8")
+    quoted = re.search(r"It ended `(verdict: [^`]+)`", (ROOT / "docs/tutorials/sweep.md").read_text(encoding="utf-8"))
+    assert quoted is not None
+    words = shlex.split(line, comments=True)
+    assert words[words.index("--out") + 1] == "sweep"
+    words[words.index("--out") + 1] = str(tmp_path / "sweep")
+    done = subprocess.run(words, cwd=ROOT, capture_output=True, text=True, timeout=1200, env=ENV)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert quoted.group(1) in done.stdout + done.stderr
+    assert (tmp_path / "sweep" / "sweep.md").is_file()
+
+
+def test_the_paper_tutorial_s_two_reports_run(tmp_path: Path) -> None:
+    """The tutorial's two report commands as written, in a temporary directory: the whole report, then the creep
+    part from a recorded log (the first report's own, for the page's ecu.asc); each writes its report.md and says
+    how the numbers compare with the paper."""
+    pytest.importorskip("matplotlib", reason="the plots extra is not installed")
+    first, second = sh_block("docs/tutorials/paper.md", "dsg-hil report --out report/")
+    done = run(first, tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "paper vs dsg-hil: Section V.B:" in done.stdout + done.stderr
+    assert (tmp_path / "report" / "report.md").is_file() and (tmp_path / "report" / "creep.log").is_file()
+    done = run(second, tmp_path, {"ecu.asc": str(tmp_path / "report" / "creep.log")})
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / "other" / "report.md").is_file()

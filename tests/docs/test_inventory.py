@@ -119,10 +119,10 @@ ENTRIES = [
     E("docs/tutorials/sweep.md", "pip install 'dsg-hil[sweep]'", PARSED,
       why="an overview: an install, the user's spaces (SPACE.toml, SOBOL.toml), a cluster's address and 200-run "
           "sweeps; each line parsed, the sweeps themselves run at a smaller size by tests/sweep"),
-    E("docs/tutorials/sweep.md", "dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n 8", PARSED,
-      why="8 creeps of 240 s take minutes; tests/sweep runs sweeps of the same engine on a few short runs"),
-    E("docs/tutorials/paper.md", "dsg-hil report --out report/", STUDY, ("tests/paper/test_report.py::run",),
-      "a minute or more of validation, model checks and two creeps: the test makes the report of a short creep"),
+    E("docs/tutorials/sweep.md", "dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n 8", RUN,
+      (f"{GUIDES}::test_the_sweep_tutorial_s_sweep_runs_and_ends_as_the_page_says",), "its --out in a temporary place"),
+    E("docs/tutorials/paper.md", "dsg-hil report --out report/", RUN,
+      (f"{GUIDES}::test_the_paper_tutorial_s_two_reports_run",), "the first report's log for the page's ecu.asc"),
     # how-to guides
     E("docs/how-to/install.md", "python3 -m venv .venv", INSTALL, (".ci/run",), "CI makes fresh environments so"),
     E("docs/how-to/install.md", "sudo apt-get install can-utils", INSTALL, why="system packages (root)"),
