@@ -140,23 +140,31 @@ def test_the_creep_on_the_renamed_matrix_is_the_shipped_one(runs):
     assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0 and b["frames"]["received"] > 800
 
 
+def run_two_processes(dbc: Path, binding: Path, duration: float,
+                      plant_args: list[str]) -> tuple[subprocess.CompletedProcess[str], str]:
+    """``ecu-stub`` and a lock-step ``dsg-hil plant``, each with ``--dbc dbc --binding binding``, on a fresh
+    udp_multicast group: the plant's finished process and ecu-stub's stderr (its closing counts)."""
+    bus = bus_args({"interface": UDP_MULTICAST, **fresh_udp_group()})
+    pair = ["--dbc", str(dbc), "--binding", str(binding)]
+    tcu = subprocess.Popen([sys.executable, "-m", "ecu_stub", *bus, *pair, "--idle-exit", "10", "--quiet"],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        plant = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", *bus, *pair, "--mode", "lockstep",
+                                "--duration", f"{duration:g}", *plant_args, "--quiet"],
+                               capture_output=True, text=True, timeout=600)
+    finally:
+        tcu.terminate()
+        tcu_err = tcu.communicate(timeout=60)[1]
+    return plant, tcu_err
+
+
 def test_plant_and_ecu_stub_as_two_processes_on_the_renamed_matrix(tmp_path, runs):
     """``dsg-hil plant`` and ``ecu-stub``, each given ``--dbc renamed.dbc --binding renamed.binding.toml``, on
     udp_multicast: the creep of the in-process run (lock-step is the same whatever the bus)."""
     (_, _, shipped), (_, _, in_process) = runs
     dbc, binding = write_renamed_pair(tmp_path)
-    bus = bus_args({"interface": UDP_MULTICAST, **fresh_udp_group()})
-    pair = ["--dbc", str(dbc), "--binding", str(binding)]
     summary = tmp_path / "summary.json"
-    tcu = subprocess.Popen([sys.executable, "-m", "ecu_stub", *bus, *pair, "--idle-exit", "10", "--quiet"],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        plant = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", *bus, *pair, "--mode", "lockstep",
-                                "--duration", f"{DURATION:g}", "--summary", str(summary), "--quiet"],
-                               capture_output=True, text=True, timeout=600)
-    finally:
-        tcu.terminate()
-        tcu_err = tcu.communicate(timeout=60)[1]
+    plant, tcu_err = run_two_processes(dbc, binding, DURATION, ["--summary", str(summary)])
     assert plant.returncode == 0, plant.stderr
     assert "rejected 0" in tcu_err, tcu_err  # ecu-stub's closing counts: it read the renamed frames
     b = json.loads(summary.read_text(encoding="utf-8"))

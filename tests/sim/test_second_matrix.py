@@ -8,8 +8,6 @@ multiplexed oil message: ecu-stub's inputs are whole once its last page has come
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from importlib import resources
 from pathlib import Path
 
@@ -18,10 +16,11 @@ import pytest
 
 from dsg_hil.protocol import Codec
 from dsg_hil.protocol.binding import Binding, check_binding, load_binding
-from dsg_hil.protocol.bus import UDP_MULTICAST, bus_args, fresh_udp_group
 from dsg_hil.protocol.logs import decoded_frames, log_codec
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import load_scenario
+
+from .test_binding_run import run_two_processes
 
 EXAMPLE = resources.files("dsg_hil") / "data" / "examples" / "dct_fd"
 DBC, BINDING = Path(str(EXAMPLE / "dct_fd.dbc")), Path(str(EXAMPLE / "dct_fd.binding.toml"))
@@ -177,18 +176,8 @@ def test_plant_and_ecu_stub_as_two_processes_on_the_example_matrix(tmp_path, run
         shipped = run.run().as_json()
     with open_run(RunConfig(duration=SHORT, dbc=DBC, binding=BINDING)) as run:
         in_process = run.run().as_json()
-    bus = bus_args({"interface": UDP_MULTICAST, **fresh_udp_group()})
-    pair = ["--dbc", str(DBC), "--binding", str(BINDING)]
     summary, log = tmp_path / "summary.json", tmp_path / "creep.log"
-    tcu = subprocess.Popen([sys.executable, "-m", "ecu_stub", *bus, *pair, "--idle-exit", "10", "--quiet"],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        plant = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", *bus, *pair, "--mode", "lockstep",
-                                "--duration", f"{SHORT:g}", "--summary", str(summary), "--log", str(log),
-                                "--quiet"], capture_output=True, text=True, timeout=600)
-    finally:
-        tcu.terminate()
-        tcu_err = tcu.communicate(timeout=60)[1]
+    plant, tcu_err = run_two_processes(DBC, BINDING, SHORT, ["--summary", str(summary), "--log", str(log)])
     assert plant.returncode == 0, plant.stderr
     assert "rejected 0" in tcu_err, tcu_err  # ecu-stub's closing counts: it read the dct_fd frames
     b = json.loads(summary.read_text(encoding="utf-8"))
