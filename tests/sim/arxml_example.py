@@ -66,9 +66,10 @@ def arxml_from_dbc(db: Database) -> str:
           f"</START-POSITION></PDU-TO-FRAME-MAPPING></PDU-TO-FRAME-MAPPINGS></CAN-FRAME>")
     w("    </ELEMENTS></AR-PACKAGE>")
     w("    <AR-PACKAGE><SHORT-NAME>PDUs</SHORT-NAME><ELEMENTS>")
+    layouts = {n: _layout(db.get_message_by_name(n)) for n in names}  # each message's placing, once
     for n in names:
         m = db.get_message_by_name(n)
-        head, placed = _layout(m)
+        head, placed = layouts[n]
         w(f"      <I-SIGNAL-I-PDU><SHORT-NAME>{n}</SHORT-NAME><LENGTH>8</LENGTH>")
         w(f"        <I-PDU-TIMING-SPECIFICATIONS><I-PDU-TIMING><TRANSMISSION-MODE-DECLARATION>"
           f"<TRANSMISSION-MODE-TRUE-TIMING><CYCLIC-TIMING><TIME-PERIOD><VALUE>{(m.cycle_time or 0) / 1000:g}"
@@ -83,7 +84,7 @@ def arxml_from_dbc(db: Database) -> str:
     w("    </ELEMENTS></AR-PACKAGE>")
     w("    <AR-PACKAGE><SHORT-NAME>Signals</SHORT-NAME><AR-PACKAGES>")
     for n in names:
-        head, placed = _layout(db.get_message_by_name(n))
+        head, placed = layouts[n]
         w(f"      <AR-PACKAGE><SHORT-NAME>{n}</SHORT-NAME><ELEMENTS>")
         for sname, _, length in head:
             w(f"        <I-SIGNAL><SHORT-NAME>{sname}</SHORT-NAME><LENGTH>{length}</LENGTH></I-SIGNAL>")
@@ -98,7 +99,7 @@ def arxml_from_dbc(db: Database) -> str:
     w("    </AR-PACKAGES></AR-PACKAGE>")
     w("    <AR-PACKAGE><SHORT-NAME>SystemSignals</SHORT-NAME><AR-PACKAGES>")
     for n in names:
-        _, placed = _layout(db.get_message_by_name(n))
+        _, placed = layouts[n]
         w(f"      <AR-PACKAGE><SHORT-NAME>{n}</SHORT-NAME><ELEMENTS>")
         for s, _ in placed:
             w(f"        <SYSTEM-SIGNAL><SHORT-NAME>{s.name}</SHORT-NAME><PHYSICAL-PROPS><SW-DATA-DEF-PROPS-VARIANTS>"
@@ -109,7 +110,7 @@ def arxml_from_dbc(db: Database) -> str:
     w("    </AR-PACKAGES></AR-PACKAGE>")
     w("    <AR-PACKAGE><SHORT-NAME>CompuMethods</SHORT-NAME><AR-PACKAGES>")
     for n in names:
-        _, placed = _layout(db.get_message_by_name(n))
+        _, placed = layouts[n]
         w(f"      <AR-PACKAGE><SHORT-NAME>{n}</SHORT-NAME><ELEMENTS>")
         for s, _ in placed:
             if s.choices:  # the DBC's VAL_ table: a TEXTTABLE (cantools reads it as the signal's choices)
