@@ -74,7 +74,7 @@ from .calibration import TcuCalibration, load_calibration
 from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque, slip_filter_weight
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
-from .plausibility import REL_TOL
+from .plausibility import DISTANCE_M, HEAL_S, REL_TOL
 from .sensor_checks import N_REL, OIL_FALL_K, OIL_FRAME_S, P_ABS_MPA, P_REL, keyon_undetected_k
 
 __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "STALL_FRACTION",
@@ -95,6 +95,9 @@ STALL_FRACTION = 0.5  # stalled: under half the target speed with the wheel forc
 STALL_S = 1.0  # ... for this long (10 time constants of the speed loop, 1/9.7 rad/s: not a transient)
 SATURATED_FRACTION = 0.98  # the wheel force at its limit: within 2 % of the capacity (which moves with the slip)
 SPEED_Q_MPS = 0.0005  # half a DBC step of VehicleSpeed [m/s] (margin_k: an output speed's error the vote lets through)
+V_STEP_MPS = 0.0011  # a DBC step of VehicleSpeed [m/s], and a little more: a reading between two steps is steady
+STEADY_S = 0.1  # VehicleSpeed steady this long under a brake: the vehicle stands (_track_stillness) [s]
+V_UNDETECTED_MPS = DISTANCE_M / HEAL_S  # a steady VehicleSpeed offset the vote does not keep replaced [m/s]
 SHAFT_Q_RPM = 0.1  # half a DBC step of a clutch output speed and of ClutchInputSpeed, 0.05 r/min each [r/min]
 
 
@@ -203,6 +206,10 @@ class CreepController:
         self.slip_mean: dict[str, float] | None = None  # the clutches' slips low-passed [r/min] (mean_slip_rpm)
         self.stalled_since: float | None = None  # CREEP at the clutch's capacity under half the target (_stalled)
         self.pedal_overrun = False  # the driver's pedal pressed but not holding the vehicle (_idle)
+        self.stand_held = False  # the vehicle stood held by the brake request since the last launch (_idle)
+        self.still = False  # the vehicle stands, this cycle (_track_stillness)
+        self.v_steady_mps = 0.0  # VehicleSpeed has stayed within a step of this since v_steady_since [m/s]
+        self.v_steady_since = 0.0  # [s]
         self.heat_max = {"CL": 0.0, "CH": 0.0}  # the largest friction power since start-up, its error added [W]
         self.heat_error_k = {"CL": 0.0, "CH": 0.0}  # the prediction's error from undetected heat errors [K] (margin_k)
         self.oil_error_k: float | None = None  # an oil reading's undetected error, from the key-on readings (margin_k)
@@ -361,6 +368,21 @@ class CreepController:
         return max(heat_w * (0.5 * s.handover_time_s + s.hydraulic_lag_s + self.dt),
                    worst * release_time_s(self.cal, self.dt)) / C
 
+    def _track_stillness(self, inp: TcuInputs, now: float) -> None:
+        """:attr:`still` for this cycle: the vehicle within the standstill band, or, braked (the brake requested in
+        the last cycle, or the pedal pressed), VehicleSpeed steady within a DBC step for ``STEADY_S`` and within
+        the band widened by what the speed vote lets through of a steady offset (:data:`V_UNDETECTED_MPS`): a
+        braked vehicle that moves does not keep its speed, whatever offset its reading carries. Before, with
+        VehicleSpeed reading 14.5 mm/s off (out-voted only after about 3 s), the TCU never saw the vehicle stand:
+        its hold ended under a light pedal (8.2 m of roll-back of 11.76 t on 0.25 rad), the grade was never read
+        and a launch's brake was released at once (110 mm/s back)."""
+        v, standstill = inp.v_mps, self.cal.launch.standstill_mps
+        if abs(v - self.v_steady_mps) > V_STEP_MPS:
+            self.v_steady_mps, self.v_steady_since = v, now
+        braked = self.brake_request or inp.brake_pct >= BRAKE_PRESSED_PCT
+        self.still = abs(v) < standstill or (braked and abs(v) < standstill + V_UNDETECTED_MPS
+                                             and now - self.v_steady_since >= STEADY_S - 1e-9)
+
     def slip_error_rpm(self, clutch: str, inp: TcuInputs) -> float:
         """Largest error [r/min] of the clutch's |slip| that the plausibility checks let through: its output speed
         within the speed vote's tolerance (:data:`~ecu_stub.plausibility.REL_TOL` of the vehicle speed and half DBC
@@ -505,6 +527,7 @@ class CreepController:
         last, self.inp = self.inp, inp
         if self.state == "FAULT":
             self.state = "IDLE"
+        self._track_stillness(inp, now)
         self._read_grade(inp)
 
         if self.state == "STOPPED_OVERHEAT":
@@ -519,7 +542,7 @@ class CreepController:
         # desired speed 0 with creep requested: stand, held by the brake request (_idle), not a creep at 0 (the
         # clutch alone let 11.76 t on 0.25 rad roll back at 17 mm/s); a creep asked to 0 first slows to a standstill
         stand = inp.desired_speed_mps <= 0.0 and (self.state == "IDLE" or (
-            self.v_ref <= 0.0 and abs(inp.v_mps) < self.cal.launch.standstill_mps))
+            self.v_ref <= 0.0 and self.still))
         if not (inp.creep_request and not pedal) or self.starting(now) or stand:
             if self.state in ("ENGAGE", "CREEP", "HANDOVER") and not pedal:
                 # the creep request withdrawn without the brake: the brake request reaches the brakes with the next
@@ -534,7 +557,7 @@ class CreepController:
             if not self.can_take_over(first):
                 return self._stop(now, faults)
             self._engage(first)
-            self.brake_request = self.brake_request and abs(inp.v_mps) < self.cal.launch.standstill_mps
+            self.brake_request = self.brake_request and self.still
 
         if self.state in ("CREEP", "HANDOVER"):
             self._hold_speed(inp, last)
@@ -655,7 +678,7 @@ class CreepController:
         elif not inp.pressure_trusted and (inp.v_mps < standstill or (
                 inp.v_mps > inp.desired_speed_mps * (1.0 + RUNAWAY_FRACTION) and inp.v_mps > last.v_mps)):
             self.brake_request = self.held_untrusted = True  # the clutches do not carry it: it rolls, or is pushed
-        elif braking and abs(inp.v_mps) < standstill and inp.pressure_trusted:
+        elif braking and self.still and inp.pressure_trusted:
             if self.held_untrusted:  # launch again: the brake holds until the measured pressure has built up
                 self.held_untrusted = False
                 self.P_cmd[OTHER[self.active]] = 0.0
@@ -686,14 +709,14 @@ class CreepController:
         """A launch on ``clutch``: ENGAGE, the pre-fill's force (:meth:`prefill_force`), no dwell running; a pedal
         overrun ends with it (the pedal it overruled is off)."""
         self.state, self.active, self.near_limit_since, self.stalled_since = "ENGAGE", clutch, None, None
-        self.pedal_overrun, self.stood_since = False, None
+        self.pedal_overrun, self.stand_held, self.stood_since = False, False, None
         self.F_cmd = self.prefill_force()
 
     def _read_grade(self, inp: TcuInputs) -> None:
         """The grade's sine from the accelerometer (``LongAccel``: dv/dt + g sin a) while the vehicle stands held
-        (VehicleSpeed 0, the brake requested or pressed: dv/dt is 0), within ``launch.grade_max_rad`` (a faulty
-        reading cannot ask for more than the steepest grade's pre-fill)."""
-        if inp.v_mps == 0.0 and (self.brake_request or inp.brake_pct >= BRAKE_PRESSED_PCT):
+        (VehicleSpeed 0, or :attr:`still` on a steady reading, the brake requested or pressed: dv/dt is 0), within
+        ``launch.grade_max_rad`` (a faulty reading cannot ask for more than the steepest grade's pre-fill)."""
+        if (inp.v_mps == 0.0 or self.still) and (self.brake_request or inp.brake_pct >= BRAKE_PRESSED_PCT):
             s_max = math.sin(self.cal.launch.grade_max_rad)
             self.sin_grade = min(max(inp.accel_mps2 / G_MPS2, -s_max), s_max)
 
@@ -764,24 +787,28 @@ class CreepController:
     def _idle(self, inp: TcuInputs, last: TcuInputs, pedal: bool, now: float) -> None:
         """No creep wanted (or not yet allowed): clutches open (ramping out over ``stop_release_s`` if
         :attr:`releasing`), and the vehicle held by the brake request unless the driver brakes a moving vehicle
-        himself (a standing one stays held when his foot comes off), and his pedal does hold it: a pedal counted
-        as pressed (``BRAKE_PRESSED_PCT``) but too light for the slope, the vehicle over its target by more than
-        the drivability band (:data:`RUNAWAY_FRACTION`; over a standstill if none is asked) and speeding up, is
-        overruled: the brake is requested until the vehicle stands (:attr:`pedal_overrun`; without it, 6 % on
-        -0.30 rad ran away to 8.5 m/s)."""
+        himself, and his pedal does hold it. A vehicle that stood held stays held until the next launch, pedal or
+        not (:attr:`stand_held`: a VehicleSpeed reading off by more than the standstill band, within what the
+        speed vote lets through, must not end the hold; before, -14.5 mm/s let 11.76 t on 0.25 rad roll back 8.2 m
+        under a 6.3 % pedal). A pedal counted as pressed (``BRAKE_PRESSED_PCT``) but too light for the slope is
+        overruled, the brake requested until the vehicle stands (:attr:`pedal_overrun`): forwards, over its target
+        by more than the drivability band (:data:`RUNAWAY_FRACTION`; over a standstill if none is asked) and
+        speeding up (without it, 6 % on -0.30 rad ran away to 8.5 m/s); backwards, beyond the standstill band and
+        speeding up (no creep asks to roll back)."""
         self.state, self.active = "IDLE", "NONE"
         self._open_both()
         if self.releasing:
             self.releasing = self._release_ramp(now)
         self.held_untrusted = False
         standstill = self.cal.launch.standstill_mps
-        standing = abs(inp.v_mps) < standstill
+        v, v_last, standing = inp.v_mps, last.v_mps, self.still
         target = max(inp.desired_speed_mps, 0.0) * (1.0 + RUNAWAY_FRACTION) if inp.creep_request else 0.0
         if standing or not pedal:
             self.pedal_overrun = False
-        elif inp.v_mps > target + standstill and inp.v_mps > last.v_mps:
+        elif (v > target + standstill and v > v_last) or (v < -standstill and v < v_last):
             self.pedal_overrun = True
-        self.brake_request = standing or not pedal or self.pedal_overrun
+        self.stand_held = self.stand_held or standing
+        self.brake_request = standing or not pedal or self.pedal_overrun or self.stand_held
 
     def _open_both(self) -> None:
         self.P_cmd = {"CL": 0.0, "CH": 0.0}

@@ -69,7 +69,14 @@ def test_idle_holds_the_vehicle_unless_the_driver_brakes_it_himself():
     assert out.state == "IDLE" and out.brake_request
     out = run(ctrl, clock, replace(released, v_mps=1.0), 0.1)  # moving, nobody braking: stopped and held
     assert out.brake_request
-    out = run(ctrl, clock, replace(BRAKED, v_mps=0.9), 0.1)  # moving, slowed by the driver's brake: his to control
+    # it stood held since its last launch: held whatever the speed reads under his pedal (issue 37: a VehicleSpeed
+    # reading -14.5 mm/s off, within the speed vote, ended the hold under a 6.3 % pedal: 8.2 m of roll-back)
+    out = run(ctrl, clock, replace(BRAKED, v_mps=0.9), 0.1)
+    assert out.brake_request and ctrl.stand_held
+    ctrl, clock = CreepController(FLAT), Clock()  # moving, never held standing: stopped by the TCU while nobody
+    out = run(ctrl, clock, replace(released, v_mps=1.0), 0.1)  # brakes, and left to him once he brakes it
+    assert out.brake_request and not ctrl.stand_held
+    out = run(ctrl, clock, replace(BRAKED, v_mps=0.9), 0.1)  # slowed by the driver's brake: his to control
     assert not out.brake_request
     # speeding up under his pressed pedal (issue 37: a light pedal downhill): it does not hold the vehicle, so the
     # TCU requests the brake until it stands (before: left to the pedal, 8.5 m/s on -0.30 rad)
@@ -79,6 +86,37 @@ def test_idle_holds_the_vehicle_unless_the_driver_brakes_it_himself():
     assert out.brake_request
     out = ctrl.update(TcuInputs(plant_valid=False), clock.tick())  # FAULT: held too
     assert out.state == "FAULT" and out.brake_request
+
+
+def test_a_pedal_not_holding_the_vehicle_backwards_is_overruled():
+    """Rolling back beyond the standstill band and speeding up under a pressed pedal (too light for the slope; no
+    creep asks to roll back): the brake is requested until the vehicle stands."""
+    ctrl, clock = CreepController(FLAT), Clock()
+    run(ctrl, clock, replace(BRAKED, brake_pct=0.0, v_mps=-0.05), 0.1)  # rolling back, nobody braking, then he does
+    out = run(ctrl, clock, replace(BRAKED, v_mps=-0.05), 0.1)  # rolling back steadily under it: his to control
+    assert not out.brake_request
+    out = ctrl.update(replace(BRAKED, v_mps=-0.06), clock.tick())  # speeding up backwards
+    assert out.brake_request and ctrl.pedal_overrun
+    out = run(ctrl, clock, replace(BRAKED, v_mps=-0.05), 0.1)  # latched while it moves
+    assert out.brake_request
+
+
+def test_a_braked_vehicle_whose_speed_reads_steady_within_what_the_vote_lets_through_stands():
+    """VehicleSpeed read 14.5 mm/s off at a standstill (beyond the 10-mm/s band; the vote out-votes it after about
+    3 s): under the pedal, steady for STEADY_S, it stands: held, and kept held when the pedal gets light; a steady
+    reading beyond what the vote lets through, or one that changes, is motion."""
+    ctrl, clock = CreepController(FLAT), Clock()
+    off = replace(BRAKED, v_mps=-0.0145)
+    out = ctrl.update(off, clock.tick())
+    assert not ctrl.still  # not yet steady
+    out = run(ctrl, clock, off, 0.11)
+    assert ctrl.still and out.brake_request and ctrl.stand_held
+    out = run(ctrl, clock, replace(off, brake_pct=6.0), 1.0)
+    assert out.brake_request
+    ctrl, clock = CreepController(FLAT), Clock()
+    run(ctrl, clock, replace(BRAKED, brake_pct=0.0, v_mps=0.05), 0.1)  # moving, stopped by the TCU: not standing
+    run(ctrl, clock, replace(BRAKED, v_mps=0.035), 0.5)
+    assert not ctrl.still and not ctrl.stand_held
 
 
 def test_engage_prefills_under_the_brake_then_releases_it_and_tracks_speed():

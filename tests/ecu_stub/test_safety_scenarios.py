@@ -471,6 +471,44 @@ def test_desired_speed_zero_with_creep_requested_holds_the_vehicle(mass):
     assert s["max_speed_creep_mps"] >= 0.5 * V_CREEP  # and it launched once asked to creep
 
 
+R00037 = {"grade_rad": 0.2770859279886919, "engine_speed_rpm": 1307.129973522744,
+          "initial.T_clutch_c": 116.3836170274385, "initial.T_oil_c": 80.18927544414302,
+          "params.vehicle.m": 10695.682296966532, "driver.behaviour": "stop_and_go",
+          "driver.desired_speed_mps": 0.3646941694001342, "driver.creep_s": 18.87823458187436,
+          "driver.stop_s": 18.28015776594944, "driver.drag_level": 0.07817009417259108,
+          "driver.drag_onset_s": 88.519835515886, "driver.drag_duration_s": 132.32703173904105,
+          "latent": "gain:PLANT_PRESSURE.P_CH@0-,value=0.9176; offset:PLANT_VEHICLE.VehicleSpeed@0-,value=-0.01452"}
+
+
+@pytest.mark.slow
+def test_proof_found_a_light_pedal_with_vehicle_speed_reading_low_keeps_the_vehicle_held():
+    """10.7 t on 0.277 rad, stop-and-go with the driver's foot resting at 7.8 % (pressed, too light for the slope),
+    VehicleSpeed reading 14.5 mm/s low from key-on (within the speed vote until it has filled its distance; the
+    safety proof sweep's batch 102, r00037, on the TCU with the key-on check): standing, the TCU read the vehicle as
+    rolling back, so at the pedal's 7.8 % it left the vehicle to the pedal, which let it roll back 6.1 m at up to
+    0.20 m/s (the limit: 0.05 m). The TCU now takes a braked vehicle whose speed reads steady, within what the vote
+    lets through, as standing, keeps a vehicle that stood held until the next launch, and overrules a pedal it
+    rolls back under."""
+    s = sweep_run({**R00037, "duration_s": 125.0})
+    assert s["rollback_m"] <= 0.05 and s["rollback_mps"] >= -ROLLBACK_MAX_MPS  # before: 1.0 m by 125 s
+
+
+@pytest.mark.parametrize("offset", [-0.0145, 0.0145])
+@pytest.mark.parametrize("pedal", [0.063, 1.0])
+def test_a_vehicle_speed_reading_off_does_not_end_the_hold_or_roll_a_launch_back(offset, pedal):
+    """VehicleSpeed off by 14.5 mm/s from key-on (beyond the 10-mm/s standstill band; the speed vote out-votes it
+    once its distance to the shafts passes 40 mm, about 3 s), 11.76 t on 0.25 rad: standing under a light pedal
+    (6.3 %: pressed, too light for the slope) or the full one for 1 s, then a launch. Before, the TCU never saw it
+    stand: under 6.3 % its hold ended at once (249 mm/s back), the grade was never read and the launch's brake was
+    released at once (110 mm/s back). Braked, its reading steady, it stands: it is held, and launches as without
+    the fault."""
+    scenario = worst_case(6.0, [(1.0, True, pedal, 0.0), (2.0, True, 0.0, V_CREEP)], grade=0.25)
+    s = run_plant(scenario=scenario, params={"vehicle.m": load_params().vehicle.m * 1.5}, log=None,
+                  faults=[f"offset:PLANT_VEHICLE.VehicleSpeed@0-,value={offset}"]).summary
+    assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS and s["rollback_m"] <= 0.05
+    assert s["max_speed_creep_mps"] >= 0.5 * V_CREEP
+
+
 @pytest.mark.parametrize(("grade", "mass", "pedal"), [(0.25, 1.5, 0.063), (0.25, 0.5, 0.063), (-0.15, 1.5, 1.0)])
 def test_launches_at_the_ranges_ends_roll_back_at_most_10_mm_s(grade, mass, pedal):
     """Issue 37, item 4: a launch at an end of the operating range (the steepest grades, the heaviest and lightest
