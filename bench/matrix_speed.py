@@ -3,16 +3,19 @@
 (dbc/examples/dct_fd/); wall and CPU seconds of the loop per 10 simulated s, each against the shipped DBC's; and a
 digest of every frame the plant sent and took (the same frames, bit for bit: the same digest).
 
-    python bench/matrix_speed.py [CASE ...] [--seconds 10] [--rounds 3] [--baseline-tree DIR] [--cold] [--json]
+    python bench/matrix_speed.py [CASE ...] [--seconds 10] [--rounds 3] [--tree DIR] [--baseline-tree DIR] [--cold]
+                                 [--json]
 
 Each case runs in fresh processes (as a user's ``dsg-hil run``), the cases alternating, ``--rounds`` times each, the
 best kept (a busy machine only ever slows a run down; every round's figure is in ``rounds``). A process first runs
 0.2 s of the case (the plant's compiled code loaded from numba's cache, the codec's functions generated), then
 times ``Run.run()`` alone; a second run of the same case, capturing its frames, gives the digest.
 ``--baseline-tree DIR``: the same cases on another checkout's package (e.g. main before a change) through
-PYTHONPATH, on this checkout's files: ``vs_baseline`` (its time over this tree's) and whether the frames are
-equal. ``--cold``: also each case's first run in a process with an empty numba cache (``NUMBA_CACHE_DIR``), as the
-first run after an install or in a new checkout pays the plant's compilation (``cold_wall_s``).
+PYTHONPATH, on this checkout's files: ``vs_baseline`` (this tree's time over the baseline's: below 1, faster) and
+whether the frames are equal. ``--tree DIR``: the package to time instead of this checkout's (e.g. a compiled
+build's: ``pip install --no-deps --target DIR .``), on this checkout's files. ``--cold``: also each case's first
+run in a process with an empty numba cache (``NUMBA_CACHE_DIR``), as the first run after an install or in a new
+checkout pays the plant's compilation (``cold_wall_s``).
 """
 
 from __future__ import annotations
@@ -115,6 +118,7 @@ def main() -> None:
     ap.add_argument("cases", nargs="*", metavar="CASE", help=f"cases (default: all): {' '.join(CASES)}")
     ap.add_argument("--seconds", type=float, default=10.0, help="simulated seconds of each timed run (default 10)")
     ap.add_argument("--rounds", type=int, default=3, help="fresh processes per case, the best kept (default 3)")
+    ap.add_argument("--tree", type=Path, metavar="DIR", help="the package to time (default: this checkout's)")
     ap.add_argument("--baseline-tree", type=Path, metavar="DIR", help="also run the cases on this checkout's package")
     ap.add_argument("--cold", action="store_true", help="also each case's first run with an empty numba cache")
     ap.add_argument("--json", action="store_true", help="one JSON object instead of the table")
@@ -126,9 +130,12 @@ def main() -> None:
     if unknown := [c for c in args.cases if c not in CASES]:
         ap.error(f"unknown case(s): {' '.join(unknown)}")
     cases = args.cases or list(CASES)
+    tree = args.tree.resolve() if args.tree is not None else None
     out: dict = {"seconds": args.seconds, "rounds": args.rounds,
-                 "cases": [{"case": c, **f} for c, f in measure(None, cases, args.seconds, args.rounds,
+                 "cases": [{"case": c, **f} for c, f in measure(tree, cases, args.seconds, args.rounds,
                                                                   args.cold).items()]}
+    if tree is not None:
+        out["tree"] = str(args.tree)
     if args.baseline_tree is not None:
         base = measure(args.baseline_tree.resolve(), cases, args.seconds, args.rounds, args.cold)
         out["baseline_tree"] = str(args.baseline_tree)
@@ -143,7 +150,9 @@ def main() -> None:
         return
     print(f"lock-step closed loop (plant + ecu-stub, one process), {args.seconds:g} simulated s, best of "
           f"{args.rounds} fresh processes; wall and CPU s of the loop per {PER_S:g} simulated s")
-    rows = [("this tree", out["cases"])] + ([(str(args.baseline_tree), out["baseline"])] if "baseline" in out else [])
+    rows = [(str(args.tree or "this tree"), out["cases"])]
+    if "baseline" in out:
+        rows.append((str(args.baseline_tree), out["baseline"]))
     for label, table in rows:
         print(label)
         for r in table:

@@ -26,10 +26,11 @@ Bit offsets count as AUTOSAR's do: bit n is bit n % 8 (0 the least significant) 
 the frame checks say why a frame fails: "crc", "data_id" (a nibble that is not the data ID's), "counter" (a
 counter value the profile never sends).
 
-The CRCs are crccheck's (a dependency of cantools); the layouts are written here from the specification, because
-the maintained implementation of the profiles, autosar-e2e, places the header only at a byte offset with fixed
-relative positions and increments a counter it reads rather than writing one given: the tests compare every
-profile's frames with it and with cantools' ``autosar.end_to_end`` helpers (profiles 2 and 5).
+The CRCs are crccheck's (a dependency of cantools; :mod:`.crc` runs them through tables); the layouts are written
+here from the specification, because the maintained implementation of the profiles, autosar-e2e, places the header
+only at a byte offset with fixed relative positions and increments a counter it reads rather than writing one given:
+the tests compare every profile's frames with it and with cantools' ``autosar.end_to_end`` helpers (profiles 2 and
+5).
 """
 
 from __future__ import annotations
