@@ -83,6 +83,16 @@ def test_sweep_scaling_figures():
     assert out["runs_per_core_hour"] == round(60 * one["runs_per_min"])
 
 
+def test_matrix_speed_figures_and_the_same_frames_on_the_same_tree():
+    """Every matrix timed and its frames digested; this checkout as its own baseline: the same frames, bit for bit."""
+    out = bench_json("matrix_speed.py", "--seconds", "0.5", "--rounds", "1", "--baseline-tree", str(BENCH.parent))
+    assert [c["case"] for c in out["cases"]] == [c["case"] for c in out["baseline"]] == ["shipped", "arxml", "dct_fd"]
+    for case in out["cases"]:
+        assert positive(case["wall_s_per_10_s"]) and positive(case["cpu_s_per_10_s"]) and positive(case["vs_shipped"])
+        assert case["frames"] > 0 and case["rejected"] == 0 and case["frames_equal_baseline"] is True, case
+    assert len({c["digest"] for c in out["cases"]}) == 3  # (three matrices: three sets of frames)
+
+
 def test_judder_reference_the_fixed_step_plant_and_solve_ivp_judder_alike():
     """From r01753's plant in steady creep on CH, the inputs held for 0.3 s: CH sticks and slips in both (its slip
     touching 0), the vehicle speed's fast part at the same frequency and within 10 % of each other's amplitude."""

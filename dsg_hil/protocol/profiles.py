@@ -26,10 +26,11 @@ Bit offsets count as AUTOSAR's do: bit n is bit n % 8 (0 the least significant) 
 the frame checks say why a frame fails: "crc", "data_id" (a nibble that is not the data ID's), "counter" (a
 counter value the profile never sends).
 
-The CRCs are crccheck's (a dependency of cantools); the layouts are written here from the specification, because
-the maintained implementation of the profiles, autosar-e2e, places the header only at a byte offset with fixed
-relative positions and increments a counter it reads rather than writing one given: the tests compare every
-profile's frames with it and with cantools' ``autosar.end_to_end`` helpers (profiles 2 and 5).
+The CRCs are crccheck's (a dependency of cantools; :mod:`.crc` runs them through tables); the layouts are written
+here from the specification, because the maintained implementation of the profiles, autosar-e2e, places the header
+only at a byte offset with fixed relative positions and increments a counter it reads rather than writing one given:
+the tests compare every profile's frames with it and with cantools' ``autosar.end_to_end`` helpers (profiles 2 and
+5).
 """
 
 from __future__ import annotations
@@ -95,10 +96,10 @@ def _read(data: bytes | bytearray, offset: int, bits: int) -> int:
     return (int.from_bytes(data, "little") >> offset) & ((1 << bits) - 1)
 
 
-def _written(data: bytes | bytearray, offset: int, bits: int, value: int) -> bytearray:
+def _put(whole: int, offset: int, bits: int, value: int) -> int:
+    """The frame ``whole`` (its bytes as one little-endian integer) with ``value`` in its ``bits`` at ``offset``."""
     mask = ((1 << bits) - 1) << offset
-    whole = int.from_bytes(data, "little") & ~mask | (value << offset) & mask
-    return bytearray(whole.to_bytes(len(data), "little"))
+    return whole & ~mask | (value << offset) & mask
 
 
 @dataclass(frozen=True)
@@ -146,24 +147,30 @@ class _Counted:
     def crc(self, data: bytes | bytearray, counter: int) -> int:
         raise NotImplementedError
 
-    def _explicit(self, raw: bytearray) -> bytearray:
-        """``raw`` with what the profile sends of its data ID (the nibble of P01/P11 "nibble")."""
-        return raw
+    def _explicit(self, whole: int) -> int:
+        """The frame ``whole`` (its bytes as one little-endian integer) with what the profile sends of its data ID
+        (the nibble of P01/P11 "nibble")."""
+        return whole
 
     def seal(self, data: bytes | bytearray, counter: int | None = None) -> bytes:
-        raw = bytearray(data)
+        # (per frame sent: the fields written into the frame as one integer, its bytes made twice)
+        n, whole = len(data), int.from_bytes(data, "little")
         if counter is not None:
-            raw = _written(raw, self.counter_offset, self.counter_bits, counter % self.counter_modulus)
-        raw = self._explicit(raw)
-        return bytes(_written(raw, self.crc_offset, self.crc_bits, self.crc(raw, self.counter(raw))))
+            whole = _put(whole, self.counter_offset, self.counter_bits, counter % self.counter_modulus)
+        whole = self._explicit(whole)
+        counted = (whole >> self.counter_offset) & ((1 << self.counter_bits) - 1)
+        crc = self.crc(whole.to_bytes(n, "little"), counted)
+        return _put(whole, self.crc_offset, self.crc_bits, crc).to_bytes(n, "little")
 
     def cause(self, data: bytes) -> str | None:
-        counter = self.counter(data)
+        whole = int.from_bytes(data, "little")
+        counter = (whole >> self.counter_offset) & ((1 << self.counter_bits) - 1)
         if counter >= self.counter_modulus:
             return "counter"
-        if self._explicit(bytearray(data)) != data:
+        if self._explicit(whole) != whole:
             return "data_id"
-        return None if _read(data, self.crc_offset, self.crc_bits) == self.crc(data, counter) else "crc"
+        crc = (whole >> self.crc_offset) & ((1 << self.crc_bits) - 1)
+        return None if crc == self.crc(data, counter) else "crc"
 
     def counter(self, data: bytes | bytearray) -> int:
         return _read(data, self.counter_offset, self.counter_bits)
@@ -190,10 +197,10 @@ class ProfileP01(_Counted):
         nibble = (("data_id", self.data_id_nibble_offset, 4),) if self.data_id_mode == "nibble" else ()
         return (*super().layout, *nibble)
 
-    def _explicit(self, raw: bytearray) -> bytearray:
+    def _explicit(self, whole: int) -> int:
         if self.data_id_mode != "nibble":
-            return raw
-        return _written(raw, self.data_id_nibble_offset, 4, (self.data_id >> 8) & 0x0F)
+            return whole
+        return _put(whole, self.data_id_nibble_offset, 4, (self.data_id >> 8) & 0x0F)
 
     def crc(self, data: bytes | bytearray, counter: int) -> int:
         low, high = self.data_id & 0xFF, self.data_id >> 8

@@ -64,6 +64,19 @@ def test_crcs_equal_autosar_e2es_on_random_data():
         assert crc16_ccitt(data) == e2e.crc.calculate_crc16(data)
 
 
+def test_crcs_equal_crcchecks_on_random_data():
+    """The table-driven CRCs (taken once from crccheck's classes, and binascii's CRC-CCITT) are crccheck's own,
+    computed bit by bit, on every length a CAN FD frame takes and on every single byte."""
+    from crccheck.crc import Crc8Autosar, Crc8SaeJ1850, Crc16CcittFalse
+
+    rng = random.Random(2)
+    samples = [bytes((b,)) for b in range(256)] + [rng.randbytes(n) for n in range(0, 70) for _ in range(5)]
+    for data in samples:
+        assert crc8_p01(data) == Crc8SaeJ1850.calc(data, initvalue=0x00) ^ 0xFF
+        assert crc8_h2f(data) == Crc8Autosar.calc(data)
+        assert crc16_ccitt(data) == Crc16CcittFalse.calc(data)
+
+
 # ---- the specification's example frames (PRS E2E Protocol, protocol examples; DataID 0x123 / 0x1234) -------------
 @pytest.mark.parametrize("variant, mode, frames", [
     ("1A", None, ("cc00", "9101")), ("1B", None, ("ce00", "0201")), (None, "low", ("ce00", "9301")),
