@@ -189,7 +189,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
     check_output_path("--log", args.log)
     if args.xcp_ids is not None and not args.xcp:
         raise InputError("--xcp-ids: serves nothing without --xcp (or --a2l)")
-    controller = CreepController(load_calibration(args.calibration))
+    calibration = load_calibration(args.calibration)
     config = bus_config(args)
     try:  # the pair checked together: BindingError naming the file
         binding = load_binding(args.binding, dbc=args.dbc)
@@ -198,6 +198,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
             raise
         raise BindingError(f"{args.dbc}: does not fit the shipped binding: give its own (--binding); {exc}") from None
     db, io = binding.db, TcuIO(binding)
+    controller = CreepController(calibration, io.matrix_steps)  # (the plausibility checks' steps: the matrix's)
     codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
     xcp = _checked_xcp_ids(args, db) if args.xcp else None
     faults = check_faults(faults_from_args(args), db)

@@ -14,11 +14,14 @@ from pathlib import Path
 import can
 import pytest
 
+from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec
 from dsg_hil.protocol.binding import Binding, check_binding, load_binding
 from dsg_hil.protocol.logs import decoded_frames, log_codec
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import load_scenario
+from ecu_stub.calibration import DEFAULT_CALIBRATION, load_calibration
+from ecu_stub.controller import CreepController
 
 from .test_binding_run import run_two_processes
 
@@ -147,6 +150,17 @@ def test_ecu_stub_on_the_example_matrix_drives_the_shipped_creep_in_lockstep(run
     assert [p["clutch"] for p in a["phases"]] == ["CL", "CH"] and len(a["handovers"]) == 1
     same_creep(a, b, oil_delay(other))
     assert b["frames"]["received"] > 4000
+
+
+def test_ecu_stub_s_checks_take_the_example_matrix_s_steps_with_a_calibration_given():
+    """``dsg-hil run --calibration`` builds ecu-stub's controller itself (dsg_hil.sim.run.attach_tcu): on dct_fd its
+    half steps of the speeds are dct_fd's (VehSpd 0.01 km/h, the shaft speeds 0.05 rad/s), not the shipped DBC's."""
+    with open_run(RunConfig(duration=1.0, dbc=DBC, binding=BINDING, calibration=str(DEFAULT_CALIBRATION))) as run:
+        controller = run.tcu.controller
+    assert isinstance(controller, CreepController) and controller.cal == load_calibration()
+    assert controller.steps == run.tcu.io.matrix_steps
+    assert controller.speed_q_mps == pytest.approx(0.5 * 0.01 * CV.KMH_TO_MPS, rel=1e-15)
+    assert controller.shaft_q_rpm == pytest.approx(0.05 * CV.RAD_S_TO_RPM, rel=1e-15)
 
 
 def test_ecu_stub_on_the_example_matrix_in_real_time():
