@@ -98,6 +98,18 @@ def test_ecu_stub_bad_input_is_exit_2(capsys, argv, needle):
     one_error_line(capsys, needle)
 
 
+@pytest.mark.parametrize("binding", [None, "renamed.binding.toml"])
+@pytest.mark.parametrize("dbc, said", [("nosuch.dbc", "DBC file not found"), ("bad.toml", "cannot load DBC (")])
+def test_ecu_stub_names_a_dbc_it_cannot_read_alone(tmp_path, capsys, monkeypatch, dbc, said, binding):
+    """``ecu-stub --dbc FILE`` that cannot be read: the one line names the DBC and what is wrong with it, not a
+    binding it does not fit (it said 'does not fit the shipped binding' before, when no --binding was given)."""
+    write_inputs(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert ecu_stub_main(["-i", "virtual", "--dbc", dbc, *(["--binding", binding] if binding else [])]) == 2
+    line = one_error_line(capsys, f"{dbc}: {said}")
+    assert line.startswith(f"error: {dbc}: {said}") and "binding" not in line, line
+
+
 def test_ecu_stub_log_is_checked_before_serving(tmp_path, capsys):
     (tmp_path / "afile").write_text("not a directory")
     assert ecu_stub_main(["-i", "virtual", "--log", str(tmp_path)]) == 2
@@ -254,6 +266,8 @@ CASES = [
      "nosuch.toml: binding file not found"),
     ("ecu-stub", [*BUS, "--binding", "noaccel.binding.toml", "--log", "t.log"], "file", ERROR,
      "noaccel.binding.toml: quantities.a_x: not mapped, and ecu-stub reads it"),
+    ("ecu-stub", [*BUS, "--dbc", "nosuch.dbc", "--log", "t.log"], "file", ERROR, "nosuch.dbc: DBC file not found"),
+    ("ecu-stub", [*BUS, "--dbc", "bad.toml", "--log", "t.log"], "file", ERROR, "bad.toml: cannot load DBC ("),
     ("ecu-stub", [*BUS, "--dbc", "renamed.dbc", "--log", "t.log"], "file", ERROR,
      "renamed.dbc: does not fit the shipped binding: give its own (--binding);"),
     ("ecu-stub", [*BUS, "--dbc", "small.dbc", "--binding", "renamed.binding.toml", "--log", "t.log"], "file", ERROR,

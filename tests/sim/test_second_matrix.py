@@ -21,6 +21,7 @@ from dsg_hil.protocol.logs import decoded_frames, log_codec
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import load_scenario
 from ecu_stub.calibration import DEFAULT_CALIBRATION, load_calibration
+from ecu_stub.cli import main as ecu_stub_main
 from ecu_stub.controller import CreepController
 
 from .test_binding_run import run_two_processes
@@ -161,6 +162,20 @@ def test_ecu_stub_s_checks_take_the_example_matrix_s_steps_with_a_calibration_gi
     assert controller.steps == run.tcu.io.matrix_steps
     assert controller.speed_q_mps == pytest.approx(0.5 * 0.01 * CV.KMH_TO_MPS, rel=1e-15)
     assert controller.shaft_q_rpm == pytest.approx(0.05 * CV.RAD_S_TO_RPM, rel=1e-15)
+
+
+def test_ecu_stub_takes_a_fault_s_side_from_the_binding(capsys):
+    """dct_fd's nodes are GBX_SIM and TCM, not PLANT and TCU: ``ecu-stub --fault`` on a message the binding reads
+    (the TCU's: TCU_Demand) injects it in the TCU's frames, as ``dsg-hil run`` does; one the binding sends (the
+    plant's: ESP_WheelAccel) is refused as the plant's, exit 2 (before: 'the DBC names no sender PLANT or TCU')."""
+    pair = ["-i", "virtual", "-c", "dct-fd-fault-side", "--dbc", str(DBC), "--binding", str(BINDING)]
+    assert ecu_stub_main([*pair, "--fault", "drop:TCU_Demand@1-2", "--duration", "0.05", "-q"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == "ecu-stub: faults injected (frames hit): drop:TCU_Demand@1-2 0", err  # the TCU's injector
+    assert ecu_stub_main([*pair, "--fault", "drop:ESP_WheelAccel@1-2", "--duration", "0.05", "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: --fault 'drop:ESP_WheelAccel@1-2': changes the plant's frames: give it to dsg-hil, or "
+                   "side=tcu"]
 
 
 def test_ecu_stub_on_the_example_matrix_in_real_time():
