@@ -93,10 +93,9 @@ class TcuRunner:
         command = io.names[2]
         self.cycle = codec.cycle_time(command)
         self.cycle_ms = codec.cycle_time_ms(command)
-        # the state's and active clutch's numbers: the quantities' (the shipped DBC's VAL_ numbering, which the
-        # plant reads on any matrix: dsg_hil.protocol.binding.QUANTITIES), whatever the matrix's own value tables
-        # name them (e.g. "Creeping" for CREEP)
-        self.states, self.clutches = dict(STATE_VALUES), dict(CLUTCH_VALUES)
+        # the state's and active clutch's numbers on the matrix: the quantities' (the shipped DBC's VAL_ numbering:
+        # dsg_hil.protocol.binding.QUANTITIES), or its own value table's where its binding names them (values)
+        self.states, self.clutches = dict(io.state_values), dict(io.clutch_values)
         # the plant's values in the TCU's units (see inputs): (index of the message in REQUIRED, signal, k, c)
         self._inputs = io.inputs
         self._v_index = io.inputs[4][0]  # the message of VehicleSpeed (its counter: the speed vote)
@@ -148,8 +147,8 @@ class TcuRunner:
         self.diag: DiagServer | None = None
         if codec.db.dbc is not None and "DiagRequestId" in codec.db.dbc.attributes:
             request_id, response_id = diag_ids(codec.db)
-            self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, self.states,
-                                   self.clutches, cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
+            self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, dict(STATE_VALUES),
+                                   dict(CLUTCH_VALUES), cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
                                    else math.nan, repr(cal), messages=io.renames(SHIPPED))
         # XCP on its own IDs (ecu_stub.xcp): ``xcp(runner, send)`` builds the slave; None: no XCP
         self.xcp: SidePort | None = xcp(self, self._send_diag) if xcp is not None else None
