@@ -168,7 +168,7 @@ def _write_a2l(args: argparse.Namespace) -> None:
 def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, Any]]:
     """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
     serving ends); returns it and the bus configuration."""
-    from dsg_hil.protocol import Codec  # noqa: PLC0415 - cantools when serving, not for --help
+    from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
     from dsg_hil.protocol.binding import BindingError, load_binding  # noqa: PLC0415
     from dsg_hil.protocol.bus import (  # noqa: PLC0415
         FrameLog, bus_config, has_fd, log_channel, open_bus, receive_filters)
@@ -189,18 +189,20 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
     check_output_path("--log", args.log)
     if args.xcp_ids is not None and not args.xcp:
         raise InputError("--xcp-ids: serves nothing without --xcp (or --a2l)")
-    controller = CreepController(load_calibration(args.calibration))
+    calibration = load_calibration(args.calibration)
     config = bus_config(args)
+    db = load_dbc(args.dbc)  # a DBC that cannot be read: ProtocolError naming it and what is wrong, alone
     try:  # the pair checked together: BindingError naming the file
-        binding = load_binding(args.binding, dbc=args.dbc)
+        binding = load_binding(args.binding, db=db)
     except BindingError as exc:
         if args.binding is not None or args.dbc is None:
             raise
         raise BindingError(f"{args.dbc}: does not fit the shipped binding: give its own (--binding); {exc}") from None
     db, io = binding.db, TcuIO(binding)
+    controller = CreepController(calibration, io.matrix_steps)  # (the plausibility checks' steps: the matrix's)
     codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
     xcp = _checked_xcp_ids(args, db) if args.xcp else None
-    faults = check_faults(faults_from_args(args), db)
+    faults = check_faults(faults_from_args(args), db, binding.sides)  # (a side by the binding, as dsg-hil run's)
     if faults["plant"]:
         raise FaultError(f"{faults['plant'][0].origin}: changes the plant's frames: give it to dsg-hil, or "
                          f"side=tcu")

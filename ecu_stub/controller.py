@@ -75,7 +75,7 @@ from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque, sl
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 from .plausibility import DISTANCE_M, HEAL_S, REL_TOL
-from .sensor_checks import N_REL, OIL_FALL_K, OIL_FRAME_S, P_ABS_MPA, P_REL, keyon_undetected_k
+from .sensor_checks import N_REL, OIL_FALL_K, P_ABS_MPA, P_REL, MatrixSteps, keyon_undetected_k
 
 __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "STALL_FRACTION",
            "STALL_S", "TcuInputs", "TcuOutputs"]
@@ -94,11 +94,15 @@ RUNAWAY_FRACTION = 0.2  # over the target by more than the drivability band (+-2
 STALL_FRACTION = 0.5  # stalled: under half the target speed with the wheel force at the clutch's capacity ...
 STALL_S = 1.0  # ... for this long (10 time constants of the speed loop, 1/9.7 rad/s: not a transient)
 SATURATED_FRACTION = 0.98  # the wheel force at its limit: within 2 % of the capacity (which moves with the slip)
+# the shipped DBC's (CreepController takes the matrix's, of its MatrixSteps, as speed_q_mps, v_steady_step_mps,
+# shaft_q_rpm):
 SPEED_Q_MPS = 0.0005  # half a DBC step of VehicleSpeed [m/s] (margin_k: an output speed's error the vote lets through)
 V_STEP_MPS = 0.0011  # a DBC step of VehicleSpeed [m/s], and a little more: a reading between two steps is steady
+V_STEP_MORE = 1.1  # ... that little more: V_STEP_MPS is this many DBC steps of VehicleSpeed [1]
 STEADY_S = 0.1  # VehicleSpeed steady this long under a brake: the vehicle stands (_track_stillness) [s]
 V_UNDETECTED_MPS = DISTANCE_M / HEAL_S  # a steady VehicleSpeed offset the vote does not keep replaced [m/s]
 SHAFT_Q_RPM = 0.1  # half a DBC step of a clutch output speed and of ClutchInputSpeed, 0.05 r/min each [r/min]
+# (and OIL_FRAME_S of ecu_stub.sensor_checks, the oil frame's cycle time, as oil_frame_s)
 
 
 @dataclass(slots=True)  # not frozen: built every control period, a frozen one costs several times more
@@ -169,8 +173,19 @@ class TcuOutputs:
 
 
 class CreepController:
-    def __init__(self, cal: TcuCalibration | None = None) -> None:
+    """The creep strategy (module docstring) with the calibration ``cal`` (None: the shipped one) on the matrix
+    whose steps and times are ``steps`` (:meth:`ecu_stub.tcu_io.TcuIO.matrix_steps`; None: the shipped DBC's)."""
+
+    def __init__(self, cal: TcuCalibration | None = None, steps: MatrixSteps | None = None) -> None:
         self.cal = cal or load_calibration()
+        matrix = steps if steps is not None else MatrixSteps()
+        self.steps = matrix
+        # the matrix's steps and times (the shipped DBC's: SPEED_Q_MPS, V_STEP_MPS, SHAFT_Q_RPM, OIL_FRAME_S)
+        self.speed_q_mps: float = 0.5 * matrix.v_step_mps  # half a step of VehicleSpeed [m/s]
+        self.v_steady_step_mps: float = V_STEP_MORE * matrix.v_step_mps  # a step and a little more [m/s]
+        # half a step of a clutch output speed and of ClutchInputSpeed [r/min]
+        self.shaft_q_rpm: float = 0.5 * matrix.shaft_step_rpm + 0.5 * matrix.input_step_rpm
+        self.oil_frame_s: float = matrix.oil_frame_s  # the oil frame's refresh [s]
         s = self.cal.speed
         # the wheel force's negative part goes to the brakes as a deceleration of the nominal mass (decel_request)
         self.pid = PID(s.kp_n_per_mps, s.ki_n_per_m, 0.0, -self.cal.vehicle.m_kg * s.decel_max_mps2, 1e9,
@@ -377,7 +392,7 @@ class CreepController:
         its hold ended under a light pedal (8.2 m of roll-back of 11.76 t on 0.25 rad), the grade was never read
         and a launch's brake was released at once (110 mm/s back)."""
         v, standstill = inp.v_mps, self.cal.launch.standstill_mps
-        if abs(v - self.v_steady_mps) > V_STEP_MPS:
+        if abs(v - self.v_steady_mps) > self.v_steady_step_mps:
             self.v_steady_mps, self.v_steady_since = v, now
         braked = self.brake_request or inp.brake_pct >= BRAKE_PRESSED_PCT
         self.still = abs(v) < standstill or (braked and abs(v) < standstill + V_UNDETECTED_MPS
@@ -389,8 +404,9 @@ class CreepController:
         steps; an output speed beyond it is out-voted and replaced by the runner), the input speed within
         :data:`~ecu_stub.sensor_checks.N_REL` of itself (:meth:`input_rpm`: an input speed reading low is covered by
         the engine's) and half steps."""
-        return ((REL_TOL * abs(inp.v_mps) + SPEED_Q_MPS) / (self.cal.clutch(clutch).speed_ratio_m * _RPM_TO_RAD_S)
-                + N_REL * abs(self.input_rpm(inp)) + SHAFT_Q_RPM)
+        ratio = self.cal.clutch(clutch).speed_ratio_m * _RPM_TO_RAD_S
+        return ((REL_TOL * abs(inp.v_mps) + self.speed_q_mps) / ratio
+                + N_REL * abs(self.input_rpm(inp)) + self.shaft_q_rpm)
 
     def thermal_slip_rpm(self, clutch: str) -> float:
         """The clutch's slip [r/min] of the thermal model: :meth:`input_rpm` minus its output speed."""
@@ -429,12 +445,12 @@ class CreepController:
         identified error ``strategy.prediction_error_k``; an oil sensor's undetected error from key-on,
         :attr:`oil_error_k` (``strategy.oil_accuracy_k`` before the first cycle); the largest oil step the fall check
         lets through, :data:`~ecu_stub.sensor_checks.OIL_FALL_K` plus the plate's rise over one oil frame
-        (:data:`~ecu_stub.sensor_checks.OIL_FRAME_S`) at the largest heat since start-up (its undetected error
+        (:attr:`oil_frame_s`, the matrix's) at the largest heat since start-up (its undetected error
         added), in which a step hides; and :attr:`heat_error_k`, the prediction's own model driven by the heat's
         undetected error (:meth:`heat_error_fraction` x Q): C de/dt = dQ - K e, at most dQ / K."""
         s, c, oil = self.cal.strategy, self.cal.clutch(clutch), self.oil_error_k
         return (s.prediction_error_k + (s.oil_accuracy_k if oil is None else oil) + OIL_FALL_K
-                + self.heat_max[clutch] / c.C_plate_j_k * OIL_FRAME_S
+                + self.heat_max[clutch] / c.C_plate_j_k * self.oil_frame_s
                 + self.heat_error_k[clutch])
 
     def limit(self, clutch: str, heat_w: float | None = None, worst_w: float | None = None) -> float:

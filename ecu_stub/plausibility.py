@@ -97,7 +97,7 @@ SKEW_M = 0.010  # real time: PLANT_SPEEDS and PLANT_VEHICLE up to one 10-ms cycl
 DISTANCE_M = TWIST_M + SKEW_M  # what compliance and skew can put between two measures' travelled distances [m]
 REL_TOL = 0.03  # rolling radius of a real tyre (wear, load, inflation) and the identified speed ratios [1]
 HEAL_S = 2.0  # a pair is disagreeing this long after its distance last passed DISTANCE_M [s]
-MAX_DT_S = 0.03  # a cycle counts at most the DBC's receive timeout (3 cycles of 10 ms) [s]
+MAX_DT_S = 0.03  # a cycle counts at most the DBC's receive timeout (3 cycles of 10 ms) [s] (the shipped DBC's)
 A_COAST_MPS2 = 4.0  # fastest deceleration without a brake: g (sin 0.25 + 0.123 cos 0.25) = 3.60, +10 % [m/s^2]
 A_GRIP_MPS2 = 14.2  # fastest acceleration: the tyres' grip, 1.2 g, + g sin 0.25 [m/s^2]
 BRAKE_SETTLE_S = 0.2  # a brake acts this long after its request or pedal ends (TCU_STATUS, DRIVER cycles) [s]
@@ -242,7 +242,8 @@ class SpeedVoter:
     """The 2-out-of-3 vote over time (module docstring): :meth:`update` each control cycle with the decoded speeds
     gives the :class:`Verdict` and the vehicle speed to use. ``speed_ratio_*_m``: the calibration's
     ``clutch.CL/CH.speed_ratio_m``; ``v_step_mps``, ``shaft_step_rpm``: the DBC's scale of VehicleSpeed and of the
-    output speeds."""
+    output speeds; ``v_cycle_s``, ``counter_modulus``, ``max_dt_s``: VehicleSpeed's frame's cycle time and counter,
+    and the speed frames' receive timeout (the matrix's: :class:`~ecu_stub.sensor_checks.MatrixSteps`)."""
 
     speed_ratio_cl_m: float
     speed_ratio_ch_m: float
@@ -250,6 +251,7 @@ class SpeedVoter:
     shaft_step_rpm: float
     v_cycle_s: float = 0.01  # PLANT_VEHICLE's cycle time (DBC) [s]
     counter_modulus: int = 16
+    max_dt_s: float = MAX_DT_S  # a cycle counts at most the speed frames' receive timeout (the matrix's) [s]
     verdict: Verdict = Verdict.OK
     last_now: float | None = None
     pairs: tuple[PairCheck, PairCheck, PairCheck] = field(init=False)  # (v, CL), (v, CH), (CL, CH)
@@ -289,14 +291,16 @@ class SpeedVoter:
                brake_mps2: float = 0.0) -> tuple[Verdict, float]:
         """One cycle at ``now`` [s]: (verdict, the vehicle speed to use [m/s]): ``v_mps`` itself unless the verdict
         is SUBSTITUTED (then the mean of the two shaft-derived speeds). The cycle's length counts up to
-        :data:`MAX_DT_S` (after a longer gap, e.g. FAULT on missing frames, the values held did not describe it).
+        :attr:`max_dt_s` (:data:`MAX_DT_S` on the shipped DBC; after a longer gap, e.g. FAULT on missing frames, the
+        values held did not describe it).
         ``counter``: PLANT_VEHICLE's frame counter (None: every cycle a new frame); ``brake_mps2``: the most
         deceleration a brake may add now (``math.inf``: any; module docstring)."""
         if self._stepped(v_mps, counter, now, brake_mps2):
             self.stepped_at = now
         last, self.last_now = self.last_now, now
         dt = 0.0 if last is None else now - last
-        dt = MAX_DT_S if MAX_DT_S < dt else dt  # min(dt, MAX_DT_S)
+        max_dt = self.max_dt_s
+        dt = max_dt if max_dt < dt else dt  # min(dt, max_dt_s)
         v_cl = self.speed_ratio_cl_m * cl_out_rpm * _RPM_TO_RAD_S  # shaft_speed_mps of each, written out
         v_ch = self.speed_ratio_ch_m * ch_out_rpm * _RPM_TO_RAD_S
         with_cl, with_ch, shafts = self.pairs

@@ -88,14 +88,14 @@ class TcuRunner:
         self.listeners = tuple(listeners)
         self._channel = getattr(bus, "channel", None)  # of the frames recorded for the listeners
         self._send_frame, recv = frame_io(bus, codec.fd)  # the in-process bus: frames as (ID, data), no can.Message
-        self.controller: TcuController = controller or CreepController()
+        # (a controller given is built on this matrix's steps: CreepController(cal, io.matrix_steps))
+        self.controller: TcuController = controller or CreepController(None, io.matrix_steps)
         command = io.names[2]
         self.cycle = codec.cycle_time(command)
         self.cycle_ms = codec.cycle_time_ms(command)
-        # the state's and active clutch's numbers: the quantities' (the shipped DBC's VAL_ numbering, which the
-        # plant reads on any matrix: dsg_hil.protocol.binding.QUANTITIES), whatever the matrix's own value tables
-        # name them (e.g. "Creeping" for CREEP)
-        self.states, self.clutches = dict(STATE_VALUES), dict(CLUTCH_VALUES)
+        # the state's and active clutch's numbers on the matrix: the quantities' (the shipped DBC's VAL_ numbering:
+        # dsg_hil.protocol.binding.QUANTITIES), or its own value table's where its binding names them (values)
+        self.states, self.clutches = dict(io.state_values), dict(io.clutch_values)
         # the plant's values in the TCU's units (see inputs): (index of the message in REQUIRED, signal, k, c)
         self._inputs = io.inputs
         self._v_index = io.inputs[4][0]  # the message of VehicleSpeed (its counter: the speed vote)
@@ -123,14 +123,15 @@ class TcuRunner:
         self._brake_full_mps2, self._decel_q_mps2 = math.inf, 0.0
         cal = getattr(self.controller, "cal", None)
         if isinstance(cal, TcuCalibration):
-            step = io.step  # a signal's step in the TCU's unit, by quantity
+            step, matrix = io.step, io.matrix_steps  # a signal's step in the TCU's unit, by quantity; the matrix's
 
             self._brake_full_mps2 = cal.vehicle.brake_decel_mps2
             self._decel_q_mps2 = 0.5 * step("decel_request")
             vehicle = io.message("v")
             self.speed_vote = SpeedVoter(cal.CL.speed_ratio_m, cal.CH.speed_ratio_m, step("v"),
                                          max(step("omega_CL"), step("omega_CH")), codec.cycle_time(vehicle),
-                                         codec.protection(vehicle).counter_modulus or 16)  # (0: no counter)
+                                         codec.protection(vehicle).counter_modulus or 16,  # (0: no counter)
+                                         matrix.max_dt_s)
             self.sensor_checks = SensorChecks(
                 cal.strategy.hydraulic_lag_s, 0.5 * (step("P_CL") + step("P_CL_cmd")),
                 cal.vehicle.input_ratio,
@@ -138,7 +139,7 @@ class TcuRunner:
                 {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))},
                 {c: k.K_plate_oil_w_k * k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) / k.C_plate_j_k
                  for c, k in (("CL", cal.CL), ("CH", cal.CH))},
-                FALL_START_TAU * cal.strategy.startup_observer_s / 5.0)
+                FALL_START_TAU * cal.strategy.startup_observer_s / 5.0, matrix.max_dt_s, matrix.oil_frame_s)
         # cycles whose thermal input a check replaced, by signal (ecu_stub.sensor_checks)
         self.implausible = {"VehicleSpeed": 0, "speeds": 0, "CLOutputSpeed": 0, "CHOutputSpeed": 0,
                             **dict.fromkeys(CHECKED, 0)}
@@ -146,8 +147,8 @@ class TcuRunner:
         self.diag: DiagServer | None = None
         if codec.db.dbc is not None and "DiagRequestId" in codec.db.dbc.attributes:
             request_id, response_id = diag_ids(codec.db)
-            self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, self.states,
-                                   self.clutches, cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
+            self.diag = DiagServer(load_description(), request_id, response_id, self._send_diag, dict(STATE_VALUES),
+                                   dict(CLUTCH_VALUES), cal.strategy.T_safe_c if isinstance(cal, TcuCalibration)
                                    else math.nan, repr(cal), messages=io.renames(SHIPPED))
         # XCP on its own IDs (ecu_stub.xcp): ``xcp(runner, send)`` builds the slave; None: no XCP
         self.xcp: SidePort | None = xcp(self, self._send_diag) if xcp is not None else None

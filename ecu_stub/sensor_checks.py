@@ -8,8 +8,9 @@ frame with a valid CRC and counter can carry a wrong value: on a 20-s creep from
 300 degC, ``P_CL`` stuck at 0 to 253 degC. Each check below is debounced as the speed vote
 (:mod:`ecu_stub.plausibility`): a one-sided CUSUM of the excess beyond a tolerance, failing once it passes a bound
 that a sensor without a fault cannot reach, and for :data:`~ecu_stub.plausibility.HEAL_S` after (a cycle counts at
-most :data:`~ecu_stub.plausibility.MAX_DT_S`). A run without a sensor fault never reaches a bound, so the TCU gets
-the very same inputs, and sends the very same frames, as without the checks.
+most :data:`~ecu_stub.plausibility.MAX_DT_S`, the matrix's :attr:`MatrixSteps.max_dt_s`). A run without a sensor
+fault never reaches a bound, so the TCU gets the very same inputs, and sends the very same frames, as without the
+checks.
 
 **1. Measured pressure vs the TCU's own command** (:class:`PressureCheck`). The piston pressure follows the command
 with a first-order lag ``strategy.hydraulic_lag_s`` = 50 ms (identified, ``calibration.toml``; the plant's
@@ -118,7 +119,8 @@ node at the scenario's ``T_oil_c``: the packs' oil, the sump's, the radiator's),
 temperature for its plate's only with the pack's oil time constant (0.17-0.18 s,
 ``strategy.startup_observer_s``' derivation). So the key-on frame's ``T_OilCL``, ``T_OilCH`` and ``T_Sump`` read one
 temperature, each within its sensor's accuracy: the rule compares them on the TCU's first cycle, if that comes
-before a second PLANT_OIL_TEMP frame can have (``now`` < :data:`OIL_FRAME_S`: in lock-step the plant's time).
+before a second PLANT_OIL_TEMP frame can have (``now`` < :data:`OIL_FRAME_S`, the matrix's
+:attr:`MatrixSteps.oil_frame_s`: in lock-step the plant's time).
 
 * Tolerance :func:`keyon_tolerance_k` = 2 a(T) + 2 q: two healthy sensors of accuracy a(T) = :data:`CLASS_ABS_K`
   + :data:`CLASS_REL` |T| (IEC 60751 class B, the calibration's ``strategy.oil_accuracy_k`` is its value at T_safe)
@@ -151,9 +153,9 @@ from dataclasses import dataclass, field
 from .plausibility import MAX_DT_S, Sustained
 
 __all__ = ["ANGLE_RAD", "CHECKED", "CLASS_ABS_K", "CLASS_REL", "FALL_GAIN", "FALL_START_TAU", "InputSpeedCheck",
-           "N_ABS_RPM", "N_REL", "OIL_FALL_K", "OIL_FRAME_S", "OIL_KS", "OIL_Q_K", "OIL_TOL_K", "OilCheck", "P_ABS_MPA",
-           "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "START_PLATE_MAX_C", "SensorChecks", "keyon_tolerance_k",
-           "keyon_undetected_k", "oil_accuracy_at"]
+           "MatrixSteps", "N_ABS_RPM", "N_REL", "OIL_FALL_K", "OIL_FRAME_S", "OIL_KS", "OIL_Q_K", "OIL_TOL_K",
+           "OilCheck", "P_ABS_MPA", "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "START_PLATE_MAX_C", "SensorChecks",
+           "keyon_tolerance_k", "keyon_undetected_k", "oil_accuracy_at"]
 
 P_ABS_MPA = 0.02  # pressure sensor accuracy: 1 % of the DBC's 2-MPa range [MPa]
 P_REL = 0.05  # the valve's gain [1]
@@ -173,6 +175,26 @@ OIL_Q_K = 0.05  # half the DBC's 0.1-K step of PLANT_OIL_TEMP's temperatures [K]
 START_PLATE_MAX_C = 150.0  # the hottest a plate may start (dsg_hil/sim/operating_range.py): a flagged clutch's start
 _RPM_TO_RAD_S = math.pi / 30.0
 CHECKED = ("P_CL", "P_CH", "ClutchInputSpeed", "T_OilCL", "T_OilCH")  # the signals checked, in this order
+
+
+@dataclass(frozen=True)
+class MatrixSteps:
+    """What the plausibility checks and the controller's error budget take from the communication matrix in use
+    (:meth:`ecu_stub.tcu_io.TcuIO.matrix_steps`, of its database and binding, in the TCU's units); the defaults are
+    the shipped DBC's:
+
+    * ``max_dt_s``: the longest receive timeout of the speed frames (VehicleSpeed's and the output speeds'): a
+      cycle counts at most this long (:data:`~ecu_stub.plausibility.MAX_DT_S`);
+    * ``oil_frame_s``: how often an oil temperature is sent anew, its frame's cycle time (times its pages, a
+      multiplexed frame's) (:data:`OIL_FRAME_S`);
+    * ``v_step_mps``: VehicleSpeed's step [m/s]; ``shaft_step_rpm``: the larger step of the two clutch output
+      speeds; ``input_step_rpm``: ClutchInputSpeed's [r/min]."""
+
+    max_dt_s: float = MAX_DT_S
+    oil_frame_s: float = OIL_FRAME_S
+    v_step_mps: float = 0.001
+    shaft_step_rpm: float = 0.1
+    input_step_rpm: float = 0.1
 
 
 def oil_accuracy_at(T_c: float) -> float:
@@ -294,6 +316,8 @@ class SensorChecks:
     sump_share: dict[str, float]  # by clutch: cooling / (K + cooling) of the calibration
     cooling_per_s: dict[str, float] = field(default_factory=dict)  # by clutch: K_eff / C (none: no fall check)
     fall_from_s: float = 0.0  # the fall check's start after the first cycle [s]
+    max_dt_s: float = MAX_DT_S  # a cycle counts at most this long (MatrixSteps.max_dt_s) [s]
+    oil_frame_s: float = OIL_FRAME_S  # the oil frame's refresh: the key-on check's first frame (MatrixSteps) [s]
     last_now: float | None = None
     keyon_checked: bool = False  # the key-on check was made (the first cycle came with the first oil frame)
     cmd_mpa: dict[str, float] = field(default_factory=lambda: {"CL": 0.0, "CH": 0.0})
@@ -332,9 +356,10 @@ class SensorChecks:
         signals (:data:`CHECKED`: P_CL, P_CH, ClutchInputSpeed, T_OilCL, T_OilCH) and the failing ones."""
         last, self.last_now = self.last_now, now
         elapsed = 0.0 if last is None else now - last
-        dt = MAX_DT_S if MAX_DT_S < elapsed else elapsed  # min(elapsed, MAX_DT_S)
+        max_dt = self.max_dt_s
+        dt = max_dt if max_dt < elapsed else elapsed  # min(elapsed, max_dt_s)
         cmd, pressure, oil = self.cmd_mpa, self.pressure, self.oil
-        if last is None and now < OIL_FRAME_S:
+        if last is None and now < self.oil_frame_s:
             self.keyon(T_oil_CL, T_oil_CH, T_sump, now)
         bad_P_CL, P_CL = pressure["CL"].update(P_CL, cmd["CL"], dt, now, elapsed)
         bad_P_CH, P_CH = pressure["CH"].update(P_CH, cmd["CH"], dt, now, elapsed)

@@ -21,7 +21,11 @@ from pathlib import Path
 
 from cantools.database.can import Database
 
-from dsg_hil.protocol.binding import QUANTITIES, UNITS, Binding, BindingError, load_binding, shipped_binding
+from dsg_hil.protocol.binding import (QUANTITIES, UNITS, Binding, BindingError, load_binding, shipped_binding,
+                                      shipped_numbers)
+from dsg_hil.protocol.validity import TIMEOUT_CYCLES
+
+from .sensor_checks import MatrixSteps
 
 __all__ = ["CLUTCH_VALUES", "INPUTS", "OUTPUTS", "SHIPPED", "STATE_VALUES", "TcuIO", "edge", "from_binding", "tcu_io"]
 
@@ -64,7 +68,12 @@ class TcuIO:
     * ``names``: (tick message, tick signal, command message, echo signal, status message), as
       :class:`dsg_hil.protocol.lockstep.LockstepResponder` takes them; ``where``: by quantity mapped, its
       (message, signal); ``steps``: by quantity mapped, its signal's step in the TCU's unit;
-    * ``protection``, ``timeouts``: the codec's (:class:`dsg_hil.protocol.Codec`), by message.
+    * ``protection``, ``timeouts``: the codec's (:class:`dsg_hil.protocol.Codec`), by message;
+    * ``state_values``, ``clutch_values``: the number the matrix sends for each state and active clutch of the
+      controller (its value table's, where the binding names them: ``values``; else the shipped DBC's);
+    * ``matrix_steps``: the steps and times the plausibility checks and the controller take from the matrix
+      (:class:`~ecu_stub.sensor_checks.MatrixSteps`: the speed frames' receive timeout, the oil frame's refresh,
+      the speeds' steps in the TCU's units).
     """
 
     def __init__(self, binding: Binding) -> None:
@@ -112,6 +121,15 @@ class TcuIO:
         self.protection: dict[str, dict[str, object]] = {
             m: p for m, p in binding.protection.items() if m in self.rx or m in self.tx}
         self.timeouts: dict[str, float] = {m: ms / 1000 for m, ms in binding.timeouts_ms.items() if m in self.rx}
+        states, clutches = binding.values.get("tcu_state", {}), binding.values.get("active_clutch", {})
+        self.state_values: dict[str, int] = {
+            name: states.get(number, number) for name, number in shipped_numbers("tcu_state").items()}
+        self.clutch_values: dict[str, int] = {
+            name: clutches.get(number, number) for name, number in shipped_numbers("active_clutch").items()}
+        self.matrix_steps = MatrixSteps(
+            max(_timeout_ms(binding, where[q][0]) for q in ("v", "omega_CL", "omega_CH")) / 1000,
+            max(_refresh_ms(db, where[q][0]) for q in ("T_oil_CL", "T_oil_CH", "T_sump")) / 1000,
+            self.steps["v"], max(self.steps["omega_CL"], self.steps["omega_CH"]), self.steps["omega_in"])
 
     @property
     def uses(self) -> dict[str, tuple[str, ...]]:
@@ -135,6 +153,28 @@ class TcuIO:
         return self.where[quantity][0]
 
 
+def _timeout_ms(binding: Binding, message: str) -> float:
+    """The TCU's receive timeout of ``message`` [ms]: the binding's, else :data:`~dsg_hil.protocol.validity.
+    TIMEOUT_CYCLES` cycle times (the database's, or the binding's cycle_time_ms)."""
+    given = binding.timeouts_ms.get(message)
+    return float(given) if given is not None else TIMEOUT_CYCLES * _cycle_ms(binding.db, message)
+
+
+def _cycle_ms(db: Database, message: str) -> int:
+    """``message``'s cycle time [ms] (every message of a binding has one: checked when it is loaded)."""
+    cycle = db.get_message_by_name(message).cycle_time
+    assert cycle is not None and cycle > 0, f"{message}: no cycle time (the binding's check would have said)"
+    return int(cycle)
+
+
+def _refresh_ms(db: Database, message: str) -> float:
+    """How often each value of ``message`` is sent anew [ms]: its cycle time, times its pages if multiplexed (the
+    codec sends them in turn, :class:`dsg_hil.protocol.Codec`)."""
+    found = db.get_message_by_name(message)
+    pages = {page for signal in found.signals for page in signal.multiplexer_ids or ()}
+    return float(_cycle_ms(db, message) * max(len(pages), 1))
+
+
 def from_binding(binding: Binding) -> TcuIO:
     """The TCU's I/O of a loaded binding."""
     return TcuIO(binding)
@@ -156,7 +196,8 @@ def _numbers(quantity: str) -> dict[str, int]:
     return {str(name): int(value) for value, name in (table or {}).items()}
 
 
-# the numbers of the TCU's states and active clutch, on any matrix: the quantities tcu_state and active_clutch
-# are these numbers (the plant reads them so), whatever a matrix's own value table calls them
+# the numbers of the TCU's states and active clutch: the quantities tcu_state and active_clutch are these numbers
+# (ecu-stub's diagnostic description's too); a matrix numbering them otherwise names them in its binding (values:
+# TcuIO.state_values, clutch_values), and both ends send and read its numbers
 STATE_VALUES: dict[str, int] = _numbers("tcu_state")
 CLUTCH_VALUES: dict[str, int] = _numbers("active_clutch")

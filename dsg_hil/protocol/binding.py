@@ -10,6 +10,8 @@ The file::
     [quantities]                        # quantity (SI, as :data:`QUANTITIES` names it) = "MESSAGE.Signal"
     omega_e = "PLANT_ENGINE.EngineSpeed"
     T_CL_pred = { signal = "TCU_STATUS.T_CL_Pred", unit = "degC" }   # the signal's unit, if the database lacks it
+    tcu_state = { signal = "TCU_INFO.Mode", values = { IDLE = "Off", ENGAGE = "Launch", ... } }   # its value
+                                        # table's names of the shipped DBC's values, where it numbers them otherwise
 
     [lockstep]                          # the lock-step handshake's signals (no quantity of the plant)
     tick = "SIM_SYNC.Tick"
@@ -51,8 +53,8 @@ from .e2e import ProtectionError
 from .profiles import protection_for
 from .ranges import signal_range
 
-__all__ = ["DEFAULT_BINDING", "QUANTITIES", "SIM_DATABASE", "UNITS", "Binding", "BindingError", "Quantity",
-           "add_simulation", "check_binding", "conversion", "load_binding", "shipped_binding",
+__all__ = ["DEFAULT_BINDING", "QUANTITIES", "SIM_DATABASE", "UNITS", "VALUED", "Binding", "BindingError", "Quantity",
+           "add_simulation", "check_binding", "conversion", "load_binding", "shipped_binding", "shipped_numbers",
            "signal_fit"]
 
 DEFAULT_BINDING = resources.files("dsg_hil") / "data" / "dsg_hil.binding.toml"  # of dbc/dsg_hil.binding.toml
@@ -124,8 +126,10 @@ QUANTITIES: dict[str, Quantity] = {
     "P_CL_cmd": _q("Pa", 0.0, 1.5 * _MPA, 0.001 * _MPA, "TCU: commanded pressure CL", "read", True),
     "P_CH_cmd": _q("Pa", 0.0, 1.5 * _MPA, 0.001 * _MPA, "TCU: commanded pressure CH", "read", True),
     "decel_request": _q("m/s2", 0.0, 10.0, 0.1, "TCU: deceleration asked of the brakes", "read"),
-    "tcu_state": _q("1", 0.0, 5.0, 1.0, "TCU: state (the shipped DBC's VAL_ numbers)", "read", True),
-    "active_clutch": _q("1", 0.0, 2.0, 1.0, "TCU: active clutch (the shipped DBC's VAL_ numbers)", "read", True),
+    "tcu_state": _q("1", 0.0, 5.0, 1.0, "TCU: state (the shipped DBC's VAL_ numbers; values: the matrix's names)",
+                    "read", True),
+    "active_clutch": _q("1", 0.0, 2.0, 1.0, "TCU: active clutch (the shipped DBC's VAL_ numbers; values: the "
+                        "matrix's names)", "read", True),
     "brake_request": _q("1", 0.0, 1.0, 1.0, "TCU: brake request (0/1)", "read"),
     "T_CL_pred": _q("degC", -40.0, 350.0, 0.5, "TCU: predicted plate temperature CL", "read", True),
     "T_CH_pred": _q("degC", -40.0, 350.0, 0.5, "TCU: predicted plate temperature CH", "read", True),
@@ -133,6 +137,8 @@ QUANTITIES: dict[str, Quantity] = {
 }
 COMMAND = ("P_CL_cmd", "P_CH_cmd", "decel_request")  # in the message that answers a lock-step tick (the echo's)
 STATUS = ("tcu_state", "active_clutch", "brake_request", "T_CL_pred", "T_CH_pred", "fault_bits")  # in one message
+# numbered by the shipped DBC's value tables: an entry may give the matrix's names of those values (``values``)
+VALUED = ("tcu_state", "active_clutch")
 
 # unit as a database writes it -> (dimension, factor, offset): the value in the dimension's base unit (the
 # quantities' units) is value * factor + offset. The factors are CV's, to the last bit.
@@ -171,7 +177,9 @@ class Binding:
     * ``cycle_times_ms``: the overridden cycle times; ``timeouts_ms``: the receive timeouts given (the plant's of
       the messages it reads, the TCU's of the ones it sends);
       ``protection``: by message, its protection table;
-    * ``units``: by quantity mapped, the signal's unit.
+    * ``units``: by quantity mapped, the signal's unit;
+    * ``values``: by quantity of :data:`VALUED` whose entry gives ``values``, the number the matrix sends for
+      each of the quantity's numbers (the shipped DBC's, :func:`shipped_numbers`); none: the same numbers.
     """
 
     path: str
@@ -186,6 +194,7 @@ class Binding:
     protection: dict[str, dict[str, object]]
     units: dict[str, str]
     timeouts_ms: dict[str, int] = field(default_factory=dict)
+    values: dict[str, dict[int, int]] = field(default_factory=dict)
 
     @property
     def uses(self) -> dict[str, tuple[str, ...]]:
@@ -310,6 +319,7 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
         return None, [*problems, str(exc)]
     mapped: dict[tuple[str, str], tuple[str, float, float]] = {}
     units: dict[str, str] = {}
+    values: dict[str, dict[int, int]] = {}
     for quantity, entry in quantities.items():
         try:
             key, found = _quantity(name, quantity, entry, db, send, read, (sync, echo), mapped)
@@ -323,6 +333,11 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
         dbc_signal = db.get_message_by_name(message).get_signal_by_name(signal)
         for text in signal_fit(quantity, dbc_signal, factor, offset):
             problem(f"{key}: {message}.{signal} carries {text}")
+        if isinstance(entry, dict) and "values" in entry:
+            try:
+                values[quantity] = _values(name, key, quantity, entry["values"], f"{message}.{signal}", dbc_signal)
+            except BindingError as exc:
+                problems.append(str(exc))
     for quantity, spec in QUANTITIES.items():
         if spec.required and quantity not in units:
             problem(f"quantities: {quantity} is not mapped (the plant needs it)")
@@ -362,7 +377,7 @@ def check_binding(path: str | Path | None = None, db: Database | None = None,
     order = [(m, s) for table in (tx, rx) for m, signals in table.items() for s in signals if (m, s) in mapped]
     return Binding(name, db, tx, rx, {key: mapped[key][:2] for key in order},
                    {key: mapped[key][2] for key in order if mapped[key][2] != 0.0}, sync, echo, cycle_times,
-                   protection, units, timeouts), []
+                   protection, units, timeouts, values), []
 
 
 def signal_fit(quantity: str, signal: Signal, factor: float, offset: float) -> list[str]:
@@ -434,8 +449,10 @@ def _quantity(path: str, quantity: str, entry: object, db: Database, send: list[
         raise _fail(path, f"{key}: not a quantity of the plant ({', '.join(QUANTITIES)})")
     unit: object = None
     if isinstance(entry, dict):
-        if set(entry) - {"signal", "unit"} or "signal" not in entry:
-            raise _fail(path, f"{key} must be \"MESSAGE.Signal\" or {{signal = ..., unit = ...}}")
+        allowed = {"signal", "unit", "values"} if quantity in VALUED else {"signal", "unit"}
+        if set(entry) - allowed or "signal" not in entry:
+            raise _fail(path, f"{key} must be \"MESSAGE.Signal\" or {{signal = ..., unit = ...}}"
+                        + (" (values = {...}: the matrix's names of its values)" if quantity in VALUED else ""))
         table: dict = entry
         entry, unit = table["signal"], table.get("unit")
         if unit is not None and not isinstance(unit, str):
@@ -451,6 +468,32 @@ def _quantity(path: str, quantity: str, entry: object, db: Database, send: list[
     if converted is None:
         raise _fail(path, f"{key}: unit {unit!r} of {message}.{signal} does not convert to {spec.unit}")
     return key, (message, signal, unit, *converted)
+
+
+def shipped_numbers(quantity: str) -> dict[str, int]:
+    """The numbers ``quantity`` (one of :data:`VALUED`) is, by name: the shipped DBC's value table of its signal."""
+    shipped = shipped_binding()
+    message, signal = next(key for key, (q, _) in shipped.signals.items() if q == quantity)
+    choices: Mapping[int, object] = shipped.db.get_message_by_name(message).get_signal_by_name(signal).choices or {}
+    return {str(name): int(number) for number, name in choices.items()}
+
+
+def _values(path: str, key: str, quantity: str, table: object, where: str, signal: Signal) -> dict[int, int]:
+    """``values`` of a :data:`VALUED` quantity's entry, {its name (the shipped DBC's): the matrix's name of it in
+    the signal's value table}, as {the quantity's number: the matrix's number}; else :class:`BindingError`."""
+    numbers = shipped_numbers(quantity)
+    if not isinstance(table, dict) or set(table) != set(numbers) or not all(isinstance(v, str) for v in
+                                                                           table.values()):
+        raise _fail(path, f"{key}.values must give the matrix's name of each of {', '.join(numbers)}, got {table!r}")
+    table_of: Mapping[int, object] = signal.choices or {}
+    theirs = {str(name): int(number) for number, name in table_of.items()}
+    for name, their_name in table.items():
+        if their_name not in theirs:
+            raise _fail(path, f"{key}.values.{name}: {their_name!r} is not in the value table of {where} "
+                              f"({', '.join(theirs) or 'none'})")
+    if len(set(table.values())) != len(table):
+        raise _fail(path, f"{key}.values: two of the values have one name")
+    return {numbers[name]: theirs[their_name] for name, their_name in table.items()}
 
 
 def _messages(path: str, table: object, known: list[str], tick: str, db: Database, problems: list[str]

@@ -53,12 +53,15 @@ class PlantIO:
       the TCU's state;
     * ``signals``: (message, signal) -> (quantity, factor): the signal's value times ``factor`` (plus ``offsets``'
       entry, if any) is the quantity in SI (rad/s, Pa, m/s, N m, W, a fraction; degC as the plant has it). A
-      quantity the plant sends is the attribute of that name of PlantOutputs (of DriverInput for the driver's).
+      quantity the plant sends is the attribute of that name of PlantOutputs (of DriverInput for the driver's);
+    * ``values``: by quantity of the TCU's state (``tcu_state``, ``active_clutch``), the number the matrix sends
+      for each of the quantity's numbers, where its value table numbers them otherwise (a binding's ``values``).
     """
 
     def __init__(self, tx: Mapping[str, Sequence[str]], rx: Mapping[str, Sequence[str]],
                  signals: Mapping[tuple[str, str], tuple[str, float]], sync: tuple[str, str], echo: tuple[str, str],
-                 offsets: Mapping[tuple[str, str], float] | None = None) -> None:
+                 offsets: Mapping[tuple[str, str], float] | None = None,
+                 values: Mapping[str, Mapping[int, int]] | None = None) -> None:
         self.tx: dict[str, tuple[str, ...]] = {m: tuple(s) for m, s in tx.items()}
         self.rx: dict[str, tuple[str, ...]] = {m: tuple(s) for m, s in rx.items()}
         self.signals: dict[tuple[str, str], tuple[str, float]] = dict(signals)
@@ -72,8 +75,14 @@ class PlantIO:
         self.status: str = where["tcu_state"][0]
         self._reads: dict[str, tuple[str, float, float]] = {
             q: (where[q][1], where[q][2], where[q][3]) for q in where if q in _READ}
+        # by status key, the quantity's number (the shipped DBC's) of each number the matrix sends, where its binding
+        # names the values otherwise (values: by quantity, the matrix's number of each of the quantity's)
+        self._numbers: dict[str, dict[float, float]] = {
+            STATUS_KEYS[q]: {float(theirs): float(ours) for ours, theirs in numbers.items()}
+            for q, numbers in (values or {}).items() if q in STATUS_KEYS}
         # the status values as the summary reads them: the very dict when the signals are the shipped DBC's
-        self._status_as_is: bool = all(self._reads[q] == (key, 1.0, 0.0) for q, key in STATUS_KEYS.items())
+        self._status_as_is: bool = not self._numbers and all(
+            self._reads[q] == (key, 1.0, 0.0) for q, key in STATUS_KEYS.items())
         self.plant_signals: Callable[[PlantOutputs, DriverInput], dict[str, dict[str, float]]] = self._encoder()
 
     def value_sources(self, message: str) -> dict[str, str]:
@@ -132,7 +141,10 @@ class PlantIO:
         in SI): ``values`` itself when they are that already."""
         if self._status_as_is:
             return values
-        return {key: self.read(values, quantity) for quantity, key in STATUS_KEYS.items()}
+        read = {key: self.read(values, quantity) for quantity, key in STATUS_KEYS.items()}
+        for key, numbers in self._numbers.items():  # (a number its value table lacks: -1, no state of the TCU's)
+            read[key] = numbers.get(read[key], -1.0)
+        return read
 
 
 def plant_io(binding: str | None = None, dbc: str | None = None) -> PlantIO:
@@ -143,7 +155,7 @@ def plant_io(binding: str | None = None, dbc: str | None = None) -> PlantIO:
 def from_binding(binding: object) -> PlantIO:
     """The plant's I/O of a loaded :class:`dsg_hil.protocol.binding.Binding` (its plain tables)."""
     b: Any = binding
-    return PlantIO(b.tx, b.rx, b.signals, b.sync, b.echo, b.offsets)
+    return PlantIO(b.tx, b.rx, b.signals, b.sync, b.echo, b.offsets, b.values)
 
 
 SHIPPED = from_binding(shipped_binding())  # the shipped DBC with its binding

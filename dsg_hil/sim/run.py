@@ -599,8 +599,8 @@ def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Itera
         from ecu_stub.tcu_io import SHIPPED as SHIPPED_TCU  # noqa: PLC0415
 
         reference = runner.codec.reference
-        controller = None if calibration is None else CreepController(calibration)
         tcu_io = io if io is not None else SHIPPED_TCU
+        controller = None if calibration is None else CreepController(calibration, tcu_io.matrix_steps)
 
         def tcu_factory(tcu_db: Database, tcu_bus: can.BusABC) -> Any:
             codec = Codec(tcu_db, tcu_io.uses, reference=reference, protection=tcu_io.protection,

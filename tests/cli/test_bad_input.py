@@ -98,6 +98,18 @@ def test_ecu_stub_bad_input_is_exit_2(capsys, argv, needle):
     one_error_line(capsys, needle)
 
 
+@pytest.mark.parametrize("binding", [None, "renamed.binding.toml"])
+@pytest.mark.parametrize("dbc, said", [("nosuch.dbc", "DBC file not found"), ("bad.toml", "cannot load DBC (")])
+def test_ecu_stub_names_a_dbc_it_cannot_read_alone(tmp_path, capsys, monkeypatch, dbc, said, binding):
+    """``ecu-stub --dbc FILE`` that cannot be read: the one line names the DBC and what is wrong with it, not a
+    binding it does not fit (it said 'does not fit the shipped binding' before, when no --binding was given)."""
+    write_inputs(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert ecu_stub_main(["-i", "virtual", "--dbc", dbc, *(["--binding", binding] if binding else [])]) == 2
+    line = one_error_line(capsys, f"{dbc}: {said}")
+    assert line.startswith(f"error: {dbc}: {said}") and "binding" not in line, line
+
+
 def test_ecu_stub_log_is_checked_before_serving(tmp_path, capsys):
     (tmp_path / "afile").write_text("not a directory")
     assert ecu_stub_main(["-i", "virtual", "--log", str(tmp_path)]) == 2
@@ -164,7 +176,8 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # (bad ones), nodid.toml (a diagnostic description whose DID lacks its id), nocmd.binding.toml (the shipped
 # binding without a quantity the plant needs), noaccel.binding.toml (without one only ecu-stub reads), renamed.dbc
 # and renamed.binding.toml (another matrix and its binding: tests/sim/test_binding_run.py), simclash.binding.toml
-# (that binding adding SIM_SYNC on an ID of the matrix's), long.dbc (the shipped DBC with a 9-byte classic message).
+# (that binding adding SIM_SYNC on an ID of the matrix's), long.dbc (the shipped DBC with a 9-byte classic message),
+# badvalues.binding.toml (the shipped binding naming a state its DBC's value table lacks).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -254,6 +267,8 @@ CASES = [
      "nosuch.toml: binding file not found"),
     ("ecu-stub", [*BUS, "--binding", "noaccel.binding.toml", "--log", "t.log"], "file", ERROR,
      "noaccel.binding.toml: quantities.a_x: not mapped, and ecu-stub reads it"),
+    ("ecu-stub", [*BUS, "--dbc", "nosuch.dbc", "--log", "t.log"], "file", ERROR, "nosuch.dbc: DBC file not found"),
+    ("ecu-stub", [*BUS, "--dbc", "bad.toml", "--log", "t.log"], "file", ERROR, "bad.toml: cannot load DBC ("),
     ("ecu-stub", [*BUS, "--dbc", "renamed.dbc", "--log", "t.log"], "file", ERROR,
      "renamed.dbc: does not fit the shipped binding: give its own (--binding);"),
     ("ecu-stub", [*BUS, "--dbc", "small.dbc", "--binding", "renamed.binding.toml", "--log", "t.log"], "file", ERROR,
@@ -264,6 +279,9 @@ CASES = [
      "nosuch.toml: binding file not found"),
     ("dsg-hil", ["binding", "check", "long.dbc", str(DEFAULT_BINDING)], "file", ERROR,
      "message PLANT_OIL_TEMP: 9 bytes on classic CAN (at most 8): a CAN FD message needs VFrameFormat CAN_FD"),
+    ("dsg-hil", ["binding", "check", str(DEFAULT_DBC), "badvalues.binding.toml"], "file", ERROR,
+     "badvalues.binding.toml: quantities.tcu_state.values.CREEP: 'CREEPING' is not in the value table of "
+     "TCU_STATUS.State (IDLE, ENGAGE, CREEP, HANDOVER, STOPPED_OVERHEAT, FAULT)"),
     ("dsg-hil", ["binding", "check", "renamed.dbc", "simclash.binding.toml"], "file", ERROR,
      "simclash.binding.toml: simulation.ids.SIM_SYNC: 0xC0 is the ID of EMS_Engine in the matrix"),
     ("dsg-hil", ["binding", "list", "small.dbc", "nosuch.toml"], "option", USAGE,
@@ -359,6 +377,10 @@ def write_inputs(where: Path) -> None:
                                                  "ids = { SIM_SYNC = 0x0C0 }\n", encoding="utf-8")  # EMS_Engine's ID
     (where / "noaccel.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
         'a_x = "PLANT_VEHICLE.LongAccel"\n', ""), encoding="utf-8")  # without a quantity only ecu-stub reads
+    (where / "badvalues.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
+        'tcu_state = "TCU_STATUS.State"\n', 'tcu_state = { signal = "TCU_STATUS.State", values = { IDLE = "IDLE", '
+        'ENGAGE = "ENGAGE", CREEP = "CREEPING", HANDOVER = "HANDOVER", STOPPED_OVERHEAT = "STOPPED_OVERHEAT", '
+        'FAULT = "FAULT" } }\n'), encoding="utf-8")  # a state's name the value table lacks
     (where / "nocmd.binding.toml").write_text(DEFAULT_BINDING.read_text(encoding="utf-8").replace(
         'P_CL_cmd = "TCU_CMD.P_CL_Cmd"\n', ""), encoding="utf-8")  # the shipped binding without a command
     space = 'name = "t"\nn = 2\nduration_s = 1.0\n[inputs]\ngrade_rad = {uniform = [-0.15, 0.1]}\n'

@@ -14,11 +14,19 @@ from pathlib import Path
 import can
 import pytest
 
+from dsg_hil.common.units import CV
 from dsg_hil.protocol import Codec
 from dsg_hil.protocol.binding import Binding, check_binding, load_binding
 from dsg_hil.protocol.logs import decoded_frames, log_codec
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import load_scenario
+from ecu_stub.calibration import DEFAULT_CALIBRATION, load_calibration
+from ecu_stub.cli import main as ecu_stub_main
+from ecu_stub.controller import TcuOutputs
+from ecu_stub.runner import TcuRunner
+from ecu_stub.tcu_io import CLUTCH_VALUES, STATE_VALUES, TcuIO
+from dsg_hil.sim.plant_io import from_binding as plant_from_binding
+from ecu_stub.controller import CreepController
 
 from .test_binding_run import run_two_processes
 
@@ -147,6 +155,122 @@ def test_ecu_stub_on_the_example_matrix_drives_the_shipped_creep_in_lockstep(run
     assert [p["clutch"] for p in a["phases"]] == ["CL", "CH"] and len(a["handovers"]) == 1
     same_creep(a, b, oil_delay(other))
     assert b["frames"]["received"] > 4000
+
+
+def test_ecu_stub_s_checks_take_the_example_matrix_s_steps_with_a_calibration_given():
+    """``dsg-hil run --calibration`` builds ecu-stub's controller itself (dsg_hil.sim.run.attach_tcu): on dct_fd its
+    half steps of the speeds are dct_fd's (VehSpd 0.01 km/h, the shaft speeds 0.05 rad/s), not the shipped DBC's."""
+    with open_run(RunConfig(duration=1.0, dbc=DBC, binding=BINDING, calibration=str(DEFAULT_CALIBRATION))) as run:
+        controller = run.tcu.controller
+    assert isinstance(controller, CreepController) and controller.cal == load_calibration()
+    assert controller.steps == run.tcu.io.matrix_steps
+    assert controller.speed_q_mps == pytest.approx(0.5 * 0.01 * CV.KMH_TO_MPS, rel=1e-15)
+    assert controller.shaft_q_rpm == pytest.approx(0.05 * CV.RAD_S_TO_RPM, rel=1e-15)
+
+
+def test_ecu_stub_takes_a_fault_s_side_from_the_binding(capsys):
+    """dct_fd's nodes are GBX_SIM and TCM, not PLANT and TCU: ``ecu-stub --fault`` on a message the binding reads
+    (the TCU's: TCU_Demand) injects it in the TCU's frames, as ``dsg-hil run`` does; one the binding sends (the
+    plant's: ESP_WheelAccel) is refused as the plant's, exit 2 (before: 'the DBC names no sender PLANT or TCU')."""
+    pair = ["-i", "virtual", "-c", "dct-fd-fault-side", "--dbc", str(DBC), "--binding", str(BINDING)]
+    assert ecu_stub_main([*pair, "--fault", "drop:TCU_Demand@1-2", "--duration", "0.05", "-q"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == "ecu-stub: faults injected (frames hit): drop:TCU_Demand@1-2 0", err  # the TCU's injector
+    assert ecu_stub_main([*pair, "--fault", "drop:ESP_WheelAccel@1-2", "--duration", "0.05", "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: --fault 'drop:ESP_WheelAccel@1-2': changes the plant's frames: give it to dsg-hil, or "
+                   "side=tcu"]
+
+
+RENUMBERED = {  # dct_fd's value tables of the TCU's state and clutch, numbered otherwise (a variant in tests only)
+    'VAL_ 472 GbxState 0 "Idle" 1 "Engaging" 2 "Creeping" 3 "Handover" 4 "ThermalStop" 5 "Fault" ;':
+        'VAL_ 472 GbxState 0 "Fault" 1 "Idle" 2 "Engaging" 3 "Creeping" 4 "Handover" 5 "ThermalStop" ;',
+    'VAL_ 472 ActClutch 0 "Open" 1 "ClutchA" 2 "ClutchB" ;': 'VAL_ 472 ActClutch 0 "ClutchA" 1 "ClutchB" 2 "Open" ;',
+}
+NAMES = ('tcu_state = { signal = "TCU_Info.GbxState", values = { IDLE = "Idle", ENGAGE = "Engaging", '
+         'CREEP = "Creeping", HANDOVER = "Handover", STOPPED_OVERHEAT = "ThermalStop", FAULT = "Fault" } }\n'
+         'active_clutch = { signal = "TCU_Info.ActClutch", values = { NONE = "Open", CL = "ClutchA", CH = "ClutchB" } }'
+         '\n')
+
+
+def renumbered(where: Path, names: str | None = NAMES) -> tuple[Path, Path]:
+    """dct_fd with :data:`RENUMBERED`'s value tables, and its binding giving ``names`` for the two quantities
+    (None: dct_fd's own binding, which names none)."""
+    text = DBC.read_text(encoding="utf-8")
+    for old, new in RENUMBERED.items():
+        assert old in text
+        text = text.replace(old, new)
+    dbc, binding = where / "renumbered.dbc", where / "renumbered.binding.toml"
+    dbc.write_text(text, encoding="utf-8")
+    lines = BINDING.read_text(encoding="utf-8")
+    if names is not None:
+        lines = lines.replace('tcu_state = "TCU_Info.GbxState"\nactive_clutch = "TCU_Info.ActClutch"\n', names)
+        assert names in lines
+    binding.write_text(lines, encoding="utf-8")
+    return dbc, binding
+
+
+def test_the_tcu_s_state_and_clutch_go_out_as_the_matrix_numbers_them(tmp_path):
+    """A matrix whose value tables number the TCU's states and clutches otherwise than the shipped DBC (CREEP is
+    'Creeping' = 3, CL 'ClutchA' = 0), its binding naming them: ecu-stub sends its numbers, and the plant reads them
+    back as the quantities' (the shipped DBC's); without the names both ends keep the shipped numbers."""
+    dbc, binding = renumbered(tmp_path)
+    loaded = load_binding(binding, dbc=dbc)
+    io = TcuIO(loaded)
+    assert io.state_values == {"IDLE": 1, "ENGAGE": 2, "CREEP": 3, "HANDOVER": 4, "STOPPED_OVERHEAT": 5, "FAULT": 0}
+    assert io.clutch_values == {"NONE": 2, "CL": 0, "CH": 1}
+    bus = can.Bus(interface="virtual", channel="renumbered")
+    try:
+        tcu = TcuRunner(Codec(loaded.db, io.uses, protection=io.protection), bus, io=io)
+        data = tcu._frame_data["TCU_Info"](TcuOutputs(0.3, 0.0, "CREEP", "CL", False, 100.0, 90.0, 0), 0, 0)
+    finally:
+        bus.shutdown()
+    decoded = loaded.db.get_message_by_name("TCU_Info").decode(data)
+    assert (str(decoded["GbxState"]), str(decoded["ActClutch"])) == ("Creeping", "ClutchA")
+    plant = plant_from_binding(loaded)
+    read = plant.status_values({"GbxState": 3.0, "ActClutch": 0.0, "T_ClutchA_Est": 373.15,
+                                "T_ClutchB_Est": 363.15})
+    assert (read["State"], read["ActiveClutch"]) == (2.0, 1.0)  # CREEP, CL in the shipped DBC's numbers
+    assert plant.status_values({"GbxState": 6.0, "ActClutch": 2.0, "T_ClutchA_Est": 373.15,
+                                "T_ClutchB_Est": 363.15})["State"] == -1.0  # not in its value table: no state
+    unnamed = TcuIO(load_binding(renumbered(tmp_path, None)[1], dbc=dbc))
+    assert unnamed.state_values == STATE_VALUES and unnamed.clutch_values == CLUTCH_VALUES
+    assert TcuIO(load_binding(BINDING, dbc=DBC)).state_values == STATE_VALUES  # dct_fd numbers them as shipped
+
+
+@pytest.mark.parametrize("names, said", [
+    ('tcu_state = { signal = "TCU_Info.GbxState", values = { IDLE = "Idle" } }\n'
+     'active_clutch = "TCU_Info.ActClutch"\n',
+     "quantities.tcu_state.values must give the matrix's name of each of IDLE, ENGAGE, CREEP, HANDOVER, "
+     "STOPPED_OVERHEAT, FAULT"),
+    (NAMES.replace('CL = "ClutchA", CH = "ClutchB"', 'CL = "ClutchA", CH = "ClutchA"'),
+     "quantities.active_clutch.values: two of the values have one name"),
+    (NAMES.replace('NONE = "Open"', 'NONE = "Neutral"'),
+     "quantities.active_clutch.values.NONE: 'Neutral' is not in the value table of TCU_Info.ActClutch "
+     "(ClutchA, ClutchB, Open)"),
+    (NAMES + 'brake_request = { signal = "TCU_Info.BrkReq", values = { NO = "NoRequest" } }\n',
+     'quantities.brake_request must be "MESSAGE.Signal" or {signal = ..., unit = ...}'),
+])
+def test_the_names_of_the_values_are_checked(tmp_path, names, said):
+    dbc, binding = renumbered(tmp_path, names)
+    if "brake_request = {" in names:  # (its own line gone)
+        text = binding.read_text(encoding="utf-8").replace('brake_request = "TCU_Info.BrkReq"\n', "", 1)
+        binding.write_text(text, encoding="utf-8")
+    loaded, problems = check_binding(binding, dbc=dbc)
+    assert loaded is None and len(problems) == 1 and problems[0].startswith(f"{binding}: {said}"), problems
+
+
+def test_a_creep_on_the_renumbered_matrix_is_the_example_s(tmp_path):
+    """The closed loop on the renumbered variant, its binding naming the values: the plant's summary (states,
+    phases, handovers, predictions) is dct_fd's, though other numbers went over the bus."""
+    dbc, binding = renumbered(tmp_path)
+    summaries = []
+    for pair in ((DBC, BINDING), (dbc, binding)):
+        with open_run(RunConfig(duration=SHORT, dbc=pair[0], binding=pair[1])) as run:
+            summaries.append(run.run().as_json())
+    own = ("wall_time_s", "realtime_factor", "command_latency_ms", "interface")  # the run's, not the creep's
+    a, b = ({k: v for k, v in s.items() if k not in own} for s in summaries)
+    assert a["phases"] and a == b
 
 
 def test_ecu_stub_on_the_example_matrix_in_real_time():
