@@ -1,7 +1,8 @@
 """The A2L file (ASAM MCD-2 MC, ASAP2 1.71) of ecu-stub's XCP slave, written from the code (:mod:`.memory`,
 :mod:`.slave`): each calibration scalar a CHARACTERISTIC (a FLOAT64_IEEE value with its unit and the calibration's
-limits; read-only ones marked READ_ONLY), each internal variable a MEASUREMENT, one DAQ event channel for the
-control period, and the XCP on CAN IF_DATA with the IDs the slave serves (``ecu-stub --a2l FILE``)."""
+limits; read-only ones marked READ_ONLY), each internal variable a MEASUREMENT (the state and the active clutch
+with their names: a COMPU_VTAB of the TCU's own numbers), one DAQ event channel for the control period, and the
+XCP on CAN IF_DATA with the IDs the slave serves (``ecu-stub --a2l FILE``)."""
 
 from __future__ import annotations
 
@@ -66,12 +67,20 @@ def a2l_text(request_id: int = DEFAULT_IDS[0], response_id: int = DEFAULT_IDS[1]
     for unit in units:
         out.append(f'    /begin COMPU_METHOD {_unit_method(unit)} "{unit or "no unit"}" IDENTICAL "%.6g" "{unit}" '
                    f'/end COMPU_METHOD')
+    for m in MEASUREMENTS:
+        if m.names:
+            pairs = " ".join(f'{number} "{name}"' for number, name in m.names)
+            out.append(f'    /begin COMPU_METHOD CM_{m.name} "{m.name} by name" TAB_VERB "%.0f" "" COMPU_TAB_REF '
+                       f'VT_{m.name} /end COMPU_METHOD')
+            out.append(f'    /begin COMPU_VTAB VT_{m.name} "{m.name}\'s names" TAB_VERB {len(m.names)} {pairs} '
+                       f'DEFAULT_VALUE "none" /end COMPU_VTAB')
     for v in values:
         read_only = " READ_ONLY" if v.read_only else ""
         out.append(f'    /begin CHARACTERISTIC {symbol(v.name)} "{v.name} [{v.unit}]" VALUE 0x{v.address:X} '
                    f'Scalar_FLOAT64 0 {_unit_method(v.unit)} {v.lo!r} {v.hi!r}{read_only} /end CHARACTERISTIC')
     for m in MEASUREMENTS:
-        out.append(f'    /begin MEASUREMENT {m.name} "{m.description}" {m.datatype} {_unit_method(m.unit)} 0 0 '
+        method = f"CM_{m.name}" if m.names else _unit_method(m.unit)
+        out.append(f'    /begin MEASUREMENT {m.name} "{m.description}" {m.datatype} {method} 0 0 '
                    f'{m.lo!r} {m.hi!r} ECU_ADDRESS 0x{m.address:X} /end MEASUREMENT')
     group = " ".join(m.name for m in MEASUREMENTS)
     cals = " ".join(symbol(v.name) for v in values)

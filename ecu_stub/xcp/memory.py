@@ -9,7 +9,9 @@
   period runs with it. Values the runner's plausibility checks take at start-up too (:data:`READ_ONLY`) are read
   only: changed in the controller alone, the two would disagree.
 * Measurements, from :data:`MEAS_BASE` (0x20000): the controller's internals after each control period
-  (:meth:`TcuMemory.refresh`), little-endian; written by nobody but the TCU.
+  (:meth:`TcuMemory.refresh`), little-endian; written by nobody but the TCU. ``State`` and ``ActiveClutch`` are the
+  TCU's own numbers (the shipped DBC's value tables, as its UDS DIDs give them and the A2L names them), on any
+  matrix: a binding's ``values`` renumber its frames, not its memory.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any
 
 from ..calibration import SECTIONS, CalibrationError, TcuCalibration
 from ..controller import CreepController
+from ..tcu_io import CLUTCH_VALUES, STATE_VALUES
 
 __all__ = ["CAL_BASE", "MEAS_BASE", "MEASUREMENTS", "READ_ONLY", "CalValue", "Measured", "TcuMemory", "cal_values",
            "tcu_memory"]
@@ -52,7 +55,8 @@ class CalValue:
 
 @dataclass(frozen=True)
 class Measured:
-    """One measurement: ``name``, A2L data type, address, unit, physical range and what it is."""
+    """One measurement: ``name``, A2L data type, address, unit, physical range and what it is; ``names``: by number,
+    the name of each value (a state's), none for a quantity."""
 
     name: str
     datatype: str  # FLOAT32_IEEE, ULONG, UBYTE
@@ -61,6 +65,7 @@ class Measured:
     lo: float
     hi: float
     description: str
+    names: tuple[tuple[int, str], ...] = ()
 
 
 def cal_values() -> tuple[CalValue, ...]:
@@ -93,16 +98,21 @@ _MEASURED = (
     ("P_CH_Cmd", "FLOAT32_IEEE", "MPa", 0, 2, "pressure command of CH (TCU_CMD)"),
     ("Q_CL", "FLOAT32_IEEE", "W", 0, 1e7, "friction power of CL as the TCU estimates it"),
     ("Q_CH", "FLOAT32_IEEE", "W", 0, 1e7, "friction power of CH as the TCU estimates it"),
-    ("State", "UBYTE", "", 0, 255, "controller state (TCU_STATUS.State's value)"),
-    ("ActiveClutch", "UBYTE", "", 0, 255, "clutch carrying the vehicle (TCU_STATUS.ActiveClutch's value)"),
+    ("State", "UBYTE", "", 0, 255, "controller state (the shipped DBC's TCU_STATUS.State value)"),
+    ("ActiveClutch", "UBYTE", "", 0, 255, "clutch carrying the vehicle (the shipped DBC's TCU_STATUS.ActiveClutch "
+                                           "value)"),
     ("BrakeRequest", "UBYTE", "", 0, 1, "full brake requested (TCU_STATUS.BrakeRequest)"),
 )
+
+# the measurements that are a state's number, by name: the TCU's own numbers (its UDS DIDs'), on any matrix
+_NAMES = {"State": STATE_VALUES, "ActiveClutch": CLUTCH_VALUES}
 
 
 def _measurements() -> tuple[Measured, ...]:
     found, address = [], MEAS_BASE
     for name, datatype, unit, lo, hi, description in _MEASURED:
-        found.append(Measured(name, datatype, address, unit, float(lo), float(hi), description))
+        names = tuple(sorted((n, s) for s, n in _NAMES[name].items())) if name in _NAMES else ()
+        found.append(Measured(name, datatype, address, unit, float(lo), float(hi), description, names))
         address += _TYPES[datatype][1]
     return tuple(found)
 
@@ -114,9 +124,9 @@ MEAS_SIZE = _LAYOUT.size
 
 class TcuMemory:
     """The memory map of a :class:`~ecu_stub.controller.CreepController` that ``controller()`` gives (the runner's:
-    a lock-step start replaces it, keeping its calibration). ``states``/``clutches``: the DBC's value tables of
-    TCU_STATUS (the numbers of State and ActiveClutch). :meth:`read` and :meth:`write` answer None / 0 or an XCP
-    error code (:mod:`ecu_stub.xcp.slave`)."""
+    a lock-step start replaces it, keeping its calibration). ``states``/``clutches``: the numbers of State and
+    ActiveClutch by name (the measurements' :attr:`Measured.names`, the TCU's own: :func:`tcu_memory`).
+    :meth:`read` and :meth:`write` answer None / 0 or an XCP error code (:mod:`ecu_stub.xcp.slave`)."""
 
     def __init__(self, controller: Callable[[], CreepController], states: dict[str, int],
                  clutches: dict[str, int]) -> None:
@@ -230,4 +240,6 @@ def tcu_memory(runner: Any) -> TcuMemory:
     if not isinstance(runner.controller, CreepController):
         raise CalibrationError(f"XCP: the TCU's controller is a {type(runner.controller).__name__}, not ecu-stub's "
                                f"CreepController: no memory map for it")
-    return TcuMemory(lambda: runner.controller, dict(runner.states), dict(runner.clutches))
+    # the TCU's own numbers, which the A2L names (not the runner's: those of the matrix's value tables, where its
+    # binding gives values)
+    return TcuMemory(lambda: runner.controller, dict(STATE_VALUES), dict(CLUTCH_VALUES))

@@ -1,7 +1,8 @@
 """ecu-stub as an XCP slave with pyxcp as the master (its python-can transport on python-can's virtual bus, in this
 process): identification and upload, DAQ of the predicted plate temperature each control period against TCU_STATUS,
-a calibration value changed at run time and one refused; the A2L read by pya2ldb; the slave's error packets; the
-lock-step frames of a run with the slave idle."""
+the state and clutch in the TCU's own numbers (the A2L's) on a matrix numbering them otherwise, a calibration value
+changed at run time and one refused; the A2L read by pya2ldb; the slave's error packets; the lock-step frames of a
+run with the slave idle."""
 
 from __future__ import annotations
 
@@ -21,7 +22,9 @@ from dsg_hil.protocol.bus import UDP_MULTICAST, bus_args, fresh_udp_group
 from dsg_hil.sim.run import RunConfig, open_run
 from ecu_stub.calibration import load_calibration
 from ecu_stub.controller import CreepController
+from dsg_hil.protocol.binding import load_binding
 from ecu_stub.runner import TCU_USES, TcuRunner
+from ecu_stub.tcu_io import CLUTCH_VALUES, STATE_VALUES, TcuIO
 from ecu_stub.xcp import DEFAULT_IDS, xcp_slave
 from ecu_stub.xcp.a2l import a2l_text, symbol
 from ecu_stub.xcp.memory import CAL_BASE, MEAS_BASE, MEASUREMENTS, cal_values, tcu_memory
@@ -85,12 +88,17 @@ def pyxcp_master(bus, policy=None, ids=DEFAULT_IDS):
 
 
 @contextmanager
-def xcp_tcu(policy=None):
+def xcp_tcu(policy=None, binding=None):
     """ecu-stub's TCU with its XCP slave serving a fresh virtual bus in a thread (as the ecu-stub process would),
-    and a connected pyxcp master on it: yields (master, TCU, the bus configuration)."""
+    and a connected pyxcp master on it: yields (master, TCU, the bus configuration). ``binding``: the TCU on that
+    loaded binding's matrix (else the shipped DBC)."""
     config = {"interface": "virtual", "channel": f"xcp-{id(object()):x}"}
     bus = can.Bus(**config)
-    tcu = TcuRunner(Codec(DB, TCU_USES), bus, xcp=xcp_slave())
+    if binding is None:
+        tcu = TcuRunner(Codec(DB, TCU_USES), bus, xcp=xcp_slave())
+    else:
+        io = TcuIO(binding)
+        tcu = TcuRunner(Codec(binding.db, io.uses, protection=io.protection), bus, io=io, xcp=xcp_slave())
     stop = threading.Event()
     thread = threading.Thread(target=tcu.run, kwargs={"should_stop": stop.is_set})
     thread.start()
@@ -117,10 +125,11 @@ def read_double(master, address):
     return struct.unpack("<d", bytes(master.fetch(8)))[0]
 
 
-def run_frames(bus=None, tcu=None, on_period=None, duration=3.0):
+def run_frames(bus=None, tcu=None, on_period=None, duration=3.0, **matrix):
     """The frames of a lock-step run of the default scenario (the TCU's XCP frames left out): in this process on
-    the direct bus (``tcu`` a factory, or the bundled TCU), or with the TCU serving ``bus``."""
-    config = RunConfig(duration=duration, capture=True, on_period=on_period,
+    the direct bus (``tcu`` a factory, or the bundled TCU), or with the TCU serving ``bus``; ``matrix``: RunConfig's
+    ``dbc`` and ``binding`` (default: the shipped pair)."""
+    config = RunConfig(duration=duration, capture=True, on_period=on_period, **matrix,
                        **({"bus": bus, "tcu": None} if bus is not None else {"tcu": tcu} if tcu else {}))
     with open_run(config) as run:
         run.run()
@@ -178,6 +187,49 @@ def test_daq_each_period_gives_the_predicted_plate_temperature_on_the_bus():
         assert abs(by_time[t_ms]["T_CL_Pred"] - signals["T_CL_Pred"]) <= step / 2 + 1e-4, t_ms
         assert STATES[by_time[t_ms]["State"]] == str(signals["State"])
     assert max(row["T_CL_Pred"] for row in policy.rows) > min(row["T_CL_Pred"] for row in policy.rows) + 1.0
+
+
+def test_the_state_and_clutch_are_the_a2l_s_on_a_matrix_numbering_them_otherwise(tmp_path):
+    """dct_fd renumbered (CREEP is its 'Creeping' = 3, CL its 'ClutchA' = 0), its binding naming them
+    (tests/sim/test_second_matrix.py): the TCU_Info frames carry the matrix's numbers, XCP's State and ActiveClutch
+    the TCU's own, the ones the A2L's value tables name: at each status frame the A2L's name of the DAQ sample is
+    the state the frame's name stands for (a run through IDLE, ENGAGE and CREEP, both clutches' names)."""
+    from tests.sim.test_second_matrix import renumbered
+
+    dbc, binding_file = renumbered(tmp_path)
+    binding = load_binding(binding_file, dbc=dbc)
+    tables = {m.name: dict(m.names) for m in MEASUREMENTS if m.names}
+    assert tables == {"State": {n: s for s, n in STATE_VALUES.items()},
+                      "ActiveClutch": {n: s for s, n in CLUTCH_VALUES.items()}}
+    a2l = a2l_text()
+    for name, table in tables.items():  # the A2L's value tables are these
+        pairs = " ".join(f'{n} "{s}"' for n, s in sorted(table.items()))
+        assert f"/begin COMPU_VTAB VT_{name} " in a2l and f" {pairs} " in a2l
+    policy = Samples([daq_list("t_ms", "State", "ActiveClutch")])
+    with xcp_tcu(policy, binding) as (master, tcu, bus):
+        policy.setup()
+        policy.start()
+        frames = run_frames(bus, duration=2.0, dbc=str(dbc), binding=str(binding_file))
+        drain(policy, tcu)
+    by_time = {row["t_ms"]: row for row in policy.rows}
+    info = binding.db.get_message_by_name("TCU_Info")
+    # the matrix's name of each of the TCU's states and clutches (the binding's values)
+    theirs = {signal: {str(info.get_signal_by_name(signal).choices[binding.values[quantity][n]]): ours
+                       for ours, n in numbers.items()}
+              for signal, quantity, numbers in (("GbxState", "tcu_state", STATE_VALUES),
+                                                ("ActClutch", "active_clutch", CLUTCH_VALUES))}
+    seen = []
+    for frame_id, data, t in frames:
+        if frame_id != info.frame_id:
+            continue
+        signals, row = info.decode(data), by_time[round(t * 1000)]
+        state, clutch = theirs["GbxState"][str(signals["GbxState"])], theirs["ActClutch"][str(signals["ActClutch"])]
+        assert (tables["State"][row["State"]], tables["ActiveClutch"][row["ActiveClutch"]]) == (state, clutch), t
+        seen.append((state, clutch, info.get_signal_by_name("GbxState").choice_to_number(signals["GbxState"]),
+                     row["State"]))
+    assert len(seen) == 20 and {s for s, *_ in seen} >= {"IDLE", "ENGAGE", "CREEP"}
+    assert {c for _, c, *_ in seen} >= {"NONE", "CL"}
+    assert any(number != ours for *_, number, ours in seen)  # the frame's number is not the TCU's
 
 
 def test_a_calibration_value_changed_at_run_time_changes_the_tcus_behaviour(quiet):
@@ -254,6 +306,15 @@ def test_the_a2l_parses_with_pya2ldb_and_lists_the_memory_map(tmp_path):
     characteristics = {c.name: c for c in session.query(model.Characteristic).all()}
     assert set(characteristics) == {symbol(v.name) for v in cal_values()}
     units = {c.name: c.unit for c in session.query(model.CompuMethod).all()}
+    methods = {c.name: c for c in session.query(model.CompuMethod).all()}
+    tables = {t.name: {int(p.inVal): p.outVal for p in t.pairs} for t in session.query(model.CompuVtab).all()}
+    for m in MEASUREMENTS:  # the state and the clutch by the TCU's names, the numbers its UDS DIDs give
+        method = methods[measurements[m.name].conversion]
+        if m.names:
+            assert method.conversionType == "TAB_VERB" and tables[method.compu_tab_ref.conversionTable] == dict(m.names)
+        else:
+            assert method.conversionType == "IDENTICAL"
+    assert dict(next(m for m in MEASUREMENTS if m.name == "State").names) == {n: s for s, n in STATE_VALUES.items()}
     for v in cal_values():
         c = characteristics[symbol(v.name)]
         assert (c.address, c.lowerLimit, c.upperLimit, units[c.conversion]) == (v.address, v.lo, v.hi, v.unit)
