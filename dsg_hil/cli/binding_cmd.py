@@ -10,9 +10,11 @@ from typing import TYPE_CHECKING
 from . import command_help
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from ..protocol.binding import Binding
 
-__all__ = ["add_subparser", "mapping_rows"]
+__all__ = ["add_subparser", "mapping_rows", "value_rows"]
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -61,6 +63,28 @@ def mapping_rows(binding: Binding) -> list[tuple[str, ...]]:
     return rows
 
 
+def value_rows(binding: Binding) -> list[tuple[str, ...]]:
+    """(quantity, the TCU's name, its number, ``->``, the matrix's number, its name in the signal's value table) of
+    each value of each quantity whose entry gives ``values`` (:data:`dsg_hil.protocol.binding.VALUED`)."""
+    from ..protocol.binding import shipped_numbers  # noqa: PLC0415
+
+    where = {quantity: key for key, (quantity, _) in binding.signals.items()}
+    rows: list[tuple[str, ...]] = []
+    for quantity, numbers in binding.values.items():
+        message, signal = where[quantity]
+        choices: Mapping[int, object] = binding.db.get_message_by_name(message).get_signal_by_name(signal).choices or {}
+        names = {int(number): str(name) for number, name in choices.items()}
+        for ours, number in shipped_numbers(quantity).items():
+            rows.append((quantity, ours, str(number), "->", str(numbers[number]), names[numbers[number]]))
+    return rows
+
+
+def _table(rows: list[tuple[str, ...]]) -> None:
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    for row in rows:
+        print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+
+
 def _do_binding(args: argparse.Namespace) -> int:
     from ..protocol import load_dbc  # noqa: PLC0415 - cantools at run time only
     from ..protocol.binding import BindingError, check_binding  # noqa: PLC0415
@@ -79,10 +103,10 @@ def _do_binding(args: argparse.Namespace) -> int:
             print(f"error: {line}", file=sys.stderr)
         raise BindingError(problems[-1])
     header = ("quantity", "dir", "message.signal", "unit", "resolution", "cycle ms", "protection", "frame")
-    rows: list[tuple[str, ...]] = [header, *mapping_rows(binding)]
-    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
-    for row in rows:
-        print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+    _table([header, *mapping_rows(binding)])
+    if binding.values:  # the numbers of the TCU's states and clutches on the matrix, where its value tables differ
+        print()
+        _table([("values", "TCU", "number", "", "matrix", "name"), *value_rows(binding)])
     print(f"{args.binding}: {len(binding.signals)} quantities on {len(binding.tx) + 1} messages sent, "
           f"{len(binding.rx)} read: no problem")
     return 0

@@ -2,7 +2,9 @@
 every quantity of the plant listed, the ones it needs marked, and under each the database's signals whose unit
 converts to the quantity's, commented out: the ones that can carry its range and resolution first (the narrowest
 range first), then the others with the reason they cannot. The simulation database's messages are added on IDs the
-matrix leaves free, so the truth quantities have their candidates too."""
+matrix leaves free, so the truth quantities have their candidates too. Under a candidate of the TCU's state or
+active clutch (:data:`~.binding.VALUED`) that has a value table, its entry with ``values`` is offered too: each of
+the TCU's names with the table's name guessed for it (``"?"`` where none is), and the table's numbers and names."""
 
 from __future__ import annotations
 
@@ -12,10 +14,10 @@ import re
 import cantools
 from cantools.database.can import Database, Message, Signal
 
-from .binding import QUANTITIES, SIM_DATABASE, add_simulation, conversion, signal_fit
+from .binding import QUANTITIES, SIM_DATABASE, VALUED, add_simulation, conversion, shipped_numbers, signal_fit
 from .ranges import signal_range
 
-__all__ = ["MAX_CANDIDATES", "binding_skeleton", "candidates", "free_simulation_ids"]
+__all__ = ["MAX_CANDIDATES", "binding_skeleton", "candidates", "free_simulation_ids", "guess_values"]
 
 MAX_CANDIDATES = 8  # per quantity, the ones that fit first; the count of the others is said
 # a protection's own fields, not a quantity's
@@ -63,6 +65,48 @@ def _line(quantity: str, message: Message, signal: Signal, unit: str, why: list[
     sender = f", from {', '.join(message.senders)}" if message.senders else ""
     note = f"{unit or 'no unit'}, {cycle}{sender}" + (f": carries {'; '.join(why)}" if why else "")
     return f'#{quantity} = "{message.name}.{signal.name}"  # {note}'
+
+
+def guess_values(quantity: str, choices: dict[int, str]) -> dict[str, str]:
+    """By name of the TCU's (``quantity``'s numbers, :func:`~.binding.shipped_numbers`), the name of the value table
+    ``choices`` that is the same when case and punctuation are left out, or else the one sharing the longest start
+    with it (four letters at least, no other as long); ``"?"`` where none is, or where the name went to another."""
+    def plain(name: str) -> str:
+        return re.sub(r"[^a-z0-9]", "", name.lower())
+
+    def shared(a: str, b: str) -> int:
+        n = 0
+        while n < min(len(a), len(b)) and a[n] == b[n]:
+            n += 1
+        return n
+
+    theirs = [str(name) for name in choices.values()]
+    found: dict[str, str] = {}
+    for ours in shipped_numbers(quantity):
+        same = [t for t in theirs if plain(t) == plain(ours)]
+        if not same:
+            scores = {t: shared(plain(t), plain(ours)) for t in theirs}
+            best = max(scores.values(), default=0)
+            same = [t for t, n in scores.items() if n == best] if best >= 4 else []
+        found[ours] = same[0] if len(same) == 1 and same[0] not in found.values() else "?"
+    return found
+
+
+def _values_line(quantity: str, message: Message, signal: Signal) -> str:
+    """The entry with ``values`` of a candidate with a value table: the TCU's names, the table's guessed for them."""
+    choices = {int(number): str(name) for number, name in (signal.choices or {}).items()}
+    guessed = guess_values(quantity, choices)
+    listed = ", ".join(f'{ours} = "{theirs}"' for ours, theirs in guessed.items())
+    table = ", ".join(f"{number} {name}" for number, name in sorted(choices.items()))
+    if all(choices.get(number) == guessed[ours] for ours, number in shipped_numbers(quantity).items()):
+        note = "numbered as the TCU numbers them: values may stay out"
+    elif "?" in guessed.values():
+        note = "give the table's name of each \"?\"" + (", check the ones guessed" if set(guessed.values()) != {"?"}
+                                                         else "")
+    else:
+        note = "the names guessed: check each"
+    return (f'#{quantity} = {{ signal = "{message.name}.{signal.name}", values = {{ {listed} }} }}  '
+            f"# its values: {table}; {note}")
 
 
 def binding_skeleton(db: Database, source: str) -> str:
@@ -115,7 +159,10 @@ def binding_skeleton(db: Database, source: str) -> str:
             elif not fit:
                 out.append("#   (no signal can carry it; the closest:)")
             shown = fit[:MAX_CANDIDATES] if fit else found[:3]
-            out += [_line(quantity, *c) for c in shown]
+            for message, signal, unit, why in shown:
+                out.append(_line(quantity, message, signal, unit, why))
+                if quantity in VALUED and len(signal.choices or ()) >= len(shipped_numbers(quantity)):
+                    out.append(_values_line(quantity, message, signal))
             if len(fit) > len(shown):
                 out.append(f"#   ... and {len(fit) - len(shown)} more that can carry it")
     return "\n".join(out) + "\n"

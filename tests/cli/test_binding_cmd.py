@@ -78,3 +78,29 @@ def test_every_problem_is_listed(tmp_path, capsys):
     code, out, err = check(tmp_path, capsys, dbc, BINDING.replace('T_CH_pred = "TCU_STATUS.T_CH_Pred"\n', ""))
     assert code == 2 and out == [] and len(err) == 4, err  # the two plates, T_CH_pred, TCU_STATUS's cycle time
     assert all(line.startswith(f"error: {tmp_path / 'b.toml'}: ") for line in err)
+
+
+def test_values_print_the_numbers_of_the_tcu_s_states_and_clutches(tmp_path, capsys):
+    """dct_fd renumbered, its binding naming the TCU's states and clutches in its value tables
+    (tests/sim/test_second_matrix.py): after the mapping, each of the TCU's names, its number, the matrix's number
+    and name (CREEP 2 -> 3 'Creeping', CL 1 -> 0 'ClutchA'); the shipped pair, which gives none, prints no such
+    table."""
+    from tests.sim.test_second_matrix import renumbered
+
+    dbc, binding = renumbered(tmp_path)
+    assert main(["binding", "check", str(dbc), str(binding)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    start = out.index("") + 1
+    assert out[start].split() == ["values", "TCU", "number", "matrix", "name"]
+    rows = [line.split() for line in out[start + 1:-1]]
+    assert rows == [["tcu_state", "IDLE", "0", "->", "1", "Idle"], ["tcu_state", "ENGAGE", "1", "->", "2", "Engaging"],
+                    ["tcu_state", "CREEP", "2", "->", "3", "Creeping"],
+                    ["tcu_state", "HANDOVER", "3", "->", "4", "Handover"],
+                    ["tcu_state", "STOPPED_OVERHEAT", "4", "->", "5", "ThermalStop"],
+                    ["tcu_state", "FAULT", "5", "->", "0", "Fault"],
+                    ["active_clutch", "NONE", "0", "->", "2", "Open"],
+                    ["active_clutch", "CL", "1", "->", "0", "ClutchA"],
+                    ["active_clutch", "CH", "2", "->", "1", "ClutchB"]]
+    assert out[-1].endswith("no problem")
+    code, shipped, _ = check(tmp_path, capsys)
+    assert code == 0 and "" not in shipped and not any(line.startswith("values") for line in shipped)

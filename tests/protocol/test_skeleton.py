@@ -16,7 +16,7 @@ import pytest
 from dsg_hil.cli import main
 from dsg_hil.protocol import load_dbc
 from dsg_hil.protocol.binding import QUANTITIES, check_binding
-from dsg_hil.protocol.skeleton import binding_skeleton, free_simulation_ids
+from dsg_hil.protocol.skeleton import binding_skeleton, free_simulation_ids, guess_values
 
 EXAMPLES = Path(str(resources.files("dsg_hil") / "data" / "examples"))
 PAIRS = {"dct_fd": (EXAMPLES / "dct_fd" / "dct_fd.dbc", EXAMPLES / "dct_fd" / "dct_fd.binding.toml"),
@@ -108,3 +108,59 @@ def test_binding_init_prints_the_skeleton(capsys):
     assert main(["binding", "init", str(dbc)]) == 0
     out = capsys.readouterr().out
     assert out == binding_skeleton(load_dbc(dbc), str(dbc))
+
+
+def values_lines(text: str, quantity: str) -> dict[str, str]:
+    """By signal, the skeleton's commented-out entry of ``quantity`` with ``values`` (the line without its '#')."""
+    return {m.group(2): m.group(1) for m in re.finditer(rf'^#({quantity} = {{ signal = "(\w+\.\w+)", values = .*)$',
+                                                         text, re.M)}
+
+
+def test_a_state_signal_with_a_value_table_gets_its_values_entry(tmp_path):
+    """dct_fd renumbered (tests/sim/test_second_matrix.py: its GbxState 0 'Fault' .. 5 'ThermalStop', ActClutch
+    0 'ClutchA', 1 'ClutchB', 2 'Open'): under GbxState, its entry with the TCU's names, the table's guessed by name
+    ('?' for STOPPED_OVERHEAT, which 'ThermalStop' does not spell), and its numbers; ActClutch's names guess none.
+    Uncommented, each '?' given and the plain entries replaced, the binding checks with the numbers of the variant's
+    own binding. On the shipped DBC the tables are the TCU's numbering: the entry says values may stay out."""
+    from tests.sim.test_second_matrix import NAMES, renumbered
+
+    dbc, _ = renumbered(tmp_path)
+    text = binding_skeleton(load_dbc(dbc), dbc.name)
+    state, clutch = values_lines(text, "tcu_state"), values_lines(text, "active_clutch")
+    assert set(state) == {"TCU_Info.GbxState"} and set(clutch) == {"TCU_Info.ActClutch", "TCU_Info.GbxState"}
+    line = state["TCU_Info.GbxState"]
+    assert 'values = { IDLE = "Idle", ENGAGE = "Engaging", CREEP = "Creeping", HANDOVER = "Handover", ' \
+           'STOPPED_OVERHEAT = "?", FAULT = "Fault" } }' in line
+    assert "# its values: 0 Fault, 1 Idle, 2 Engaging, 3 Creeping, 4 Handover, 5 ThermalStop; give the table's " \
+           'name of each "?", check the ones guessed' in line
+    assert 'values = { NONE = "?", CL = "?", CH = "?" }' in clutch["TCU_Info.ActClutch"]
+    filled = (line.split("  #")[0].replace('"?"', '"ThermalStop"') + "\n"
+              + clutch["TCU_Info.ActClutch"].split("  #")[0].replace('NONE = "?", CL = "?", CH = "?"',
+                                                                   'NONE = "Open", CL = "ClutchA", CH = "ClutchB"'))
+    assert tomllib.loads(filled) == tomllib.loads(NAMES)
+    _, plain = renumbered(tmp_path, None)
+    lines = plain.read_text(encoding="utf-8")
+    (tmp_path / "filled.toml").write_text(lines.replace(
+        'tcu_state = "TCU_Info.GbxState"\nactive_clutch = "TCU_Info.ActClutch"\n', filled + "\n"), encoding="utf-8")
+    found, problems = check_binding(tmp_path / "filled.toml", dbc=dbc)
+    assert problems == [] and found is not None
+    assert found.values == {"tcu_state": {0: 1, 1: 2, 2: 3, 3: 4, 4: 5, 5: 0}, "active_clutch": {0: 2, 1: 0, 2: 1}}
+    shipped = binding_skeleton(load_dbc(), "dsg_hil.dbc")
+    for quantity, ref in (("tcu_state", "TCU_STATUS.State"), ("active_clutch", "TCU_STATUS.ActiveClutch")):
+        assert values_lines(shipped, quantity)[ref].endswith("numbered as the TCU numbers them: values may stay out")
+    assert "values = " not in text.split("# brake_request")[1]  # the state and clutch only
+
+
+@pytest.mark.parametrize("choices, expected", [
+    ({0: "Off", 1: "Starting", 2: "Crawl", 3: "HandOver", 4: "Stopped_Overheat", 5: "Error"},
+     {"IDLE": "?", "ENGAGE": "?", "CREEP": "?", "HANDOVER": "HandOver", "STOPPED_OVERHEAT": "Stopped_Overheat",
+      "FAULT": "?"}),
+    ({0: "Idle", 1: "Idle2", 2: "Creep", 3: "CreepSlow", 4: "x", 5: "y"},  # the same name before a longer one
+     {"IDLE": "Idle", "ENGAGE": "?", "CREEP": "Creep", "HANDOVER": "?", "STOPPED_OVERHEAT": "?", "FAULT": "?"}),
+    ({0: "Engage_A", 1: "Engage_B", 2: "a", 3: "b", 4: "c", 5: "d"},  # ENGAGE: two as near, none guessed
+     {"IDLE": "?", "ENGAGE": "?", "CREEP": "?", "HANDOVER": "?", "STOPPED_OVERHEAT": "?", "FAULT": "?"}),
+])
+def test_guess_values(choices, expected):
+    """The names guessed: the same but for case and punctuation, else the one alone sharing the longest start
+    (four letters at least); '?' else."""
+    assert guess_values("tcu_state", choices) == expected
