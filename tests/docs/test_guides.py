@@ -190,6 +190,20 @@ def test_the_binding_check_prints_the_guide_s_columns(tmp_path: Path) -> None:
     check_shown(shown, done.stdout)
 
 
+def test_the_binding_check_prints_the_guide_s_values(tmp_path: Path) -> None:
+    """The values table the page shows is the check's of a matrix numbering the TCU's states and clutches otherwise
+    (the renumbered dct_fd of tests/sim/test_second_matrix.py, its binding naming them), the command as on the
+    page."""
+    from tests.sim.test_second_matrix import renumbered
+
+    (line,) = sh_block("docs/how-to/binding.md", "dsg-hil binding check my_ecu")
+    dbc, binding = renumbered(tmp_path)
+    done = run(line, tmp_path, {"my_ecu.dbc": str(dbc), "my_ecu.binding.toml": str(binding)})
+    assert done.returncode == 0, done.stderr
+    (shown,) = [b for b in blocks("docs/how-to/binding.md", "text") if b.startswith("values")]
+    check_shown(shown, done.stdout)
+
+
 def test_the_binding_guide_s_run_moves_both_ends(tmp_path: Path) -> None:
     """Its first line with another matrix and its binding for my_ecu's (the renamed pair of
     tests/sim/test_binding_run.py: every name and ID other, km/h, kPa, K): the in-process ecu-stub on that matrix

@@ -137,6 +137,8 @@ ENTRIES = [
       (f"{GUIDES}::test_the_binding_check_prints_the_guide_s_columns",), "the shipped DBC and binding for the user's"),
     E("docs/how-to/binding.md", "quantity           dir", OUTPUT,
       (f"{GUIDES}::test_the_binding_check_prints_the_guide_s_columns",)),
+    E("docs/how-to/binding.md", "values         TCU", OUTPUT,
+      (f"{GUIDES}::test_the_binding_check_prints_the_guide_s_values",)),
     E("docs/how-to/binding.md", "dsg-hil plant -i socketcan -c can0", PARSED, why="a real bus and the user's files"),
     E("docs/how-to/binding.md", "dsg-hil run --dbc my_ecu.dbc", RUN,
       (f"{GUIDES}::test_the_binding_guide_s_run_moves_both_ends",),
