@@ -25,10 +25,13 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                                         "a message or signal not in the database, a unit that does not convert, "
                                         "a range or resolution that cannot carry the quantity's, a quantity the "
                                         "plant needs unmapped, a message without a cycle time, a protection that "
-                                        "does not fit its frame. With none, print the mapping as a table. "
-                                        "init: print a binding's skeleton for the database (every quantity of the "
-                                        "plant, the ones it needs marked, under each the signals that can carry "
-                                        "it, commented out): dsg-hil binding init my_ecu.dbc > my_ecu.binding.toml")
+                                        "does not fit its frame. With none, print the mapping as a table (and "
+                                        "the numbers the matrix sends for the TCU's states and clutches, where "
+                                        "the binding gives values). init: print a binding's skeleton for the "
+                                        "database (every quantity of the plant, the ones it needs marked, under "
+                                        "each the signals that can carry it, commented out; the state's and "
+                                        "clutch's with values where the signal has a value table): "
+                                        "dsg-hil binding init my_ecu.dbc > my_ecu.binding.toml")
     parser.add_argument("action", choices=("check", "init"),
                         help="check: the binding against the database; init: a binding's skeleton for it")
     parser.add_argument("dbc", metavar="DBC", help="the communication matrix (DBC, or ARXML through cantools)")
