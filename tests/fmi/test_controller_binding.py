@@ -68,3 +68,20 @@ def test_the_fmu_s_state_and_clutch_numbers_are_the_binding_s(fmus, tmp_path):
         bus.shutdown()
     """, str(fmus["tcu"]), str(dbc), str(binding))
     assert built == {"states": io.state_values, "clutches": io.clutch_values, "cycle": 0.01, "command": "TCU_Demand"}
+
+
+def test_a_binding_without_a_quantity_the_tcu_reads_stops_a_controller_fmu_at_start(fmus, tmp_path):
+    """As for the bundled ecu-stub: exit 2, one line naming the binding file and the quantity, nothing written
+    (before: "message PLANT_ENGINE is not in the DBC", the shipped DBC's messages looked for)."""
+    binding = tmp_path / "noaccel.binding.toml"
+    text = BINDING.read_text(encoding="utf-8")
+    binding.write_text(text.replace('a_x = "ESP_WheelAccel.LongAcc"\n', ""), encoding="utf-8")
+    assert "a_x" not in binding.read_text(encoding="utf-8")
+    summary = tmp_path / "s.json"
+    done = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-i", "virtual", "--controller", str(fmus["tcu"]),
+                           "--dbc", str(DBC), "--binding", str(binding), "--summary", str(summary)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip().splitlines() == [f"error: {binding}: quantities.a_x: not mapped, and ecu-stub reads it "
+                                                f"(longitudinal acceleration (body + g sin(grade)))"]
+    assert not summary.exists()
