@@ -32,6 +32,7 @@ from cantools.database.can import Database
 
 from ecu_stub.controller import CreepController, TcuInputs, TcuOutputs
 from ecu_stub.runner import TCU_USES, TcuRunner
+from ecu_stub.tcu_io import TcuIO
 
 from ..common.errors import InputError, RunError
 from ..common.files import read_input_file
@@ -155,12 +156,20 @@ class ControllerFmu:
         except Exception as exc:  # noqa: BLE001
             raise RunError(f"controller FMU {self.path}: step at t={now:g} s failed ({exc})") from exc
 
-    def tcu_factory(self, db: Database, bus: can.BusABC) -> TcuRunner:
-        """ecu-stub's bus side with this FMU as its controller (a ``RunConfig.tcu`` factory)."""
-        codec = Codec(db, TCU_USES)
-        self.cycle = codec.cycle_time("TCU_CMD")
+    def tcu_factory(self, db: Database, bus: can.BusABC, io: TcuIO | None = None) -> TcuRunner:
+        """ecu-stub's bus side with this FMU as its controller (a ``RunConfig.tcu`` factory), on the matrix of
+        ``io`` (the run's binding, :mod:`ecu_stub.tcu_io`: its messages, signals, units and the numbers of State
+        and ActiveClutch, which the FMU then reads and writes too; None: the shipped DBC's)."""
+        if io is None:
+            codec = Codec(db, TCU_USES)
+            self.tables = ValueTables()
+        else:
+            codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
+            self.tables = ValueTables(states=io.state_values, clutches=io.clutch_values)
+        command = "TCU_CMD" if io is None else io.names[2]
+        self.cycle = codec.cycle_time(command)
         # TcuRunner is typed for CreepController; FmuController has the interface it uses (update, cal)
-        return TcuRunner(codec, bus, controller=cast(CreepController, FmuController(self)))
+        return TcuRunner(codec, bus, controller=cast(CreepController, FmuController(self)), io=io)
 
     def close(self) -> None:
         if self._fmu is not None:

@@ -39,12 +39,17 @@ _WHOLE = {"fault_bits"}
 
 
 class ValueTables:
-    """The DBC's value tables of TCU_STATUS State and ActiveClutch (name <-> number)."""
+    """The value tables of the TCU's State and ActiveClutch (name <-> number): the shipped DBC's TCU_STATUS (or
+    ``codec``'s), or the run's matrix's (``states``, ``clutches``: {name: number}, as a binding's
+    ``ecu_stub.tcu_io.TcuIO`` gives them, ``state_values`` and ``clutch_values``)."""
 
-    def __init__(self, codec: Codec | None = None) -> None:
-        codec = codec or Codec(load_dbc(), TCU_USES)
-        self.states = choices(codec, "TCU_STATUS", "State")
-        self.clutches = choices(codec, "TCU_STATUS", "ActiveClutch")
+    def __init__(self, codec: Codec | None = None, states: Mapping[str, int] | None = None,
+                 clutches: Mapping[str, int] | None = None) -> None:
+        if states is None or clutches is None:
+            codec = codec or Codec(load_dbc(), TCU_USES)
+            states = states if states is not None else choices(codec, "TCU_STATUS", "State")
+            clutches = clutches if clutches is not None else choices(codec, "TCU_STATUS", "ActiveClutch")
+        self.states, self.clutches = dict(states), dict(clutches)
         self.state_names = {value: name for name, value in self.states.items()}
         self.clutch_names = {value: name for name, value in self.clutches.items()}
 

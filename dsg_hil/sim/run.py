@@ -20,6 +20,7 @@ before the run is set up, :func:`unstarted_summary` writes that of zero periods 
 from __future__ import annotations
 
 import gc
+import inspect
 import itertools
 import json
 import os
@@ -32,7 +33,7 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Literal, Protocol, runtime_checkable
+from typing import IO, Any, Literal, Protocol, cast, runtime_checkable
 
 import can
 import numpy as np
@@ -65,7 +66,9 @@ __all__ = ["ECU_STUB", "EcuStubProcess", "Run", "RunConfig", "TcuFactory", "TcuP
 
 ECU_STUB = "ecu-stub"  # RunConfig.tcu: the bundled TCU, in this process where the bus allows, else as a process
 Mode = Literal["lockstep", "realtime"]
-TcuFactory = Callable[[Database, can.BusABC], Any]  # (db, bus) -> an object with pump(), now, run(...), bus
+# (db, bus) -> an object with pump(), now, run(...), bus; one with a parameter io also gets the TCU's I/O on a
+# binding's matrix (an ecu_stub.tcu_io.TcuIO: Run._check_tcu_factory)
+TcuFactory = Callable[[Database, can.BusABC], Any]
 _channels = itertools.count()
 
 
@@ -144,7 +147,9 @@ class RunConfig:
       in-process bus (:mod:`dsg_hil.protocol.local`). ``direct``: an in-process TCU in lockstep on python-can's
       ``virtual`` interface talks over the direct bus instead (the same frames, faster).
     * ``tcu``: :data:`ECU_STUB` (the bundled TCU: in this process on a direct or ``virtual`` bus, else started
-      as a process), a factory ``(db, bus) -> TCU`` for a TCU object in this process, a :class:`TcuProcess`,
+      as a process), a factory ``(db, bus) -> TCU`` for a TCU object in this process (``(db, bus, io)``: also on a
+      binding's matrix, ``io`` its ``ecu_stub.tcu_io.TcuIO``; one without ``io`` there is an error), a
+      :class:`TcuProcess`,
       or None (none: a TCU runs elsewhere, as for ``dsg-hil plant``). ``calibration``: the bundled TCU's
       calibration TOML (None: the shipped one; ``python -m ecu_stub.identify --write`` makes one), checked at start.
     * ``faults``: fault specs or ``--fault`` strings (None: the scenario's ``[[fault]]`` tables), each on the
@@ -226,6 +231,7 @@ class Run:
         self.interface = bus_name(self.bus_config)
         process = self._tcu_process()
         self._check_bundled_tcu()
+        self._check_tcu_factory()
         self._check_paths()
         # nothing was opened or written up to here: bad input fails before this line
         plant_bus, tcu_bus = self._open_buses(direct)
@@ -278,6 +284,25 @@ class Run:
             self.tcu_io = SHIPPED_TCU
             return
         self.tcu_io = TcuIO(self.binding if self.binding is not None else load_binding(None, db=self.db))
+
+    def _check_tcu_factory(self) -> None:
+        """A factory on a binding's matrix: built with the TCU's I/O of that binding where it takes ``io``
+        (:class:`dsg_hil.fmi.controller.ControllerFmu`'s does); one that takes ``(db, bus)`` only builds the
+        shipped DBC's frames, so it fails here (an InputError naming the binding file) unless the binding leaves
+        the TCU's frames as they are."""
+        tcu = self.config.tcu
+        if tcu is None or isinstance(tcu, str | TcuProcess) or self.binding is None:
+            return
+        from ecu_stub.tcu_io import SHIPPED as SHIPPED_TCU  # noqa: PLC0415 - the TCU's I/O, for a factory
+        from ecu_stub.tcu_io import TcuIO  # noqa: PLC0415
+
+        io = TcuIO(self.binding)
+        if takes_io(tcu):
+            self.tcu_io = io
+        elif any(getattr(io, name) != getattr(SHIPPED_TCU, name) for name in _TCU_FRAMES):
+            raise InputError(f"--binding {self.binding.path}: moves the TCU's frames off the shipped DBC's, and the "
+                             f"controller given (RunConfig.tcu, a factory (db, bus)) builds those; give one taking "
+                             f"io (db, bus, io: an ecu_stub.tcu_io.TcuIO), or run it on the shipped matrix")
 
     def _plant_codec(self) -> Codec:
         """The plant's codec: a DBC without a message or signal the plant sends or reads (the TCU's among them)
@@ -606,10 +631,26 @@ def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Itera
             codec = Codec(tcu_db, tcu_io.uses, reference=reference, protection=tcu_io.protection,
                           timeouts=tcu_io.timeouts)
             return TcuRunner(codec, tcu_bus, controller, io=tcu_io)
+
+        given = False
+    else:
+        given = io is not None  # a factory taking io (Run._check_tcu_factory): on the run's matrix
     built: list[Any] = []  # the TCU, once built: the fault clock reads its time
     tcu_bus, runner.injectors["tcu"] = with_faults(bus, db, faults, fault_seed, lambda: built[0].now)
-    built.append(tcu_factory(db, tcu_bus))
+    built.append(cast(Callable[..., Any], tcu_factory)(db, tcu_bus, io=io) if given else tcu_factory(db, tcu_bus))
     return built[0], tcu_bus
+
+
+def takes_io(factory: Callable[..., Any]) -> bool:
+    """Whether a ``RunConfig.tcu`` factory takes ``io`` (the TCU's I/O on the run's matrix) beside ``(db, bus)``."""
+    try:
+        return "io" in inspect.signature(factory).parameters
+    except (TypeError, ValueError):  # no signature to read (a builtin): (db, bus)
+        return False
+
+
+# what of the TCU's I/O makes its frames (ecu_stub.tcu_io.TcuIO): a binding that changes none leaves them as shipped
+_TCU_FRAMES = ("uses", "names", "inputs", "tx_values", "state_values", "clutch_values", "protection", "timeouts")
 
 
 def _check_alive(proc: subprocess.Popen[bytes], runner: PlantRunner) -> None:

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, TypeGuard
 
 import can
+from cantools.database.can import Database
 import numpy as np
 
 from ..common.errors import InputError
@@ -150,9 +151,17 @@ def _tcu_factory(controller: Any) -> str | TcuFactory:
         return ECU_STUB
     from ecu_stub.interface import TcuController
     from ecu_stub.runner import TCU_USES, TcuRunner
+    from ecu_stub.tcu_io import TcuIO
 
     if isinstance(controller, TcuController):  # ecu-stub's CreepController (any calibration), or its like
-        return lambda db, bus: TcuRunner(Codec(db, TCU_USES), bus, controller)
+        def tcu_runner(db: Database, bus: can.BusABC, io: TcuIO | None = None) -> TcuRunner:
+            """On the run's binding's matrix (``io``), as the bundled ecu-stub; else the shipped DBC's."""
+            if io is None:
+                return TcuRunner(Codec(db, TCU_USES), bus, controller)
+            return TcuRunner(Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts), bus, controller,
+                             io=io)
+
+        return tcu_runner
     if isinstance(controller, Controller):
         return lambda db, bus: PythonControllerTcu(Codec(db, TCU_USES), bus, controller)
     raise TypeError(f"controller: expected None, an ecu-stub CreepController (or an object with update(inputs, now) "
