@@ -650,7 +650,9 @@ def takes_io(factory: Callable[..., Any]) -> bool:
 
 
 # what of the TCU's I/O makes its frames (ecu_stub.tcu_io.TcuIO): a binding that changes none leaves them as shipped
-_TCU_FRAMES = ("uses", "names", "inputs", "tx_values", "state_values", "clutch_values", "protection", "timeouts")
+# what a binding changes of the TCU's frames that a factory (db, bus) cannot follow: their messages, signals and
+# numbers (their protection and timeouts it may set itself, in the codec it builds)
+_TCU_FRAMES = ("uses", "names", "inputs", "tx_values", "state_values", "clutch_values")
 
 
 def _check_alive(proc: subprocess.Popen[bytes], runner: PlantRunner) -> None:
