@@ -730,7 +730,8 @@ class CreepController:
 
     def _read_grade(self, inp: TcuInputs) -> None:
         """The grade's sine from the accelerometer (``LongAccel``: dv/dt + g sin a) while the vehicle stands held
-        (VehicleSpeed 0, or :attr:`still` on a steady reading, the brake requested or pressed: dv/dt is 0), within
+        (VehicleSpeed 0, or :attr:`still`: within the standstill band or steady, the brake requested or pressed:
+        dv/dt about 0; read anew every such cycle, so the last before a launch is the held vehicle's), within
         ``launch.grade_max_rad`` (a faulty reading cannot ask for more than the steepest grade's pre-fill)."""
         if (inp.v_mps == 0.0 or self.still) and (self.brake_request or inp.brake_pct >= BRAKE_PRESSED_PCT):
             s_max = math.sin(self.cal.launch.grade_max_rad)
