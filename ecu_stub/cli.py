@@ -168,7 +168,7 @@ def _write_a2l(args: argparse.Namespace) -> None:
 def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, Any]]:
     """The TCU on its bus, the bus and log closed and the counts printed when ``stack`` closes (however
     serving ends); returns it and the bus configuration."""
-    from dsg_hil.protocol import Codec, load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
+    from dsg_hil.protocol import load_dbc  # noqa: PLC0415 - cantools when serving, not for --help
     from dsg_hil.protocol.binding import BindingError, load_binding  # noqa: PLC0415
     from dsg_hil.protocol.bus import (  # noqa: PLC0415
         FrameLog, bus_config, has_fd, log_channel, open_bus, receive_filters)
@@ -200,7 +200,7 @@ def _set_up(args: argparse.Namespace, stack: ExitStack) -> tuple[Any, dict[str, 
         raise BindingError(f"{args.dbc}: does not fit the shipped binding: give its own (--binding); {exc}") from None
     db, io = binding.db, TcuIO(binding)
     controller = CreepController(calibration, io.matrix_steps)  # (the plausibility checks' steps: the matrix's)
-    codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
+    codec = io.codec(db)
     xcp = _checked_xcp_ids(args, db) if args.xcp else None
     faults = check_faults(faults_from_args(args), db, binding.sides)  # (a side by the binding, as dsg-hil run's)
     if faults["plant"]:

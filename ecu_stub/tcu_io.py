@@ -18,6 +18,7 @@ it; :func:`~dsg_hil.protocol.binding.check_binding` insists on the ones the plan
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cantools.database.can import Database
 
@@ -26,6 +27,9 @@ from dsg_hil.protocol.binding import (QUANTITIES, UNITS, Binding, BindingError, 
 from dsg_hil.protocol.validity import TIMEOUT_CYCLES
 
 from .sensor_checks import MatrixSteps
+
+if TYPE_CHECKING:
+    from dsg_hil.protocol import Codec
 
 __all__ = ["CLUTCH_VALUES", "INPUTS", "OUTPUTS", "SHIPPED", "STATE_VALUES", "TcuIO", "edge", "from_binding", "tcu_io"]
 
@@ -135,6 +139,13 @@ class TcuIO:
     def uses(self) -> dict[str, tuple[str, ...]]:
         """Every message the TCU's codec uses, with its signals: the ones it reads, then the ones it sends."""
         return {**self.rx, **self.tx}
+
+    def codec(self, db: Database, reference: bool = False) -> Codec:
+        """The TCU's codec on ``db``: the messages and signals it uses, their protection and receive timeouts, of
+        this matrix (``reference``: encoded and decoded through cantools, the codec's baseline)."""
+        from dsg_hil.protocol import Codec  # noqa: PLC0415 - cantools' codec, built when a TCU is
+
+        return Codec(db, self.uses, reference=reference, protection=self.protection, timeouts=self.timeouts)
 
     def step(self, quantity: str, default: float = 0.0) -> float:
         """The step of the signal that carries ``quantity``, in the TCU's unit (``default`` if unmapped)."""

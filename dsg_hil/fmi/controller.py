@@ -164,7 +164,7 @@ class ControllerFmu:
             codec = Codec(db, TCU_USES)
             self.tables = ValueTables()
         else:
-            codec = Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts)
+            codec = io.codec(db)
             self.tables = ValueTables(states=io.state_values, clutches=io.clutch_values)
         command = "TCU_CMD" if io is None else io.names[2]
         self.cycle = codec.cycle_time(command)

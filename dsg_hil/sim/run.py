@@ -628,9 +628,7 @@ def attach_tcu(runner: PlantRunner, bus: can.BusABC, db: Database, faults: Itera
         controller = None if calibration is None else CreepController(calibration, tcu_io.matrix_steps)
 
         def tcu_factory(tcu_db: Database, tcu_bus: can.BusABC) -> Any:
-            codec = Codec(tcu_db, tcu_io.uses, reference=reference, protection=tcu_io.protection,
-                          timeouts=tcu_io.timeouts)
-            return TcuRunner(codec, tcu_bus, controller, io=tcu_io)
+            return TcuRunner(tcu_io.codec(tcu_db, reference), tcu_bus, controller, io=tcu_io)
 
         given = False
     else:
@@ -649,7 +647,6 @@ def takes_io(factory: Callable[..., Any]) -> bool:
         return False
 
 
-# what of the TCU's I/O makes its frames (ecu_stub.tcu_io.TcuIO): a binding that changes none leaves them as shipped
 # what a binding changes of the TCU's frames that a factory (db, bus) cannot follow: their messages, signals and
 # numbers (their protection and timeouts it may set itself, in the codec it builds)
 _TCU_FRAMES = ("uses", "names", "inputs", "tx_values", "state_values", "clutch_values")

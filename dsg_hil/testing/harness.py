@@ -158,8 +158,7 @@ def _tcu_factory(controller: Any) -> str | TcuFactory:
             """On the run's binding's matrix (``io``), as the bundled ecu-stub; else the shipped DBC's."""
             if io is None:
                 return TcuRunner(Codec(db, TCU_USES), bus, controller)
-            return TcuRunner(Codec(db, io.uses, protection=io.protection, timeouts=io.timeouts), bus, controller,
-                             io=io)
+            return TcuRunner(io.codec(db), bus, controller, io=io)
 
         return tcu_runner
     if isinstance(controller, Controller):
