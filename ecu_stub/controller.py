@@ -75,7 +75,8 @@ from .clutch_model import heat_w, mu_lookup, nm_per_mpa, pressure_for_torque, sl
 from .monitor import ThermalMonitor, crossover_heat_w, crossover_slip_rpm, release_time_s, worst_slip_rpm
 from .pid import PID
 from .plausibility import DISTANCE_M, HEAL_S, REL_TOL
-from .sensor_checks import N_REL, OIL_FALL_K, P_ABS_MPA, P_REL, MatrixSteps, keyon_undetected_k
+from .sensor_checks import (GAIN_FLOOR_C, N_REL, OIL_FALL_K, P_ABS_MPA, P_REL, MatrixSteps, keyon_undetected_k,
+                            oil_accuracy_at)
 
 __all__ = ["BRAKE_PRESSED_PCT", "CreepController", "FAULT_PLANT_MISSING", "OTHER", "RUNAWAY_FRACTION", "STALL_FRACTION",
            "STALL_S", "TcuInputs", "TcuOutputs"]
@@ -126,12 +127,17 @@ class TcuInputs:
     # measured and the modelled pressure): a launch's brake is not released on a pressure nobody measured
     pressure_trusted: bool = True
     accel_mps2: float = 0.0  # PLANT_VEHICLE.LongAccel: the body's acceleration + g sin(grade) (prefill_force)
+    # the largest oil step the settling check let through at start-up, per degC of its reading, by clutch
+    # (ecu_stub.sensor_checks, OilCheck.undetected_ratio; margin_k)
+    oil_step_ratio_CL: float = 0.0
+    oil_step_ratio_CH: float = 0.0
 
     def __init__(self, plant_valid: bool, engine_speed_rpm: float = 0.0, clutch_in_rpm: float = 0.0,
                  cl_out_rpm: float = 0.0, ch_out_rpm: float = 0.0, v_mps: float = 0.0, P_CL_mpa: float = 0.0,
                  P_CH_mpa: float = 0.0, T_oil_CL_c: float = 25.0, T_oil_CH_c: float = 25.0, T_sump_c: float = 25.0,
                  creep_request: bool = False, brake_pct: float = 0.0, desired_speed_mps: float = 0.0,
-                 fault_bits: int = 0, pressure_trusted: bool = True, accel_mps2: float = 0.0) -> None:
+                 fault_bits: int = 0, pressure_trusted: bool = True, accel_mps2: float = 0.0,
+                 oil_step_ratio_CL: float = 0.0, oil_step_ratio_CH: float = 0.0) -> None:
         # the dataclass's own __init__ written out: built every control period, and setup.py's mypyc build compiles
         # a method written here but not one the dataclass generates (the fields and defaults above, the same)
         self.plant_valid, self.engine_speed_rpm, self.clutch_in_rpm = plant_valid, engine_speed_rpm, clutch_in_rpm
@@ -140,6 +146,7 @@ class TcuInputs:
         self.T_oil_CL_c, self.T_oil_CH_c, self.T_sump_c = T_oil_CL_c, T_oil_CH_c, T_sump_c
         self.creep_request, self.brake_pct, self.desired_speed_mps = creep_request, brake_pct, desired_speed_mps
         self.fault_bits, self.pressure_trusted, self.accel_mps2 = fault_bits, pressure_trusted, accel_mps2
+        self.oil_step_ratio_CL, self.oil_step_ratio_CH = oil_step_ratio_CL, oil_step_ratio_CH
 
     def slip_rpm(self, clutch: str) -> float:
         return self.clutch_in_rpm - (self.cl_out_rpm if clutch == "CL" else self.ch_out_rpm)
@@ -228,6 +235,9 @@ class CreepController:
         self.heat_max = {"CL": 0.0, "CH": 0.0}  # the largest friction power since start-up, its error added [W]
         self.heat_error_k = {"CL": 0.0, "CH": 0.0}  # the prediction's error from undetected heat errors [K] (margin_k)
         self.oil_error_k: float | None = None  # an oil reading's undetected error, from the key-on readings (margin_k)
+        self.oil_keyon_ratio = 0.0  # that error per degC of the key-on oil: a gain's (margin_k)
+        self.oil_step_ratio = {"CL": 0.0, "CH": 0.0}  # the settling check's undetected step per degC (margin_k)
+        self.oil_low_c = {"CL": math.inf, "CH": math.inf}  # the lowest oil reading after start-up [degC] (margin_k)
 
     def recalibrate(self, cal: TcuCalibration) -> None:
         """Run on with ``cal`` from the next cycle (a calibration value changed at run time, :mod:`ecu_stub.xcp`),
@@ -269,9 +279,22 @@ class CreepController:
         if self.first_seen is None:
             self.first_seen = now
             self.oil_error_k = self.keyon_oil_error_k(inp)
+            hi = max(inp.T_oil_CL_c, inp.T_oil_CH_c, inp.T_sump_c)
+            hi -= oil_accuracy_at(hi)  # the coldest the key-on oil may truly have been
+            self.oil_keyon_ratio = self.oil_error_k / (hi if hi > GAIN_FLOOR_C else GAIN_FLOOR_C)
+        ratio = self.oil_step_ratio
+        if inp.oil_step_ratio_CL > ratio["CL"]:
+            ratio["CL"] = inp.oil_step_ratio_CL
+        if inp.oil_step_ratio_CH > ratio["CH"]:
+            ratio["CH"] = inp.oil_step_ratio_CH
         if self.starting(now):
             self.T_pred = {c: self.observed_plate_c(c, inp) for c in ("CL", "CH")}
             return
+        low = self.oil_low_c
+        if inp.T_oil_CL_c < low["CL"]:
+            low["CL"] = inp.T_oil_CL_c
+        if inp.T_oil_CH_c < low["CH"]:
+            low["CH"] = inp.T_oil_CH_c
         T_pred, heat, cal, clutch_in = self._T_pred, self.heat, self.cal, self.input_rpm(inp)
         heat_max, heat_error = self.heat_max, self.heat_error_k
         mu_of = mu_lookup(cal.friction)
@@ -448,10 +471,36 @@ class CreepController:
         (:attr:`oil_frame_s`, the matrix's) at the largest heat since start-up (its undetected error
         added), in which a step hides; and :attr:`heat_error_k`, the prediction's own model driven by the heat's
         undetected error (:meth:`heat_error_fraction` x Q): C de/dt = dQ - K e, at most dQ / K."""
+        return self.cal.strategy.prediction_error_k + self.oil_margin_k(clutch) + self.heat_error_k[clutch]
+
+    def oil_margin_k(self, clutch: str) -> float:
+        """The margin's term for the clutch's oil reading [K] (docs/safety.md): one fault on the sensor, an offset or
+        a gain (a reading g T in degC, its error (1 - g) T growing with T), present at key-on or beginning later,
+        the larger of the two.
+
+        * At key-on: :attr:`oil_error_k`, or as a gain that error per degC of the key-on oil
+          (:attr:`oil_keyon_ratio`) at ``T_safe``.
+        * Later, on a sensor within its class (``strategy.oil_accuracy_k``): a step the fall check lets through,
+          :data:`~ecu_stub.sensor_checks.OIL_FALL_K` plus the plate's rise over one oil frame (:attr:`oil_frame_s`)
+          at the largest heat since start-up (its undetected error added), in which a step hides; as a gain, that
+          step per degC of the lowest reading since start-up (:attr:`oil_low_c`) at ``T_safe``; or the step the
+          settling check let through at start-up (:attr:`oil_step_ratio`), a gain at ``T_safe``."""
         s, c, oil = self.cal.strategy, self.cal.clutch(clutch), self.oil_error_k
-        return (s.prediction_error_k + (s.oil_accuracy_k if oil is None else oil) + OIL_FALL_K
-                + self.heat_max[clutch] / c.C_plate_j_k * self.oil_frame_s
-                + self.heat_error_k[clutch])
+        T_safe = s.T_safe_c
+        keyon = s.oil_accuracy_k if oil is None else oil
+        gain = self.oil_keyon_ratio * T_safe
+        step = OIL_FALL_K + self.heat_max[clutch] / c.C_plate_j_k * self.oil_frame_s
+        low = self.oil_low_c[clutch]
+        ratio = step / (low if low > GAIN_FLOOR_C else GAIN_FLOOR_C) if low < math.inf else 0.0
+        if self.oil_step_ratio[clutch] > ratio:
+            ratio = self.oil_step_ratio[clutch]
+        later = ratio * T_safe
+        if step > later:
+            later = step
+        later += s.oil_accuracy_k
+        if gain > keyon:
+            keyon = gain
+        return keyon if keyon > later else later
 
     def limit(self, clutch: str, heat_w: float | None = None, worst_w: float | None = None) -> float:
         """Predicted plate temperature at which the clutch must start handing over [degC]: T_safe - :meth:`margin_k`

@@ -139,7 +139,8 @@ class TcuRunner:
                 {c: k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) for c, k in (("CL", cal.CL), ("CH", cal.CH))},
                 {c: k.K_plate_oil_w_k * k.cooling_w_k / (k.K_plate_oil_w_k + k.cooling_w_k) / k.C_plate_j_k
                  for c, k in (("CL", cal.CL), ("CH", cal.CH))},
-                FALL_START_TAU * cal.strategy.startup_observer_s / 5.0, matrix.max_dt_s, matrix.oil_frame_s)
+                FALL_START_TAU * cal.strategy.startup_observer_s / 5.0, cal.strategy.startup_observer_s / 5.0,
+                matrix.max_dt_s, matrix.oil_frame_s)
         # cycles whose thermal input a check replaced, by signal (ecu_stub.sensor_checks)
         self.implausible = {"VehicleSpeed": 0, "speeds": 0, "CLOutputSpeed": 0, "CHOutputSpeed": 0,
                             **dict.fromkeys(CHECKED, 0)}
@@ -217,7 +218,7 @@ class TcuRunner:
             else:
                 ch_out, self.implausible["CHOutputSpeed"] = v_mps / vote.speed_ratio_ch_m / CV.RPM_TO_RAD_S, \
                     self.implausible["CHOutputSpeed"] + 1
-        trusted = True
+        trusted, ratio_CL, ratio_CH = True, 0.0, 0.0
         if (checks := self.sensor_checks) is not None:
             P_CL, P_CH, clutch_in, T_CL, T_CH, failing = checks.check(
                 P_CL, P_CH, clutch_in, engine, T_CL, T_CH, T_sump,
@@ -227,8 +228,9 @@ class TcuRunner:
                 for name in failing:
                     self.implausible[name] += 1
                 trusted = "P_CL" not in failing and "P_CH" not in failing
+            ratio_CL, ratio_CH = checks.oil["CL"].undetected_ratio, checks.oil["CH"].undetected_ratio
         return TcuInputs(True, engine, clutch_in, cl_out, ch_out, v_mps, P_CL, P_CH, T_CL, T_CH, T_sump, creep >= 0.5,
-                         pedal, desired, faults, trusted, accel)
+                         pedal, desired, faults, trusted, accel, ratio_CL, ratio_CH)
 
     def _brake_mps2(self, pedal_pct: float, now: float) -> float:
         """The most deceleration a brake may add now [m/s^2] (the speed vote's step check,

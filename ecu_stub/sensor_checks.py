@@ -102,15 +102,16 @@ rate (at the plate estimate), failing once it passes ``OIL_FALL_K``.
   rounded each way) and 0.3 K for a real sensor's noise (assumed).
 * It starts ``FALL_START_TAU`` = 8 oil time constants (1.6 s) after the first cycle: a cold pack in hot oil settles
   from the sump's temperature to its plate's within the start-up observer's five (e^-5 of 110 K is 0.7 K, of the
-  eighth 0.04 K).
+  eighth 0.04 K). Before, the settling check (6) judges the reading.
 * Reaction: the reading is not trusted again until the TCU restarts (a latched fault: a step does not come back,
   so healing on agreement would trust the offset reading 2 s later); the hottest credible value as in 3 (the
   plate's own estimate: no cooling assumed).
 
 What it does not see: a step within ``OIL_FALL_K`` plus the plate's rise over one PLANT_OIL_TEMP frame (100 ms; a
 step during a fast heating hides in it), a drift slower than ``FALL_GAIN`` x the passive cooling, and an offset
-present when it starts (check 5). The strategy's margin budgets the first and the last
-(:meth:`ecu_stub.controller.CreepController.margin_k`); the drift stays assumed away (docs/safety.md).
+present when it starts (check 5). The strategy's margin budgets the first, as an offset and as a gain grown from
+the lowest reading to T_safe, and the last (:meth:`ecu_stub.controller.CreepController.oil_margin_k`); the drift
+stays assumed away (docs/safety.md).
 
 **5. The oil temperatures at key-on vs each other** (:meth:`SensorChecks.check`, ``keyon``). Once the TCU runs, an
 oil sensor's offset is unobservable: the oil leaving a pack sits at its plate's balance, and nothing else the TCU
@@ -132,12 +133,36 @@ before a second PLANT_OIL_TEMP frame can have (``now`` < :data:`OIL_FRAME_S`, th
 * Undetected: with at least one of the other two sensors healthy (not reading more than a(T) low), a pack's reading
   passes only if it is at most :func:`keyon_undetected_k` = tolerance + a(T) + q below the truth (2.55 K at
   100 degC); an offset keeps that error as the plate heats, and the margin budgets it (``margin_k``). A gain g
-  (reading g T in degC) passes with (1 - g) T0 within it and its error then grows with T / T0: not budgeted.
+  (reading g T in degC) passes with (1 - g) T0 within it and its error then grows with T / T0: the margin budgets
+  it grown to T_safe, from the coldest the key-on oil may have been (``oil_margin_k``).
 * Reaction: as the fall check's (latched), but the plate estimate that the substitute keeps is started from the
   hottest a plate may start (:data:`START_PLATE_MAX_C`, the operating range's) or the readings, the larger: the
   flagged clutch's plate is unobservable, so it is predicted adiabatic from the hottest credible start. Until the
   fall check's start (after the start-up observer) the substitute is that start (or a hotter reading) alone: the
   observer, which adds cooling / K of the oil's excess over the sump, would otherwise grow on its own estimate.
+
+**6. The oil settling after key-on** (:class:`SettleCheck`, until the fall check starts). The oil leaving a pack
+leaves the key-on temperature for its balance with the plate as an exponential of the pack's oil time constant
+C_oil / (K + cooling) (0.17-0.18 s by ``strategy.startup_observer_s``' derivation; the plant's readings shrink by
+0.553-0.558 per 100-ms frame, 0.17 s). Its changes from frame to frame form a geometric row, whatever the plate's
+temperature, which the TCU does not know yet. So, in whole oil frames (a frame's jitter in real time ignored; a
+frame without a change is a change of 0 K):
+
+* each change against the one before, carried by :func:`settle_factor` at a time constant between
+  :data:`SETTLE_TAU_LO` (0.75) x and 1 x the calibration's ``startup_observer_s`` / 5 (0.15-0.2 s): lower than
+  that is a step now; higher, while no friction heat can come (the start-up observer's window: the TCU does not
+  creep), is a step in the change before (a fall that stops dead, a rise that grows);
+* while no heat can come, three changes in a row of one sign against c2^2 = c1 c3, in kelvin of the middle change
+  (its step that explains the difference): this needs no time constant, so a step in the middle one is seen to
+  within its quantisation, and one in the first (the key-on frame's change, which has no change before it) to
+  within 2 / R of that.
+* Tolerance: two half DBC steps per change (0.1 K) plus the plate's passive cooling over it (x ``FALL_GAIN``), on
+  each change the comparison takes; the excess adds up in a CUSUM that fails past ``OIL_FALL_K`` (latched, as 4).
+* What passes, per change: the time constant's spread on the change before plus the slack and the bound, or, once
+  a geometric row checked it, the row's tolerance and the bound (x 2 / R for the first change). Per degC of the
+  reading (at least :data:`GAIN_FLOOR_C`), its largest value is :attr:`SettleCheck.ratio`: a gain beginning
+  while the oil settled, which the margin grows to T_safe (``CreepController.oil_margin_k``). On the plant, without a
+  sensor fault, the CUSUM stayed under 0.18 K over 60 starts from plates of 30-250 degC in oil of 30-160 degC.
 
 Not covered: a value stuck at what the redundant information says (a sensor frozen at its last value while nothing
 changes); for the oil, all three sensors low together at key-on (a common-mode fault), and a TCU whose first frames
@@ -152,10 +177,11 @@ from dataclasses import dataclass, field
 
 from .plausibility import MAX_DT_S, Sustained
 
-__all__ = ["ANGLE_RAD", "CHECKED", "CLASS_ABS_K", "CLASS_REL", "FALL_GAIN", "FALL_START_TAU", "InputSpeedCheck",
-           "MatrixSteps", "N_ABS_RPM", "N_REL", "OIL_FALL_K", "OIL_FRAME_S", "OIL_KS", "OIL_Q_K", "OIL_TOL_K",
-           "OilCheck", "P_ABS_MPA", "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "START_PLATE_MAX_C", "SensorChecks",
-           "keyon_tolerance_k", "keyon_undetected_k", "oil_accuracy_at"]
+__all__ = ["ANGLE_RAD", "CHECKED", "CLASS_ABS_K", "CLASS_REL", "FALL_GAIN", "FALL_START_TAU", "GAIN_FLOOR_C",
+           "InputSpeedCheck", "MatrixSteps", "N_ABS_RPM", "N_REL", "OIL_FALL_K", "OIL_FRAME_S", "OIL_KS", "OIL_Q_K",
+           "OIL_TOL_K", "OilCheck", "P_ABS_MPA", "P_IMPULSE_MPA_S", "P_REL", "PressureCheck", "SETTLE_TAU_LO",
+           "START_PLATE_MAX_C", "SensorChecks", "SettleCheck", "keyon_tolerance_k", "keyon_undetected_k",
+           "oil_accuracy_at", "settle_factor"]
 
 P_ABS_MPA = 0.02  # pressure sensor accuracy: 1 % of the DBC's 2-MPa range [MPa]
 P_REL = 0.05  # the valve's gain [1]
@@ -168,6 +194,8 @@ OIL_KS = 2.0  # integral of the oil's deficit beyond OIL_TOL_K [K s]
 OIL_FALL_K = 0.5  # a reading's fall beyond FALL_GAIN x the plate's passive cooling: two DBC steps + 0.3 K noise [K]
 FALL_GAIN = 2.0  # the plate's passive cooling K_eff (T - T_sump) / C by the calibration, x2 for what it leaves out [1]
 FALL_START_TAU = 8.0  # the fall check starts 8 oil time constants (startup_observer_s / 5 each) after the first cycle
+SETTLE_TAU_LO = 0.75  # the oil's time constant is at least 0.75 x the calibration's startup_observer_s / 5 [1]
+GAIN_FLOOR_C = 10.0  # a gain's relative error is taken at no colder reading than this (module docstring, 6) [degC]
 OIL_FRAME_S = 0.1  # PLANT_OIL_TEMP's cycle time (DBC): a step hides in the plate's rise over one frame [s]
 CLASS_ABS_K = 0.3  # an oil sensor's accuracy, IEC 60751 class B: +-(0.3 K + 0.005 |T|) (the calibration's
 CLASS_REL = 0.005  # strategy.oil_accuracy_k is it at T_safe)
@@ -206,6 +234,14 @@ def keyon_tolerance_k(T_hi_c: float) -> float:
     """The most two healthy oil sensors read one temperature apart at key-on [K], at the highest reading ``T_hi_c``:
     2 a(T) + 2 q (module docstring, 5)."""
     return 2.0 * oil_accuracy_at(T_hi_c) + 2.0 * OIL_Q_K
+
+
+def settle_factor(prev_s: float, span_s: float, tau_s: float) -> float:
+    """A settling reading's change over ``span_s`` per unit of its change over the ``prev_s`` before, for an
+    exponential approach with time constant ``tau_s`` (module docstring, 6): e^(-a) (1 - e^(-b)) / (1 - e^(-a)),
+    a = prev_s / tau_s, b = span_s / tau_s; e^(-a) for equal spans."""
+    a, b = math.exp(-prev_s / tau_s), math.exp(-span_s / tau_s)
+    return a * (1.0 - b) / (1.0 - a)
 
 
 def keyon_undetected_k(T_hi_c: float) -> float:
@@ -258,6 +294,104 @@ class InputSpeedCheck:
 
 
 @dataclass(slots=True)
+class SettleCheck:
+    """The oil leaving a pack while it settles after key-on (module docstring, 6): each change of the reading (in
+    whole oil frames) against the one before, carried by an exponential of time constant between
+    :data:`SETTLE_TAU_LO` x ``tau_s`` and ``tau_s``, and, while no friction heat can come (``quiet_s``, the
+    start-up observer's window: the TCU does not creep), three changes in a row against a geometric sequence and a
+    fall against stopping dead. What each change may have hidden, per degC of its reading, is :attr:`ratio`."""
+
+    tau_s: float  # the calibration's time constant of the oil in a pack (startup_observer_s / 5) [s]
+    frame_s: float  # the oil frame's refresh [s]
+    quiet_s: float  # no friction heat before this, after the first reading [s]
+    start: float | None = None  # the first reading's time [s]
+    last_c: float = 0.0  # the reading at the last change [degC]
+    changed_at: float = 0.0  # the last change's time (a frame without a change counts as one of 0 K) [s]
+    changes: list[float] = field(default_factory=list)  # the changes so far [K] (+ a rise)
+    spans: list[int] = field(default_factory=list)  # each one's span [oil frames]
+    hides: list[float] = field(default_factory=list)  # the step each may hide [K] (inf: not checked)
+    temps: list[float] = field(default_factory=list)  # the reading after each [degC]
+    k: float = 0.0  # the excess beyond what a settling reading does, a CUSUM [K]
+    largest: float = 0.0  # its largest value (how close a run without a sensor fault came)
+    failed: bool = False  # it passed OIL_FALL_K (latched by the caller)
+    ratio: float = 0.0  # the largest of hides / reading [1 per degC] (GAIN_FLOOR_C the least reading)
+
+    def update(self, oil: float, cooling_k_s: float, now: float) -> bool:
+        """One cycle: the reading ``oil`` [degC] and the plate's largest passive cooling ``cooling_k_s`` [K/s]
+        (FALL_GAIN x K_eff (T - T_sump) / C). Returns True once failed."""
+        if self.start is None:
+            self.start, self.changed_at, self.last_c = now, now, oil
+            return False
+        frame = self.frame_s
+        frames = round((now - self.changed_at) / frame)
+        if oil == self.last_c:
+            if frames >= 2:  # a frame passed without a change: a change of 0 K one frame after the last
+                self._change(0.0, 1, oil, cooling_k_s, self.changed_at + frame)
+            return self.failed
+        self._change(oil - self.last_c, frames if frames > 1 else 1, oil, cooling_k_s, now)
+        self.last_c = oil
+        return self.failed
+
+    def _change(self, c: float, span: int, oil: float, cooling_k_s: float, at: float) -> None:
+        """Judge the change ``c`` [K] over ``span`` frames, ending at ``at`` [s]."""
+        changes, spans, hides = self.changes, self.spans, self.hides
+        quiet = at - (self.start if self.start is not None else at) < self.quiet_s
+        q = 2.0 * OIL_Q_K + cooling_k_s * span * self.frame_s  # a change's error: two half steps, the plate's drift
+        hide, excess = math.inf, -math.inf
+        if changes:
+            prev, prev_span = changes[-1], spans[-1]
+            hi = settle_factor(prev_span * self.frame_s, span * self.frame_s, self.tau_s)
+            lo = settle_factor(prev_span * self.frame_s, span * self.frame_s, SETTLE_TAU_LO * self.tau_s)
+            slack = q * (1.0 + hi)
+            least, most = (prev * hi, prev * lo) if prev < 0.0 else (prev * lo, prev * hi)
+            excess = least - slack - c  # moved lower than a settling reading can: stepped low now
+            if quiet:  # moved higher: the change before stepped low (a fall that stops dead, a rise grown)
+                higher = c - most - slack
+                if higher > excess:
+                    excess = higher
+                if c == 0.0 and prev < 0.0 and len(changes) == 1:  # the first change alone: a lone step's bound
+                    bound = (slack + OIL_FALL_K) / lo
+                    if bound < hides[0]:
+                        hides[0] = bound
+            hide = (hi - lo) * abs(prev) + slack + OIL_FALL_K
+            if len(changes) >= 2 and quiet and span == prev_span == spans[-2] == 1:
+                older = changes[-2]
+                if older * prev > 0.0 and prev * c > 0.0 and abs(prev) > q:  # three in a row, one way: c2^2 = c1 c3
+                    dev = (prev * prev - older * c) / (2.0 * abs(prev))  # the step of the middle that explains it
+                    tol = q * (2.0 * abs(prev) + abs(older) + abs(c)) / (2.0 * abs(prev))
+                    geometric = abs(dev) - tol
+                    if geometric > excess:
+                        excess = geometric
+                    verified = tol + OIL_FALL_K
+                    if verified < hides[-1]:
+                        hides[-1] = verified  # the middle one, checked with the sensitivity 1
+                    if len(changes) == 2:  # the first, an outer one: a step in it moves dev by R / 2 of it
+                        outer = 2.0 * verified * abs(older) / abs(prev)
+                        if outer < hides[0]:
+                            hides[0] = outer
+        elif span > 1:
+            hide, excess = q + OIL_FALL_K, -c - q  # the first change after a settled frame or more: any fall
+        k = self.k + excess if excess > -math.inf else self.k
+        self.k = k = k if k > 0.0 else 0.0
+        if k > self.largest:
+            self.largest = k
+        if k > OIL_FALL_K:
+            self.failed = True
+        changes.append(c)
+        spans.append(span)
+        hides.append(hide)
+        self.temps.append(oil)
+        self.changed_at = at
+        ratio = 0.0
+        for h, T in zip(hides, self.temps):
+            if h < math.inf:
+                r = h / (T if T > GAIN_FLOOR_C else GAIN_FLOOR_C)
+                if r > ratio:
+                    ratio = r
+        self.ratio = ratio
+
+
+@dataclass(slots=True)
 class OilCheck:
     """The oil leaving one clutch vs its balance with the plate estimate and the sump, and its fall vs the plate's
     fastest passive cooling (module docstring, 3 and 4); degC. ``sump_share``: cooling / (K + cooling) of that
@@ -267,6 +401,8 @@ class OilCheck:
     sump_share: float
     cooling_per_s: float = 0.0
     fall_from_s: float = 0.0
+    settle_tau_s: float = 0.0  # the oil's time constant by the calibration (0: no settling check) [s]
+    frame_s: float = OIL_FRAME_S  # the oil frame's refresh: the first change within 1.5 of it is key-on's [s]
     check: Sustained = field(default_factory=lambda: Sustained(OIL_KS, one_sided=True))
     first_now: float | None = None  # the first cycle [s]
     last_oil: float | None = None  # the reading of the last cycle [degC]
@@ -276,17 +412,38 @@ class OilCheck:
     keyon_failed: bool = False  # read too low at key-on (module docstring, 5): not trusted in this operation cycle
     keyon_at: float | None = None  # the key-on check's time [s]
     start_c: float = START_PLATE_MAX_C  # the plate's hottest credible start: START_PLATE_MAX_C or the key-on readings
+    settle: SettleCheck | None = None  # the settling check (module docstring, 6), with settle_tau_s
+
+    def __post_init__(self) -> None:
+        if self.settle_tau_s > 0.0:
+            self.settle = SettleCheck(self.settle_tau_s, self.frame_s, 5.0 * self.settle_tau_s)
+
+    @property
+    def undetected_ratio(self) -> float:
+        """The largest oil step the settling check let through, per degC of the reading [1] (0: no such check)."""
+        return self.settle.ratio if self.settle is not None else 0.0
 
     def update(self, oil: float, sump: float, plate: float | None, dt: float, now: float) -> tuple[bool, float]:
         """(failing, the oil temperature to use [degC]); ``plate``: the TCU's estimate, None before it has one (then
         nothing is checked)."""
         balance = oil if plate is None else plate + self.sump_share * (sump - plate)
+        settle = self.settle
+        if settle is not None and settle.start is None:  # the first reading, with or without a plate estimate
+            settle.update(oil, 0.0, now)
         failing = self.check.update(balance - oil, OIL_TOL_K, dt, now)
         if plate is not None and self.cooling_per_s > 0.0:
             if self.first_now is None:
                 self.first_now = now
             last, self.last_oil = self.last_oil, oil
-            if last is not None and now - self.first_now >= self.fall_from_s:
+            if now - self.first_now < self.fall_from_s:
+                if settle is not None:
+                    above = plate - sump
+                    if settle.update(oil, FALL_GAIN * self.cooling_per_s * (above if above > 0.0 else 0.0), now) \
+                            and self.fell_at is None:
+                        self.fell_at = now
+                    if settle.largest > self.largest_fall_k:
+                        self.largest_fall_k = settle.largest
+            elif last is not None:
                 above = plate - sump  # the plate's passive cooling, max() written out
                 fall = self.fall_k + (last - oil) - FALL_GAIN * self.cooling_per_s * (above if above > 0.0 else 0.0) \
                     * dt
@@ -316,6 +473,7 @@ class SensorChecks:
     sump_share: dict[str, float]  # by clutch: cooling / (K + cooling) of the calibration
     cooling_per_s: dict[str, float] = field(default_factory=dict)  # by clutch: K_eff / C (none: no fall check)
     fall_from_s: float = 0.0  # the fall check's start after the first cycle [s]
+    settle_tau_s: float = 0.0  # the oil's time constant by the calibration: the settling check before (0: none) [s]
     max_dt_s: float = MAX_DT_S  # a cycle counts at most this long (MatrixSteps.max_dt_s) [s]
     oil_frame_s: float = OIL_FRAME_S  # the oil frame's refresh: the key-on check's first frame (MatrixSteps) [s]
     last_now: float | None = None
@@ -332,8 +490,8 @@ class SensorChecks:
         """Forget the history (a restarted run)."""
         self.pressure = {c: PressureCheck(self.lag_s, self.q_p_mpa) for c in ("CL", "CH")}
         self.speed = InputSpeedCheck(self.input_ratio, self.q_n_rpm)
-        self.oil = {c: OilCheck(self.sump_share[c], self.cooling_per_s.get(c, 0.0), self.fall_from_s)
-                    for c in ("CL", "CH")}
+        self.oil = {c: OilCheck(self.sump_share[c], self.cooling_per_s.get(c, 0.0), self.fall_from_s,
+                                self.settle_tau_s, self.oil_frame_s) for c in ("CL", "CH")}
         self.last_now, self.cmd_mpa, self.keyon_checked = None, {"CL": 0.0, "CH": 0.0}, False
 
     def commanded(self, P_CL_mpa: float, P_CH_mpa: float) -> None:

@@ -218,7 +218,7 @@ ENTRIES = [
     E("docs/safety.md", "B_c = T_pred,c", FORMULA, why="the thermal monitor's bound (ecu_stub/monitor.py)"),
     E("docs/safety.md", "T_pred ≥ T_safe", FORMULA, why="the hand-over limit (CreepController.limit)"),
     E("docs/safety.md", "f = P_REL", FORMULA, why="the heat's error (CreepController.heat_error_fraction)"),
-    E("docs/safety.md", "e_c   = prediction_error_k", FORMULA, why="the margin's term (CreepController.margin_k)"),
+    E("docs/safety.md", "e_c     = prediction_error_k", FORMULA, why="the margin's term (CreepController.margin_k)"),
     E("docs/safety.md", "dsg-hil run --summary s.json --fault 'offset:", PARSED,
       why="two default-scenario runs; tests/ecu_stub/test_sensor_checks.py runs such faults closed-loop"),
     E("docs/safety.md", "dsg-hil sweep dsg_hil/data/sweeps/safety.toml --n 1000", PARSED,

@@ -225,7 +225,9 @@ def test_limit_is_t_safe_minus_prediction_error_minus_crossover_rise():
     # the undetected heat error
     e = ctrl.margin_k("CL")
     assert ctrl.limit("CL") == pytest.approx(s.T_safe_c - e - ctrl.heat_scale("CL") * rise, rel=1e-9)
-    assert 0.0 < e + ctrl.heat_scale("CL") * rise < 15.0  # no giving up early: the hotter clutch used to within 15 K
+    # no giving up early: the hotter clutch used to within 20 K (15 K before the margin budgeted an oil gain's growth,
+    # docs/safety.md: about 2.5 K more here)
+    assert 0.0 < e + ctrl.heat_scale("CL") * rise < 20.0
 
 
 def test_the_margin_of_a_launch_budgets_the_crossover_not_the_launch():
@@ -571,7 +573,10 @@ def test_the_margin_budgets_the_errors_the_checks_let_through_by_hand():
     identified error, the oil sensors' accuracy, the fall check's step and the plate's rise over one oil frame at
     the largest heat seen; the oil sensors' undetected error from key-on at the highest key-on reading, 100 degC:
     the key-on check's tolerance 2 (0.3 + 0.005 x 100) + 2 x 0.05 K, one healthy sensor's 0.8 K low, the reading's
-    half step, 2.55 K (more than the class's 1.55 K at T_safe)."""
+    half step, 2.55 K (more than the class's 1.55 K at T_safe). An oil fault is an offset or a gain (g T in degC):
+    from key-on, 2.55 K of a key-on oil at least 100 - 0.8 degC, grown to T_safe; later, on a sensor within its
+    class (1.55 K), the fall check's step, grown from the lowest reading (100 degC) to T_safe; the larger of the
+    two."""
     ctrl, clock = creeping()
     inp = replace(CREEP, P_CL_mpa=0.6, v_mps=0.2)
     ctrl.heat_error_k["CL"] = 0.0
@@ -586,9 +591,12 @@ def test_the_margin_budgets_the_errors_the_checks_let_through_by_hand():
     run(ctrl, clock, inp, 20.0)
     assert ctrl.heat_error_k["CL"] == pytest.approx(f * Q / c.K_plate_oil_w_k, rel=1e-4)  # steady state
     assert ctrl.heat_max["CL"] >= Q * (1.0 + f) * (1.0 - 1e-9)
-    assert ctrl.margin_k("CL") == pytest.approx(
-        s.prediction_error_k + 2.55 + OIL_FALL_K + ctrl.heat_max["CL"] / c.C_plate_j_k * 0.1
-        + f * Q / c.K_plate_oil_w_k, rel=1e-4)
+    step = OIL_FALL_K + ctrl.heat_max["CL"] / c.C_plate_j_k * 0.1
+    keyon, later = 2.55 / (100.0 - 0.8) * 250.0, 1.55 + step * 250.0 / 100.0
+    assert 6.4 < keyon < 6.45 and 6.0 < later < 7.0
+    assert ctrl.oil_margin_k("CL") == pytest.approx(max(keyon, later), rel=1e-9)
+    assert ctrl.margin_k("CL") == pytest.approx(s.prediction_error_k + max(keyon, later) + f * Q / c.K_plate_oil_w_k,
+                                                rel=1e-4)
     # and the monitor's and crossover's powers scaled by the same fraction, at the command's pressure
     P = max(ctrl.P_cmd["CL"], 0.6)
     assert ctrl.heat_scale("CL") == pytest.approx(1.0 + 0.05 + 0.02 / P + dn / 100.0, rel=1e-12)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import pytest
 
 from dsg_hil.physics.params import load_params, with_overrides
+from dsg_hil.protocol import Codec
 from dsg_hil.sim.loop import run_closed_loop
 from dsg_hil.sim.run import RunConfig, open_run
 from dsg_hil.sim.scenario import parse_scenario
@@ -16,6 +17,8 @@ from dsg_hil.sweep.page import HANDOVER_DRIVABLE_PCT
 from dsg_hil.sweep.space import SAFETY_SPACE, load_space
 from dsg_hil.sweep.verdict import LIMITS
 from dsg_hil.testing import run_plant
+from ecu_stub.controller import CreepController
+from ecu_stub.runner import TCU_USES, TcuRunner
 
 from .sample_runs import RUNS as SAMPLE_RUNS
 
@@ -35,12 +38,36 @@ def worst_case(duration, events, grade=GRADE, idle=800.0, T_CL=100.0, T_CH=100.0
     return parse_scenario(text + faults, "worst case")
 
 
+# a clutch is used to within this of T_safe - its margin (margin_k) before a stop: the crossover's and the
+# monitor's allowance for the heat until a release (about 5-7.5 K in the cases below)
+USED_WITHIN_K = 10.0
+
+
 def creep(duration, events, grade=GRADE, idle=800.0, T_CL=100.0, T_CH=100.0, T_oil=100.0, faults="", mass=1.0):
     """Summary of a closed-loop run of :func:`worst_case` (``mass``: a factor on the vehicle's)."""
+    return creep_margin(duration, events, grade, idle, T_CL, T_CH, T_oil, faults, mass)[0]
+
+
+def creep_margin(duration, events, grade=GRADE, idle=800.0, T_CL=100.0, T_CH=100.0, T_oil=100.0, faults="",
+                 mass=1.0):
+    """:func:`creep` and the TCU's thermal margin ``margin_k`` of each clutch at the run's end [K]."""
     params = load_params()
     if mass != 1.0:
         params = with_overrides(params, {"vehicle.m": params.vehicle.m * mass})
-    return run_closed_loop(worst_case(duration, events, grade, idle, T_CL, T_CH, T_oil, faults), params).summary
+    return closed_loop_margin(worst_case(duration, events, grade, idle, T_CL, T_CH, T_oil, faults), params)
+
+
+def closed_loop_margin(scenario, params):
+    """(summary, the bundled TCU's ``margin_k`` of each clutch at the end [K]) of a closed-loop run."""
+    tcus: list[TcuRunner] = []
+
+    def factory(db, bus):
+        tcus.append(TcuRunner(Codec(db, TCU_USES), bus))
+        return tcus[0]
+    run = run_closed_loop(scenario, params, tcu_factory=factory)
+    controller = tcus[0].controller
+    assert isinstance(controller, CreepController)
+    return run.summary, {c: controller.margin_k(c) for c in ("CL", "CH")}
 
 
 def test_light_brake_drag_across_a_handover_decision_keeps_the_true_plate_under_t_safe():
@@ -51,11 +78,12 @@ def test_light_brake_drag_across_a_handover_decision_keeps_the_true_plate_under_
     plain = creep(10.0, [(1.0, True, 0.0, V_CREEP)], **hot)
     assert plain["handovers"] and plain["handovers"][0]["from"] == "CL"
     t_decision = plain["handovers"][0]["t_s"] - 0.1  # TCU_STATUS every 100 ms: decided within the period before
-    dragged = creep(t_decision + 4.0, [(1.0, True, 0.0, V_CREEP), (round(t_decision - 0.3, 2), True, 0.047, V_CREEP)],
-                    **hot)
+    dragged, margin = creep_margin(t_decision + 4.0, [(1.0, True, 0.0, V_CREEP),
+                                                      (round(t_decision - 0.3, 2), True, 0.047, V_CREEP)], **hot)
     assert dragged["max_plate_temp_c"]["CL"] <= T_SAFE_C and dragged["time_above_limit_s"]["CL"] == 0.0
     assert dragged["min_margin_c"]["truth"] >= 0.0
-    assert dragged["max_plate_temp_c"]["CL"] >= 240.0  # CL was used to its limit, not given up early
+    # CL was used to its limit, not given up early (>= 240 degC before the margin budgeted an oil gain's growth)
+    assert dragged["max_plate_temp_c"]["CL"] >= T_SAFE_C - margin["CL"] - USED_WITHIN_K
     # the monitor released CL faster than its share: CH takes the rest, so the vehicle, braked by the drag, is not
     # driven to an overshoot by a wound-up integral (before: 0.302 m/s, +46 %; now 0.231 m/s)
     assert dragged["max_speed_creep_mps"] <= 1.2 * V_CREEP
@@ -116,6 +144,15 @@ def sweep_run(inputs):
     task = load_space(SAFETY_SPACE).task(0, inputs)
     return run_plant(scenario=parse_scenario(task["scenario"], task["run_id"]), params=task["params"],
                      faults=task["faults"], log=None).summary
+
+
+def sweep_run_margin(inputs):
+    """:func:`sweep_run` in one process with the bundled TCU: (summary, the TCU's thermal margin ``margin_k`` of each
+    clutch at the run's end [K]: the errors it budgets, docs/safety.md)."""
+    task = load_space(SAFETY_SPACE).task(0, inputs)
+    assert not task["faults"]
+    return closed_loop_margin(parse_scenario(task["scenario"], task["run_id"]),
+                              with_overrides(load_params(), task["params"]))
 
 
 @pytest.mark.slow
@@ -191,20 +228,23 @@ def test_sample_found_a_clutch_that_cannot_carry_the_vehicle_stops_it_rather_tha
     pressure limit CH slowed the vehicle to 9 mm/s and held it there, heating at 7.5 K/s, until the driver withdrew
     the request (the sweep's standstill: creep requested, vehicle at rest, no stop). CL too hot, CH too weak: the
     TCU stops (brake held) once the force has stayed at CH's capacity with the vehicle under half its target."""
-    s = sweep_run({"duration_s": 20.0, "grade_rad": 0.17519253268197146, "engine_speed_rpm": 1486.4046314130019,
-                   "initial.T_clutch_c": 52.37771165391007, "initial.T_oil_c": 87.79366488680176,
-                   "params.vehicle.m": 11037.077433300437, "driver.behaviour": "creep_toggles",
-                   "driver.desired_speed_mps": 0.28723038538861795, "driver.toggle_s": 19.358877229205213,
-                   "driver.toggle_brake": False, "driver.drag_level": 0.051262641830609273,
-                   "driver.drag_onset_s": 47.31397985738239, "driver.drag_duration_s": 142.37711020942905})
+    s, margin = sweep_run_margin({
+        "duration_s": 20.0, "grade_rad": 0.17519253268197146, "engine_speed_rpm": 1486.4046314130019,
+        "initial.T_clutch_c": 52.37771165391007, "initial.T_oil_c": 87.79366488680176,
+        "params.vehicle.m": 11037.077433300437, "driver.behaviour": "creep_toggles",
+        "driver.desired_speed_mps": 0.28723038538861795, "driver.toggle_s": 19.358877229205213,
+        "driver.toggle_brake": False, "driver.drag_level": 0.051262641830609273,
+        "driver.drag_onset_s": 47.31397985738239, "driver.drag_duration_s": 142.37711020942905
+    })
     # since CARRY_MARGIN, CH (its modelled capacity within 10 % of the force) is not handed the vehicle at all: CL
     # carries on to the monitor's stop
     assert s["handovers"] == []
     assert s["stop_reason"] == "STOPPED_OVERHEAT"  # before: vehicle_stopped at 17.1 s, creep requested
     assert s["tcu_stop_time_s"] <= 17.1  # before the vehicle came to rest under the creep request
     # CL used to its limit first (not giving up early): >= 235 degC before the margin budgeted the sensor errors the
-    # checks let through (docs/safety.md), 234.1 degC since
-    assert s["max_plate_temp_c"]["CL"] >= 233.0
+    # checks let through (docs/safety.md), 234.1 degC since, 221.4 degC since it budgets an oil gain's growth (the
+    # oil cold in a heavy launch: a step hidden in a frame's rise, grown to T_safe; 22 K of margin here)
+    assert s["max_plate_temp_c"]["CL"] >= T_SAFE_C - margin["CL"] - USED_WITHIN_K
     assert s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["rollback_guarded_m"] <= LIMITS["rollback_m"]
 
 
@@ -213,11 +253,15 @@ def test_sample_found_a_clutch_whose_partner_cannot_carry_is_used_to_the_monitor
     CL's handover limit at this power is low (the crossover's heat allowance, about 17 K), CH could not give the
     33 kN, and the TCU stopped at CL's handover limit with the hotter plate at 233.5 degC (issue 18: used to >= 235
     degC before a stop). With no handover possible the allowance is moot: CL carries on until the monitor stops."""
-    s = sweep_run({"duration_s": 25.0, "grade_rad": 0.24610819144805687, "engine_speed_rpm": 1745.994521005034,
-                   "initial.T_clutch_c": 41.21347795847542, "params.vehicle.m": 10254.863273226438,
-                   "driver.behaviour": "creep", "driver.desired_speed_mps": 0.34408601910639397})
+    s, margin = sweep_run_margin({
+        "duration_s": 25.0, "grade_rad": 0.24610819144805687, "engine_speed_rpm": 1745.994521005034,
+        "initial.T_clutch_c": 41.21347795847542, "params.vehicle.m": 10254.863273226438,
+        "driver.behaviour": "creep", "driver.desired_speed_mps": 0.34408601910639397
+    })
     assert s["handovers"] == [] and s["stop_reason"] == "STOPPED_OVERHEAT"
-    assert 235.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C  # before: 233.54 degC
+    # before: 233.54 degC, the handover limit (its allowance about 17 K); 218.4 degC since the margin budgets an oil
+    # gain's growth (26 K here: a 52-kW launch from 48 degC)
+    assert T_SAFE_C - margin["CL"] - USED_WITHIN_K <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C
     assert s["rollback_guarded_m"] <= LIMITS["rollback_m"]
 
 
@@ -387,16 +431,19 @@ def test_sample_found_a_monitor_stop_ramps_the_carrying_clutch_out_while_the_bra
     pressure alone passed the bound) and the vehicle rolled back at 11.8 mm/s until the brake request arrived. The
     last cycle's bound covered a ramp out from CL's pressure (the monitor's release time): CL ramps out from there,
     and its true plate stays under T_safe."""
-    s = sweep_run({"duration_s": 10.0, "grade_rad": 0.2173161195629991, "engine_speed_rpm": 1312.6709870121167,
-                   "initial.T_clutch_c": 106.66386279423396, "initial.T_oil_c": 74.24440042503818,
-                   "params.vehicle.m": 11435.443055083473, "driver.behaviour": "speed_changes",
-                   "driver.desired_speed_mps": 0.06401120822173016, "driver.speed_2_mps": 0.20450472768118222,
-                   "driver.change_s": 17.206233897063274, "driver.drag_level": 0.04206448351398612,
-                   "driver.drag_onset_s": 146.70062291890727, "driver.drag_duration_s": 181.6071015444852})
+    s, margin = sweep_run_margin({
+        "duration_s": 10.0, "grade_rad": 0.2173161195629991, "engine_speed_rpm": 1312.6709870121167,
+        "initial.T_clutch_c": 106.66386279423396, "initial.T_oil_c": 74.24440042503818,
+        "params.vehicle.m": 11435.443055083473, "driver.behaviour": "speed_changes",
+        "driver.desired_speed_mps": 0.06401120822173016, "driver.speed_2_mps": 0.20450472768118222,
+        "driver.change_s": 17.206233897063274, "driver.drag_level": 0.04206448351398612,
+        "driver.drag_onset_s": 146.70062291890727, "driver.drag_duration_s": 181.6071015444852
+    })
     assert s["stop_reason"] == "STOPPED_OVERHEAT" and s["handovers"] == []
     assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS  # before: -11.8 mm/s at 8.7 s
     # (235 degC before the margin budgeted the sensor errors the checks let through, docs/safety.md)
-    assert 233.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["time_above_limit_s"]["CL"] == 0.0
+    assert T_SAFE_C - margin["CL"] - USED_WITHIN_K <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C
+    assert s["time_above_limit_s"]["CL"] == 0.0
 
 
 def test_sample_found_a_partner_at_its_capacity_is_not_handed_the_vehicle():
@@ -405,15 +452,17 @@ def test_sample_found_a_partner_at_its_capacity_is_not_handed_the_vehicle():
     gave 8 % less than the map says and the vehicle slowed from 0.28 to 0.01 m/s (handover_deviation_pct 92.6)
     before the stall rule stopped it. CH must carry with CARRY_MARGIN to spare, so CL carries on to the monitor's
     stop, the speed held."""
-    s = sweep_run({"duration_s": 12.0, "grade_rad": 0.2198423841179961, "engine_speed_rpm": 1774.9569517945345,
-                   "initial.T_clutch_c": 121.39856965158725, "initial.T_oil_c": 51.05841232418737,
-                   "params.vehicle.m": 11043.488571026677, "driver.behaviour": "stop_and_go",
-                   "driver.desired_speed_mps": 0.2840411088274388, "driver.creep_s": 56.44340329119722,
-                   "driver.stop_s": 4.362994694889822})
+    s, margin = sweep_run_margin({
+        "duration_s": 12.0, "grade_rad": 0.2198423841179961, "engine_speed_rpm": 1774.9569517945345,
+        "initial.T_clutch_c": 121.39856965158725, "initial.T_oil_c": 51.05841232418737,
+        "params.vehicle.m": 11043.488571026677, "driver.behaviour": "stop_and_go",
+        "driver.desired_speed_mps": 0.2840411088274388, "driver.creep_s": 56.44340329119722,
+        "driver.stop_s": 4.362994694889822
+    })
     assert s["handovers"] == [] and s["stop_reason"] == "STOPPED_OVERHEAT"  # before: CL -> CH at 6.4 s
     assert s["tcu_stop_time_s"] <= 9.4  # the stop comes no later than the stall's (at 9.4 s, the vehicle at 8 mm/s)
     # (235 degC before the margin budgeted the sensor errors the checks let through, docs/safety.md)
-    assert 233.0 <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C
+    assert T_SAFE_C - margin["CL"] - USED_WITHIN_K <= s["max_plate_temp_c"]["CL"] <= T_SAFE_C
 
 
 # the 5,000-run sample's slowest, steepest handovers to a cool CH (sample_runs.RUNS), up to 2 s after it
@@ -522,3 +571,40 @@ def test_launches_at_the_ranges_ends_roll_back_at_most_10_mm_s(grade, mass, peda
     s = run_closed_loop(parse_scenario(text, "launch"), params).summary
     assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS and s["rollback_m"] <= 0.05
     assert s["max_speed_creep_mps"] >= 0.5 * V_CREEP
+
+
+R00374 = {"grade_rad": 0.08122283983515138, "engine_speed_rpm": 1978.2588912952815,
+          "initial.T_clutch_c": 71.879546123436, "initial.T_oil_c": 96.07614737877678,
+          "params.vehicle.m": 7334.714846476076, "driver.behaviour": "creep_toggles",
+          "driver.desired_speed_mps": 0.22546866288533488, "driver.creep_s": 12.739187099341976,
+          "driver.stop_s": 12.912121108958987, "driver.drag_level": 0.04715347508644651,
+          "driver.drag_onset_s": 81.31601247311403, "driver.drag_duration_s": 156.9704664595582,
+          "driver.speed_2_mps": 0.21402532227824927, "driver.change_s": 58.278625242687355,
+          "driver.toggle_s": 3.8528318902267946, "driver.toggle_brake": False, "driver.stop_at_s": 153.90637455610806,
+          "driver.pause_s": 59.45124603603561, "latent": "gain:PLANT_OIL_TEMP.T_OilCH@1.035-,value=0.9272"}
+
+
+@pytest.mark.slow
+def test_proof_found_an_oil_gain_beginning_while_the_oil_settles_keeps_the_true_plate_under_t_safe():
+    """7.3 t on 0.081 rad, creep-request toggles, T_OilCH reading 7.3 % low (a gain: 0.9272 T in degC) from 1.035 s
+    (the safety proof's batch 103, r00374, on the TCU of 5a14f67): the step came while the oil settled after key-on,
+    before the fall check starts (1.6 s), and the oil balance check lets 7 K through; as CH heated the error grew
+    to 17 K, and CH's true plate reached 254.1 degC under a prediction of 237.0. The settling check catches the
+    step (a settling reading moves as its time constant says), and the margin budgets a gain's growth."""
+    s = sweep_run(R00374)
+    assert max(s["max_plate_temp_c"].values()) <= T_SAFE_C and s["min_margin_c"]["truth"] >= 0.0
+
+
+@pytest.mark.parametrize("fault", [
+    "gain:PLANT_OIL_TEMP.T_OilCL@1.035-,value=0.9272",  # before: 258.57 degC
+    "gain:PLANT_OIL_TEMP.T_OilCL@0.5-,value=0.9",  # 10 %, before the creep begins; before: 268.22 degC
+    "offset:PLANT_OIL_TEMP.T_OilCL@0.55-,value=-7",  # within the oil balance check's 10 K; before: 247.54, unflagged
+])
+def test_an_oil_step_while_the_oil_settles_after_key_on_is_caught(fault):
+    """The default scenario (plates and oil at 100 degC), an oil reading stepping low between the key-on check (the
+    first frame) and the fall check's start (1.6 s): before, nothing saw it (CL's true plate at the degC noted);
+    the settling check flags it and the plate is predicted without cooling."""
+    run = run_plant(log=None, faults=[fault])
+    s = run.summary
+    assert s["max_plate_temp_c"]["CL"] <= T_SAFE_C and s["min_margin_c"]["truth"] >= 0.0
+    assert s["max_plate_temp_c"]["CL"] < 225.0  # flagged: CL handed over early, its plate predicted adiabatic

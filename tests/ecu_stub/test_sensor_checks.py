@@ -17,8 +17,8 @@ from ecu_stub.plausibility import HEAL_S
 from ecu_stub.runner import TCU_USES, TcuRunner
 from ecu_stub.sensor_checks import (ANGLE_RAD, FALL_GAIN, N_ABS_RPM, OIL_FALL_K, OIL_FRAME_S, OIL_KS, OIL_TOL_K,
                                     P_ABS_MPA, P_IMPULSE_MPA_S, P_REL, START_PLATE_MAX_C, InputSpeedCheck, OilCheck,
-                                    PressureCheck, SensorChecks, keyon_tolerance_k, keyon_undetected_k,
-                                    oil_accuracy_at)
+                                    PressureCheck, SensorChecks, SettleCheck, keyon_tolerance_k, keyon_undetected_k,
+                                    oil_accuracy_at, settle_factor)
 
 DT = 0.01  # TCU_CMD cycle [s]
 LAG = 0.05  # strategy.hydraulic_lag_s [s]
@@ -205,6 +205,71 @@ def test_the_fall_check_waits_for_the_oil_to_settle_at_start_up():
     out = [check.update(150.0 - 100.0 * (1.0 - math.exp(-k * DT / 0.2)), 150.0, 40.0, DT, k * DT) for k in range(160)]
     assert first_failing(out) is None  # 100 K of fall within the window
     assert first_failing([check.update(49.0, 150.0, 40.0, DT, 1.6 + k * DT) for k in range(1, 3)]) == 0  # judged
+
+
+# ---- 6. the oil settling after key-on ---------------------------------------------------------------------------
+
+TAU_OIL = 0.17  # the plant's pack oil: its readings' changes at start-up shrink by 0.553-0.558 per 100-ms frame
+TAU_CAL = 0.2  # the calibration's: startup_observer_s / 5
+
+
+def settling(T0: float, T_bal: float, seconds: float = 1.6, tau: float = TAU_OIL, fault=None):
+    """Readings of a pack's oil settling from ``T0`` to ``T_bal`` with ``tau``, in 0.1-K steps every 100 ms, read
+    every 10 ms; ``fault(t, T)`` the reading then. A SettleCheck on them (no plate cooling): (check, failed at)."""
+    check, failed = SettleCheck(TAU_CAL, OIL_FRAME_S, 5.0 * TAU_CAL), None
+    for k in range(round(seconds / DT)):
+        t = k * DT
+        frame_t = (k // 10) * OIL_FRAME_S
+        T = T_bal + (T0 - T_bal) * math.exp(-frame_t / tau)
+        T = round((fault(frame_t, T) if fault is not None else T) * 10.0) / 10.0
+        if check.update(T, 0.0, t) and failed is None:
+            failed = t
+    return check, failed
+
+
+def test_settle_factor_by_hand():
+    """Equal spans: e^(-a); a change over two frames after one over one: e^(-a) (1 + e^(-a))."""
+    R = math.exp(-0.1 / 0.2)
+    assert settle_factor(0.1, 0.1, 0.2) == pytest.approx(R, rel=1e-12) and 0.606 < R < 0.607
+    assert settle_factor(0.1, 0.2, 0.2) == pytest.approx(R * (1.0 + R), rel=1e-12)
+
+
+@pytest.mark.parametrize(("T0", "T_bal"), [(150.0, 40.0), (160.0, 30.0), (30.0, 160.0), (96.0, 72.0), (100.0, 100.0)])
+def test_a_settling_oil_passes_the_settling_check(T0, T_bal):
+    """A cold pack in hot oil and the reverse, up to 130 K apart, at the plant's time constant and at the ends of
+    the band the check allows (0.75-1 of the calibration's 0.2 s)."""
+    for tau in (TAU_OIL, SETTLE_TAU_LO_S, TAU_CAL):
+        check, failed = settling(T0, T_bal, tau=tau)
+        assert failed is None and check.largest < OIL_FALL_K, (tau, check.largest)
+
+
+SETTLE_TAU_LO_S = 0.75 * TAU_CAL
+
+
+@pytest.mark.parametrize(("T0", "T_bal"), [(150.0, 40.0), (30.0, 160.0), (100.0, 100.0), (72.0, 96.0)])
+@pytest.mark.parametrize("onset", [0.05, 0.25, 0.55, 1.05])
+def test_an_oil_step_while_the_oil_settles_is_caught(T0, T_bal, onset):
+    """A reading stepping 2 K low (a gain of 2-3 % at these temperatures) at ``onset``, settling or not: before, the
+    fall check started only after 8 oil time constants (1.6 s) and nothing saw it. In the first frame after key-on
+    (0.05 s) it hides in the first change: the geometric check of the first three changes catches it (a step in
+    the outer one moves it by R / 2: caught beyond about 2.6 K, 4 K here), for a settled start the fall that stops
+    dead."""
+    step = 4.0 if onset < OIL_FRAME_S and T0 != T_bal else 2.0
+    check, failed = settling(T0, T_bal, fault=lambda t, T: T - step if t >= onset else T)
+    assert failed is not None and failed >= onset, (T0, T_bal, onset)
+
+
+def test_what_the_settling_check_lets_through_is_budgeted_per_degc():
+    """A settled start: each frame's change may hide the slack (two half steps over both changes) and the CUSUM's
+    bound, per degC of the reading: (0.1 (1 + e^(-0.5)) + 0.5) / 100 at 100 degC. A cold pack in hot oil: the first
+    change (key-on's frame) is judged as the outer one of three in a geometric row, the rest as middles."""
+    check, _ = settling(100.0, 100.0)
+    assert check.changes == [0.0] * len(check.changes) and len(check.changes) == 15
+    R = math.exp(-0.5)
+    assert check.ratio == pytest.approx((0.1 * (1.0 + R) + OIL_FALL_K) / 100.0, rel=1e-9)
+    cold, _ = settling(150.0, 40.0)
+    assert cold.hides[0] < 3.0 and all(h < 1.0 for h in cold.hides[1:])  # the first within 3 K, the rest 1 K
+    assert cold.ratio < 0.03 and cold.ratio == max(h / T for h, T in zip(cold.hides, cold.temps))
 
 
 def test_a_repaired_sensor_is_trusted_again_after_the_heal_time():

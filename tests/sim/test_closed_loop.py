@@ -26,6 +26,7 @@ from dsg_hil.testing import PlantRun, run_plant
 from ecu_stub.calibration import TcuCalibration
 from ecu_stub.controller import CreepController
 from ecu_stub.runner import TCU_USES, TcuRunner
+from ecu_stub.sensor_checks import keyon_undetected_k, oil_accuracy_at
 
 T_SAFE = 250.0
 
@@ -125,9 +126,13 @@ def test_hot_cl_hands_over_to_ch_and_the_truth_stays_under_250(hot_run, request)
     assert max(trace.T_CL) <= T_SAFE and max(trace.T_CH) <= T_SAFE
     # and not given up early: CL was used to within 15 K of the limit; in the heavy, fast launch within 20 K since the
     # margin budgets the sensor errors the plausibility checks let through, which grow with a launch's heat
-    # (docs/safety.md: handed over at 230.4 degC, 238.1 before)
+    # (docs/safety.md: handed over at 230.4 degC, 238.1 before); plus what the margin grew by when it came to budget
+    # an oil gain from key-on grown to T_safe (3.1 K from a key-on at 120 degC: handed over at 234.3 degC on the paper's
+    # grade)
     used_k = 20.0 if request.node.callspec.id == "steep, fast, heavy" else 15.0
-    assert s["handovers"][0]["T_CL_c"] >= T_SAFE - used_k
+    T0 = HOT[request.node.callspec.id][2]
+    gain_k = keyon_undetected_k(T0) * (T_SAFE / (T0 - oil_accuracy_at(T0)) - 1.0)
+    assert s["handovers"][0]["T_CL_c"] >= T_SAFE - used_k - gain_k
 
 
 def test_speed_stays_within_20_percent_of_its_target_through_the_handover(hot_run, request):
