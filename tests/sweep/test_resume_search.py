@@ -293,9 +293,11 @@ def test_a_search_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(t
     assert sorted((p.name, p.stat().st_mtime_ns) for p in out.rglob("*")) == state
 
 
-def _stored_search(tmp_path: Path, values: list[float | None], violation: int | None = None):
+def _stored_search(tmp_path: Path, values: list[float | None], violation: int | None = None,
+                   lost: tuple[int, ...] = ()):
     """A search's folder as a search leaves it: one trial per value (None: a failed run), proposed by a study of
-    its own, its record in OUT/runs; and that study's trials."""
+    its own, its record in OUT/runs (but those of the indices ``lost``: in flight when it was killed); and that
+    study's trials."""
     import optuna
 
     from dsg_hil.sweep.results import ResultStore
@@ -311,8 +313,9 @@ def _stored_search(tmp_path: Path, values: list[float | None], violation: int | 
         row = {"run_id": task["run_id"], "index": index, **{f"in.{k}": str(v) for k, v in task["inputs"].items()},
                "verdict": "error" if value is None else "violation" if index == violation else "ok",
                "violations": "plate" if index == violation else "", "max_plate_temp_c": value}
-        store.add({"run_id": task["run_id"], "row": row, "summary": None, "log": None, "traceback": None,
-                   "task": task})
+        if index not in lost:
+            store.add({"run_id": task["run_id"], "row": row, "summary": None, "log": None, "traceback": None,
+                       "task": task})
         study.tell(trial, value, state=None if value is not None else optuna.trial.TrialState.FAIL)
     store.flush()
     return space, tmp_path / "out", study.trials
@@ -363,3 +366,17 @@ def test_a_search_does_not_resume_onto_a_sampled_sweep_or_past_its_budget(tmp_pa
         path.rename(path.with_name("r" + path.name[1:]))  # as if a sampled sweep's, from before OUT/sweep.json
     with pytest.raises(InputError, match=f"--resume --search: {out} holds a sampled sweep, not a search"):
         run_search(space, out, budget=16, resume=True)
+
+
+def test_a_resumed_search_runs_first_the_indices_that_were_in_flight_when_it_was_killed(tmp_path):
+    """Killed with several runs in flight, a search leaves gaps in its indices: the resumed one runs those first,
+    then the next, so that its indices end as an uninterrupted search's (s00000..s00004), each run once."""
+    from dsg_hil.sweep.search import run_search
+
+    space, out, _ = _stored_search(tmp_path, [120.0, 150.5, 131.0, 99.0], lost=(2,))
+    before = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in (out / "runs").glob("*.json")}
+    result = run_search(space, out, budget=5, resume=True, workers=1)
+    assert result.ran == 2 and result.skipped == 3 and result.search["runs"] == 5
+    after = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in (out / "runs").glob("*.json")}
+    assert all(after[name] == stored for name, stored in before.items())
+    assert [name.split("-")[0] for name in sorted(after)] == [f"s{i:05d}" for i in range(5)]
