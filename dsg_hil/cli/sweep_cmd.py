@@ -37,7 +37,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                        "(tcp://HOST:8786; default: DASK_SCHEDULER_ADDRESS, else a local cluster)")
     parser.add_argument("--resume", action="store_true",
                         help="keep the runs already in --out, run the rest (without --n: the sweep's own n; a larger "
-                             "--n extends a Sobol sweep, a Latin hypercube needs the same --n)")
+                             "--n extends a Sobol sweep, a Latin hypercube needs the same --n; --search: the stored "
+                             "trials count against the budget and are told to the optimiser first)")
     parser.add_argument("--search", action="store_true", help="search (Optuna TPE) for a violation instead of "
                         "sampling: stops at the first, writes OUT/counterexample/")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",

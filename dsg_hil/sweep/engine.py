@@ -29,7 +29,8 @@ from .results import ResultStore, read_manifest, write_manifest
 from .space import Space
 from .worker import run_task, warm
 
-__all__ = ["RETRIES", "Progress", "SweepResult", "open_client", "resumed_n", "run_sweep", "scheduler_address", "submit"]
+__all__ = ["RETRIES", "Progress", "SweepResult", "open_client", "resumed_n", "run_sweep", "scheduler_address",
+           "start_manifest", "submit"]
 
 RETRIES = 2  # a task that raised (in Dask, e.g. its worker could not import it) is run again this often; a task whose
 # worker died is run again by the scheduler (``distributed.scheduler.allowed-failures``, default 3 workers lost)
@@ -157,17 +158,30 @@ def result_of(future: Any, task: dict[str, Any]) -> dict[str, Any]:
         return {"run_id": task["run_id"], "row": row, "summary": None, "log": None, "traceback": None, "task": task}
 
 
-def resumed_n(space: Space, out: str | Path, n: int | None) -> int:
+def resumed_n(space: Space, out: str | Path, n: int | None, *, search: bool = False) -> int:
     """How many runs a ``--resume`` of the sweep in ``out`` makes: ``n``, or without it the n the sweep was started
-    with. The runs there must be ``space``'s; another ``n`` only extends a sampler whose first runs stay the same
-    (Sobol): a Latin hypercube of another n draws other runs, and fewer runs than are there is no resume."""
+    with. The runs there must be ``space``'s, and of the same kind (sampled, or ``search``: a search's trials are
+    not a sampler's runs, nor the other way round). Another ``n`` only extends a sampler whose first runs stay the
+    same (Sobol): a Latin hypercube of another n draws other runs, and fewer runs than are there is no resume; a
+    search's budget may be any n from the trials it has stored on."""
     manifest = read_manifest(out)
-    if manifest is None:  # a sweep before OUT/sweep.json: its runs are matched by their IDs
-        return space.n if n is None else n
-    if manifest.get("digest") != space.digest:
+    stored = [p.name for p in (Path(out) / "runs").glob("*.json")]
+    searched = bool(manifest.get("search")) if manifest is not None else any(s.startswith("s") for s in stored)
+    if (manifest is not None or stored) and searched != search:
+        raise InputError(f"--resume: {out} holds a search: resume it with --search, or give another --out" if searched
+                         else f"--resume --search: {out} holds a sampled sweep, not a search: give another --out")
+    if manifest is not None and manifest.get("digest") != space.digest:
         raise InputError(f"--resume: {out} holds a sweep of another space than {space.origin} (sampler, seed, base "
                          f"scenario, inputs, controller or limits differ): give another --out")
-    before = int(manifest["n"])
+    if manifest is None and not search:  # a sweep before OUT/sweep.json: its runs are matched by their IDs
+        return space.n if n is None else n
+    before = space.n if manifest is None else int(manifest["n"])
+    if search:
+        n = before if n is None else n
+        if n < len(stored):
+            raise InputError(f"--n {n}: {out} holds a search of {len(stored)} trials: --resume finishes or extends "
+                             f"it (--n {len(stored)} or more)")
+        return n
     if n is None or n == before:
         return before
     if not space.stable_prefix:
@@ -180,6 +194,19 @@ def resumed_n(space: Space, out: str | Path, n: int | None) -> int:
     return n
 
 
+def start_manifest(space: Space, out: str | Path, n: int, *, resume: bool, search: bool = False,
+                   progress: Callable[[str], None] | None = None) -> None:
+    """``OUT/sweep.json`` written for the sweep (or ``search``) of ``n`` runs starting now; on ``resume``, a warning
+    first if the runs there were made by other code than this install (the table will mix the two)."""
+    before = read_manifest(out) if resume else None
+    if progress is not None and before is not None and before.get("code", code_digest()) != code_digest():
+        progress(f"sweep: warning: {out}'s runs were made by other code ({before['code']}) than this install "
+                 f"({code_digest()}); the table will mix the two (column 'code')")
+    write_manifest(out, {"space": space.name, "origin": space.origin, "digest": space.digest,
+                         "sampler": "tpe" if search else space.sampler, "n": n, "code": code_digest(),
+                         **({"search": True} if search else {})})
+
+
 def run_sweep(space: Space, out: str | Path, *, n: int | None = None, workers: int | None = None,
               scheduler: str | None = None, resume: bool = False, keep_logs: bool = False,
               progress: Callable[[str], None] | None = None) -> SweepResult:
@@ -190,12 +217,7 @@ def run_sweep(space: Space, out: str | Path, *, n: int | None = None, workers: i
     n = resumed_n(space, out, n) if resume else (space.n if n is None else n)
     tasks = space.tasks(n)
     store = ResultStore(out, resume=resume)
-    before = read_manifest(out) if resume else None
-    if progress is not None and before is not None and before.get("code", code_digest()) != code_digest():
-        progress(f"sweep: warning: {out}'s runs were made by other code ({before['code']}) than this install "
-                 f"({code_digest()}); the table will mix the two (column 'code')")
-    write_manifest(out, {"space": space.name, "origin": space.origin, "digest": space.digest,
-                         "sampler": space.sampler, "n": n, "code": code_digest()})
+    start_manifest(space, out, n, resume=resume, progress=progress)
     todo = [t for t in tasks if t["run_id"] not in store.done]
     skipped = len(tasks) - len(todo)
     if progress is not None and skipped:

@@ -3,7 +3,7 @@
     OUT/runs/<run_id>.json       each run at once (atomic rename): its table row, summary, error
     OUT/runs/<run_id>.log.gz     its log, for a violating or failed run (every run with --keep-logs)
     OUT/table/part-NNNNN.parquet the rows, one part file per batch (pyarrow); read the directory as one table
-    OUT/sweep.json               what the sweep is (its space's digest, sampler, n): what --resume checks
+    OUT/sweep.json               what the sweep is (its space's digest, sampler, n; a search): what --resume checks
 
 A run counts as done once its JSON is there; rows whose JSON is written but not yet in a part (a sweep killed
 between the two) are put into a part when the store is opened again.

@@ -4,6 +4,7 @@ of errors: tests/common/test_errors.py). Each case was a crash or a silent accep
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -177,7 +178,8 @@ OUT = ["--summary", "s.json", "--log", "r.log"]
 # binding without a quantity the plant needs), noaccel.binding.toml (without one only ecu-stub reads), renamed.dbc
 # and renamed.binding.toml (another matrix and its binding: tests/sim/test_binding_run.py), simclash.binding.toml
 # (that binding adding SIM_SYNC on an ID of the matrix's), long.dbc (the shipped DBC with a 9-byte classic message),
-# badvalues.binding.toml (the shipped binding naming a state its DBC's value table lacks).
+# badvalues.binding.toml (the shipped binding naming a state its DBC's value table lacks), sampled/ and searched/
+# (a sampled sweep's and a search's results: their sweep.json).
 CASES = [
     ("dsg-hil", ["run", *BUS, "--duration", "-1", *OUT], "option", ERROR, "--duration: must be within"),
     ("dsg-hil", ["run", *BUS, "--scenario", "nosuch.toml", *OUT], "file", ERROR, "nosuch.toml: cannot read scenario"),
@@ -248,6 +250,10 @@ CASES = [
      "badkey.toml: inputs.params.vehicle.mass: no parameter 'vehicle.mass'"),
     ("dsg-hil", ["sweep", "noctl.toml", "--out", "o"], "file", ERROR,
      "noctl.toml: controller.target 'nosuch_module:make': cannot import"),
+    ("dsg-hil", ["sweep", "space.toml", "--out", "sampled", "--search", "--resume"], "option", ERROR,
+     "--resume --search: sampled holds a sampled sweep, not a search: give another --out"),
+    ("dsg-hil", ["sweep", "space.toml", "--out", "searched", "--resume"], "option", ERROR,
+     "--resume: searched holds a search: resume it with --search, or give another --out"),
     ("dsg-hil", ["run", *BUS, "--dbc", "small.dbc", *OUT], "file", ERROR,
      "small.dbc: message PLANT_ENGINE is not in the DBC"),
     ("dsg-hil", ["plant", *BUS, "--dbc", "small.dbc", *OUT], "file", ERROR,
@@ -388,6 +394,10 @@ def write_inputs(where: Path) -> None:
     (where / "badkey.toml").write_text(space + '"params.vehicle.mass" = {uniform = [1000.0, 2000.0]}\n',
                                        encoding="utf-8")  # a sweep space drawing a parameter that is none
     (where / "badlatent.toml").write_text(space + "[latent]\nper_run = [0, 3]\n", encoding="utf-8")  # 3 at once
+    for folder, kind in (("sampled", {}), ("searched", {"search": True})):  # what a sweep and a search leave
+        (where / folder).mkdir()
+        (where / folder / "sweep.json").write_text(json.dumps({"space": "t", "digest": "0123456789abcdef", "n": 2,
+                                                               **kind}), encoding="utf-8")
     (where / "nodid.toml").write_text('[[did]]\nname = "x"\n', encoding="utf-8")  # a DID description without its id
     (where / "noctl.toml").write_text(space + '[controller]\nkind = "python"\ntarget = "nosuch_module:make"\n',
                                       encoding="utf-8")  # a controller that cannot be imported

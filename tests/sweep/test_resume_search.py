@@ -13,10 +13,12 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from dsg_hil.sim.scenario import load_scenario
 from dsg_hil.sweep.code import code_digest
 from dsg_hil.sweep.results import read_table
-from dsg_hil.sweep.space import load_space
+from dsg_hil.sweep.space import load_space, parse_space
 from dsg_hil.testing import run_plant
 
 from .conftest import REPO, SMALL, sweep, sweep_env
@@ -121,6 +123,8 @@ def test_resume_refuses_another_n_of_a_latin_hypercube_and_another_space_and_wri
     space.write_text(SMALL.replace("seed = 7", "seed = 8"), encoding="utf-8")
     other_space = _error_line(sweep(str(space), "--out", str(out), "--resume"))
     assert f"{out} holds a sweep of another space than {space}" in other_space
+    searched = _error_line(sweep(str(space), "--out", str(out), "--search", "--resume"))
+    assert f"--resume --search: {out} holds a sampled sweep, not a search: give another --out" in searched
     assert sorted((p.name, p.stat().st_mtime_ns) for p in out.rglob("*")) == state
 
 
@@ -236,3 +240,143 @@ def test_a_sweep_whose_runs_all_fail_is_not_a_pass(tmp_path):
     assert all("the controller under test crashed" in r["error"] for r in rows), rows
     verdict = [line for line in proc.stderr.splitlines() if line.startswith("verdict:")]
     assert len(verdict) == 1 and "0 of 3 runs violate; 3 failed, not judged" in verdict[0], proc.stderr[-3000:]
+
+
+LATENT = "\n[latent]\nper_run = [0, 2]\nscale = [0.1, 2.5]\n"  # drawn by trial index, not proposed
+
+
+def test_a_search_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tmp_path):
+    """A search SIGKILLed after >= 3 stored trials and resumed: the stored trials count against the budget, their
+    files stay as they were, the new ones continue the run indices (s00000..s00015, each once, the latent faults
+    of each index as an uninterrupted search draws them), and the table has exactly the budget's rows."""
+    space = tmp_path / "small.toml"
+    space.write_text(SMALL + LATENT, encoding="utf-8")
+    out, budget = tmp_path / "out", 16
+    argv = [sys.executable, "-m", "dsg_hil", "sweep", str(space), "--out", str(out), "--workers", "1", "--search",
+            "--n", str(budget)]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=sweep_env(), cwd=REPO,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240.0
+        while len(list((out / "runs").glob("*.json"))) < 3 and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.02)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the search and its cluster, at once: no clean-up
+        proc.wait()
+    before = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in (out / "runs").glob("*.json")}
+    assert 3 <= len(before) < budget, "the search was to be killed midway"
+    again = sweep(str(space), "--out", str(out), "--workers", "1", "--search", "--resume", "--n", str(budget))
+    assert again.returncode == 0, again.stderr[-3000:]
+    after = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in (out / "runs").glob("*.json")}
+    assert all(after[name] == stored for name, stored in before.items())  # none run again nor rewritten
+    assert [name.split("-")[0] for name in sorted(after)] == [f"s{i:05d}" for i in range(budget)]
+    ids = read_table(out).column("run_id").to_pylist()
+    assert sorted(ids) == sorted(name.removesuffix(".json") for name in after)  # each once, none lost
+    assert f"search: {len(before)} of {budget} trials already in {out} (--resume)" in again.stderr
+    left = budget - len(before)
+    assert f"sweep: {left}/{left} runs" in again.stderr, again.stderr[-3000:]
+    loaded = load_space(space)
+    for name in after:
+        task = json.loads(after[name][1])["task"]
+        assert task["inputs"]["latent"] == loaded.with_latent(task["index"], task["inputs"])["latent"], name
+    # done: without --n, the search's own budget, and nothing left to run; a sampled --resume, or a search of
+    # another space, is refused, nothing written
+    done = sweep(str(space), "--out", str(out), "--search", "--resume")
+    assert done.returncode == 0 and f"{budget} of {budget} trials already in {out}" in done.stderr, done.stderr
+    assert "Dask" not in done.stderr and len(read_table(out)) == budget
+    state = sorted((p.name, p.stat().st_mtime_ns) for p in out.rglob("*"))
+    sampled = _error_line(sweep(str(space), "--out", str(out), "--resume"))
+    assert f"{out} holds a search: resume it with --search" in sampled
+    space.write_text((SMALL + LATENT).replace("seed = 7", "seed = 8"), encoding="utf-8")
+    other = _error_line(sweep(str(space), "--out", str(out), "--search", "--resume"))
+    assert f"{out} holds a sweep of another space than {space}" in other
+    assert sorted((p.name, p.stat().st_mtime_ns) for p in out.rglob("*")) == state
+
+
+def _stored_search(tmp_path: Path, values: list[float | None], violation: int | None = None,
+                   lost: tuple[int, ...] = ()):
+    """A search's folder as a search leaves it: one trial per value (None: a failed run), proposed by a study of
+    its own, its record in OUT/runs (but those of the indices ``lost``: in flight when it was killed); and that
+    study's trials."""
+    import optuna
+
+    from dsg_hil.sweep.results import ResultStore
+    from dsg_hil.sweep.search import suggest
+
+    space = parse_space(SMALL + LATENT, str(tmp_path / "small.toml"))
+    store = ResultStore(tmp_path / "out")
+    study = optuna.create_study(direction="maximize", sampler=optuna.samplers.TPESampler(seed=1))
+    for index, value in enumerate(values):
+        trial = study.ask()
+        task = space.task(index, space.with_latent(index, {k: suggest(trial, k, d) for k, d in space.inputs.items()}))
+        task["run_id"] = "s" + task["run_id"][1:]
+        row = {"run_id": task["run_id"], "index": index, **{f"in.{k}": str(v) for k, v in task["inputs"].items()},
+               "verdict": "error" if value is None else "violation" if index == violation else "ok",
+               "violations": "plate" if index == violation else "", "max_plate_temp_c": value}
+        if index not in lost:
+            store.add({"run_id": task["run_id"], "row": row, "summary": None, "log": None, "traceback": None,
+                       "task": task})
+        study.tell(trial, value, state=None if value is not None else optuna.trial.TrialState.FAIL)
+    store.flush()
+    return space, tmp_path / "out", study.trials
+
+
+def test_a_resumed_search_s_study_holds_the_stored_trials_before_it_proposes_new_ones(tmp_path):
+    """The stored trials, told to the new study: their values (a failed run as failed), the parameters the search
+    proposed (a choice as its index; the latent faults, drawn by index, none of them); the next trial is the sixth."""
+    import optuna
+
+    from dsg_hil.sweep.results import ResultStore
+    from dsg_hil.sweep.search import search_study, stored_trials
+
+    space, out, proposed = _stored_search(tmp_path, [120.0, 150.5, None, 131.0, 99.0])
+    stored = stored_trials(space, ResultStore(out, resume=True))
+    assert [index for index, _, _ in stored] == [0, 1, 2, 3, 4]
+    study = search_study(space, 16, [trial for _, trial, _ in stored])
+    assert [t.value for t in study.trials] == [120.0, 150.5, None, 131.0, 99.0]
+    assert [t.state for t in study.trials].count(optuna.trial.TrialState.FAIL) == 1
+    assert [t.params for t in study.trials] == [t.params for t in proposed]
+    assert [t.distributions for t in study.trials] == [t.distributions for t in proposed]
+    assert all("latent" not in t.params and t.params["driver.behaviour"] in range(4) for t in study.trials)
+    assert study.best_value == 150.5
+    assert study.ask().number == 5
+
+
+def test_a_resumed_search_whose_stored_trial_violates_reports_it_and_runs_nothing(tmp_path):
+    """No cluster is started (nothing is left to run): the stored violation is the counterexample."""
+    from dsg_hil.sweep.search import run_search
+
+    space, out, _ = _stored_search(tmp_path, [120.0, 260.0, 131.0], violation=1)
+    result = run_search(space, out, budget=16, resume=True, workers=1)
+    assert result.ran == 0 and result.skipped == 3 and len(result.rows) == 3
+    assert result.search["counterexample"] == result.rows[1]["run_id"] and result.search["best"] == 260.0
+    assert result.search["runs"] == 3 and result.counterexample == out / "counterexample"
+    assert (out / "counterexample" / "scenario.toml").exists()
+    assert sorted(p.name for p in (out / "runs").glob("*.json")) == sorted(r["run_id"] + ".json" for r in result.rows)
+
+
+def test_a_search_does_not_resume_onto_a_sampled_sweep_or_past_its_budget(tmp_path):
+    from dsg_hil.common.errors import InputError
+    from dsg_hil.sweep.search import run_search
+
+    space, out, _ = _stored_search(tmp_path, [120.0, 150.5, 131.0])
+    with pytest.raises(InputError, match=f"--n 2: {out} holds a search of 3 trials: --resume finishes or extends it"):
+        run_search(space, out, budget=2, resume=True)
+    for path in (out / "runs").glob("*.json"):
+        path.rename(path.with_name("r" + path.name[1:]))  # as if a sampled sweep's, from before OUT/sweep.json
+    with pytest.raises(InputError, match=f"--resume --search: {out} holds a sampled sweep, not a search"):
+        run_search(space, out, budget=16, resume=True)
+
+
+def test_a_resumed_search_runs_first_the_indices_that_were_in_flight_when_it_was_killed(tmp_path):
+    """Killed with several runs in flight, a search leaves gaps in its indices: the resumed one runs those first,
+    then the next, so that its indices end as an uninterrupted search's (s00000..s00004), each run once."""
+    from dsg_hil.sweep.search import run_search
+
+    space, out, _ = _stored_search(tmp_path, [120.0, 150.5, 131.0, 99.0], lost=(2,))
+    before = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in (out / "runs").glob("*.json")}
+    result = run_search(space, out, budget=5, resume=True, workers=1)
+    assert result.ran == 2 and result.skipped == 3 and result.search["runs"] == 5
+    after = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in (out / "runs").glob("*.json")}
+    assert all(after[name] == stored for name, stored in before.items())
+    assert [name.split("-")[0] for name in sorted(after)] == [f"s{i:05d}" for i in range(5)]
