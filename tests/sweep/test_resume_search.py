@@ -25,20 +25,26 @@ from .conftest import REPO, SMALL, sweep, sweep_env
 from .unsafe import Slipper
 
 
-def test_a_sweep_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tmp_path):
-    space = tmp_path / "small.toml"
-    space.write_text(SMALL, encoding="utf-8")
-    out = tmp_path / "out"
-    argv = [sys.executable, "-m", "dsg_hil", "sweep", str(space), "--out", str(out), "--workers", "1"]
+def kill_after_three_runs(argv: list[str], out: Path, poll_s: float = 0.1) -> None:
+    """Start the sweep ``argv`` and SIGKILL it with its cluster (its process group, at once: no clean-up) once
+    ``out/runs`` holds three runs (or after 240 s, or when it ended)."""
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=sweep_env(), cwd=REPO,
                             start_new_session=True)
     try:
         deadline = time.monotonic() + 240.0
         while len(list((out / "runs").glob("*.json"))) < 3 and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.1)
+            time.sleep(poll_s)
     finally:
-        os.killpg(proc.pid, signal.SIGKILL)  # the sweep and its cluster, at once: no clean-up
+        os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+
+
+def test_a_sweep_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tmp_path):
+    space = tmp_path / "small.toml"
+    space.write_text(SMALL, encoding="utf-8")
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "dsg_hil", "sweep", str(space), "--out", str(out), "--workers", "1"]
+    kill_after_three_runs(argv, out)
     before = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
     assert 3 <= len(before) < 12, "the sweep was to be killed midway"
     again = sweep(str(space), "--out", str(out), "--workers", "1", "--resume")
@@ -254,15 +260,7 @@ def test_a_search_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(t
     out, budget = tmp_path / "out", 16
     argv = [sys.executable, "-m", "dsg_hil", "sweep", str(space), "--out", str(out), "--workers", "1", "--search",
             "--n", str(budget)]
-    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=sweep_env(), cwd=REPO,
-                            start_new_session=True)
-    try:
-        deadline = time.monotonic() + 240.0
-        while len(list((out / "runs").glob("*.json"))) < 3 and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.02)
-    finally:
-        os.killpg(proc.pid, signal.SIGKILL)  # the search and its cluster, at once: no clean-up
-        proc.wait()
+    kill_after_three_runs(argv, out, poll_s=0.02)
     before = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in (out / "runs").glob("*.json")}
     assert 3 <= len(before) < budget, "the search was to be killed midway"
     again = sweep(str(space), "--out", str(out), "--workers", "1", "--search", "--resume", "--n", str(budget))
