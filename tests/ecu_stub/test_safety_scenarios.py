@@ -595,6 +595,26 @@ def test_proof_found_an_oil_gain_beginning_while_the_oil_settles_keeps_the_true_
     assert max(s["max_plate_temp_c"].values()) <= T_SAFE_C and s["min_margin_c"]["truth"] >= 0.0
 
 
+R00176 = {"grade_rad": -0.09874905781427108, "engine_speed_rpm": 1912.485610247752,
+          "initial.T_clutch_c": 151.98120020950398, "initial.T_oil_c": 102.65288802842487,
+          "params.vehicle.m": 6628.234929185868, "driver.behaviour": "brake_drag",
+          "driver.desired_speed_mps": 0.25755966463880653, "driver.drag_level": 0.022874036604051462,
+          "driver.drag_onset_s": 151.124894426874, "driver.drag_duration_s": 225.21776138146353,
+          "latent": "gain:PLANT_OIL_TEMP.T_OilCL@1.33-,value=0.9004; "
+                    "gain:PLANT_SPEEDS.ClutchInputSpeed@111.393-,value=1.6686"}
+
+
+@pytest.mark.slow
+def test_proof_found_an_oil_gain_beginning_late_in_the_settling_keeps_the_true_plate_under_t_safe():
+    """6.6 t on -0.099 rad with a brake drag, plates at 152 degC in 103-degC oil, T_OilCL reading 10 % low (a gain:
+    0.9004 T in degC) from 1.33 s, and the clutch-input speed reading 1.67 times high from 111 s (the safety proof's
+    batch 104, r00176, on the TCU of 5a14f67: CL's true plate reached 256.3 degC). The oil gain begins in the last
+    quarter-second before the fall check starts (1.6 s); the settling check catches it and the margin budgets its
+    growth."""
+    s = sweep_run(R00176)
+    assert max(s["max_plate_temp_c"].values()) <= T_SAFE_C and s["min_margin_c"]["truth"] >= 0.0
+
+
 @pytest.mark.parametrize("fault", [
     "gain:PLANT_OIL_TEMP.T_OilCL@1.035-,value=0.9272",  # before: 258.57 degC
     "gain:PLANT_OIL_TEMP.T_OilCL@0.5-,value=0.9",  # 10 %, before the creep begins; before: 268.22 degC
