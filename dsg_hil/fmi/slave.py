@@ -1,13 +1,16 @@
 """What both FMUs' slaves share: Real variables kept by name (PythonFMU's Fmi2Slave, its getters and setters on a
 dict), a model description completed with units, ranges and dependencies (:func:`complete_description`), the
-calls of a host checked (:class:`SignalSlave`), the variable list's digest (:func:`variables_digest`) and the
-balance of a reference PythonFMU's binary releases (:func:`balance_namespace`).
+calls of a host checked (:class:`SignalSlave`), the variable list's digest (:func:`variables_digest`), the
+balance of a reference PythonFMU's binary releases (:func:`balance_namespace`) and the end of the binary's state
+at the host's exit (:func:`dsg_hil.fmi.host.end_binary_state_at_exit`).
 
 A caller's mistake never leaves the slave as a Python exception: PythonFMU's binary (0.6.4 to 0.7.0, ``handle_py_
 exception``) turns any into ``fmi2Fatal`` and frees the Python object, so the instance's next call crashes the
 host. The slave logs it instead (status ``fmi2Error``, the call and the value named), leaves the value as it was,
 and discards the next ``fmi2DoStep`` (``fmi2Discard``, the one status the binary lets a slave return besides
-``fmi2OK``): a master that does not read the log still sees the refusal."""
+``fmi2OK``): a master that does not read the log still sees the refusal. The refused call itself returns
+``fmi2OK``: the binary's ``fmi2.cpp`` (0.7.0 and git main) returns ``fmi2Error`` only for a C++ exception other
+than the ``fmi2Fatal`` one it makes of every Python exception, which no Python code can raise."""
 
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ from pythonfmu.enums import Fmi2Status
 
 from .. import __version__
 from ..common.errors import InputError
+from .host import end_binary_state_at_exit
 from .signals import Signal
 from .units import BASE_UNITS, fmi_unit
 
@@ -139,6 +143,8 @@ class SignalSlave(Fmi2Slave):
         self.time: float | None = None  # where the last step ended (None: no step yet)
         self.refused: str | None = None  # the last refused call: the next doStep is discarded
         self.digest = ""
+        if self.resources:  # instantiated by PythonFMU's binary (not by 'dsg-hil fmu export', which passes None)
+            end_binary_state_at_exit(Path(self.resources).parent)
 
     def real(self, name: str, start: float, unit: str, causality: Any, description: str,
              limits: tuple[float, float] | None = None, kind: str = "Real") -> None:

@@ -30,10 +30,11 @@ def fmus(tmp_path_factory) -> dict[str, Path]:
     return {model: export_fmu(folder / f"{model}.fmu", model=model) for model in ("plant", "tcu")}
 
 
-def run_python(code: str, *args: str, timeout: float = 300.0) -> dict:
-    """Run ``code`` (with ``sys.argv[1:] = args``) in a fresh Python; it prints one JSON object last: returned."""
+def run_python(code: str, *args: str, timeout: float = 300.0, env: dict[str, str] | None = None) -> dict:
+    """Run ``code`` (with ``sys.argv[1:] = args``) in a fresh Python (``env``: its environment, default this
+    one's); it prints one JSON object last: returned."""
     done = subprocess.run([sys.executable, "-c", textwrap.dedent(code), *args], capture_output=True,
-                          text=True, timeout=timeout)
+                          text=True, timeout=timeout, env=env)
     assert done.returncode == 0, f"exit status {done.returncode}; stderr: {done.stderr[-3000:]}"
     return json.loads(done.stdout.strip().splitlines()[-1])
 
