@@ -126,7 +126,7 @@ def test_wheel_ships_the_dbc_typing_license_and_extras(wheel):
         info = f"dsg_hil-{dsg_hil.__version__}.dist-info"
         meta = zf.read(f"{info}/METADATA").decode()
     assert {"dsg_hil/py.typed", "ecu_stub/py.typed", "dsg_hil/data/params.toml", "dsg_hil/data/creep.toml",
-            "dsg_hil/data/sweeps/safety.toml", "dsg_hil/sweep/engine.py",
+            "dsg_hil/data/sweeps/safety.toml", "dsg_hil/sweep/engine.py", "dsg_hil/fmi/shim.c",
             "dsg_hil/e2e/conftest.py", "dsg_hil/e2e/test_end_to_end.py", f"{info}/licenses/LICENSE"} <= names
     assert not any(name.startswith("tests/") for name in names)
     assert "License-Expression: MIT" in meta and f"Version: {dsg_hil.__version__}" in meta

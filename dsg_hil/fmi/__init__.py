@@ -10,7 +10,8 @@ tcu_slave.py   TcuSlave: ecu-stub's controller as an FMU (to test the controller
 controller.py  a controller FMU run through FMPy behind ecu-stub's bus side
 host.py        instantiate: an FMU instantiated through FMPy, PythonFMU's reference fault made good
 cosim.py       the plant FMU and a controller FMU co-simulated in FMPy, without CAN
-export.py      export_fmu: PythonFMU's builder
+export.py      export_fmu: PythonFMU's builder, dsg-hil's shim compiled and put in as the linux64 binary
+shim.c         the shim: PythonFMU's binary behind it, a call the slave refused returned as fmi2Error
 
 pythonfmu and fmpy are imported only when an FMU is written or opened (the fmi extra); without them those calls
 fail with one error naming the extra.

@@ -8,9 +8,12 @@ A caller's mistake never leaves the slave as a Python exception: PythonFMU's bin
 exception``) turns any into ``fmi2Fatal`` and frees the Python object, so the instance's next call crashes the
 host. The slave logs it instead (status ``fmi2Error``, the call and the value named), leaves the value as it was,
 and discards the next ``fmi2DoStep`` (``fmi2Discard``, the one status the binary lets a slave return besides
-``fmi2OK``): a master that does not read the log still sees the refusal. The refused call itself returns
-``fmi2OK``: the binary's ``fmi2.cpp`` (0.7.0 and git main) returns ``fmi2Error`` only for a C++ exception other
-than the ``fmi2Fatal`` one it makes of every Python exception, which no Python code can raise."""
+``fmi2OK``). The refused call itself returns ``fmi2Error`` through dsg-hil's shim, the FMU's linux64 binary
+(``dsg_hil/fmi/shim.c``, :mod:`dsg_hil.fmi.export`), which returns ``fmi2Error`` for a call during which an
+``fmi2Error`` message was logged. PythonFMU's binary alone (win64; linux64 where the export had no C compiler)
+returns ``fmi2OK`` for it: its ``fmi2.cpp`` (0.7.0 and git main) returns ``fmi2Error`` only for a C++ exception
+other than the ``fmi2Fatal`` one it makes of every Python exception, which no Python code can raise. There the
+refusal shows at the next step."""
 
 from __future__ import annotations
 

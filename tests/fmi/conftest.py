@@ -40,7 +40,8 @@ def run_python(code: str, *args: str, timeout: float = 300.0, env: dict[str, str
 
 
 # The start of a script that opens FMU instances through FMPy's FMU2Slave, each with its log collected:
-# open_instance(path, name) -> (fmu, {variable name: value reference}, log: [(status label, message), ...])
+# open_instance(path, name, logging_on=True) -> (fmu, {variable name: value reference},
+#                                                log: [(status label, message), ...])
 OPEN_INSTANCE = """
 import json, math, sys
 from fmpy import extract, read_model_description
@@ -50,7 +51,7 @@ from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2Ca
 LABELS = ["OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING"]
 _keep = []
 
-def open_instance(path, name):
+def open_instance(path, name, logging_on=True):
     md = read_model_description(path)
     log = []
     callbacks = fmi2CallbackFunctions()
@@ -61,6 +62,6 @@ def open_instance(path, name):
     _keep.append(callbacks)
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(path), modelIdentifier=md.coSimulation.modelIdentifier,
                     instanceName=name)
-    fmu.instantiate(callbacks=callbacks, loggingOn=True)  # PythonFMU passes messages on with logging on only
+    fmu.instantiate(callbacks=callbacks, loggingOn=logging_on)  # the FMU passes messages on with logging on only
     return fmu, {v.name: v.valueReference for v in md.modelVariables}, log
 """
