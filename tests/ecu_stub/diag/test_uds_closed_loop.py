@@ -145,11 +145,12 @@ def _capture(bus=None, talk=None, answers=()):
     """The frames of a 3-s lock-step run of the default scenario: on the direct in-process bus, or on ``bus`` (a
     python-can configuration: ecu-stub in this process on ``virtual``, else as a process) with ``talk(ready, done)``
     run in a thread meanwhile. The run starts once the tester is ready to ask (its bus and client open), and each
-    control period waits 20 ms of wall time until the tester holds three ``answers`` (a compiled loop runs the 3 s
-    in a fraction of a second, less than a tester's round trips take): the plant is the time master, so the wait
-    changes no frame."""
+    control period waits 20 ms of wall time until the tester has done its ``ROUNDS`` (a compiled loop runs the 3 s
+    in a fraction of a second, less than a tester's round trips take; the server answers in control periods, so a
+    run slower than real time answers a request in flight before the run ends): the plant is the time master, so
+    the wait changes no frame."""
     def pace(runner):
-        if len(answers) < 3:
+        if len(answers) < ROUNDS:
             time.sleep(0.02)
 
     run = open_run(RunConfig(duration=3.0, bus=bus, direct=bus is None, capture=True,
@@ -170,8 +171,11 @@ def _capture(bus=None, talk=None, answers=()):
     return [(m.arbitration_id, bytes(m.data), m.timestamp) for m in run.frames]
 
 
+ROUNDS = 20  # the tester's requests in a run (each a DID read and a TesterPresent)
+
+
 def _talker(bus_config, answers, errors):
-    """A tester reading DIDs and keeping the session alive until the run is done (at most 20 rounds); requests
+    """A tester reading DIDs and keeping the session alive until the run is done (at most ``ROUNDS``); requests
     before the TCU first answers (a TCU process still starting) and one the run's end left unanswered are no
     errors."""
     from udsoncan.exceptions import NegativeResponseException, TimeoutException
@@ -179,14 +183,14 @@ def _talker(bus_config, answers, errors):
     def talk(ready, done):
         # asked every 0.2 s until the TCU first answers (a TCU process starts within the run: a request it did not
         # hear, or one answered 0x22 before its first control period, must not leave a short run without a
-        # tester), then given 1 s per request
+        # tester), then given 5 s per request (a loaded machine's threads)
         with can.Bus(**bus_config) as bus, uds_client(bus, DESCRIPTION, 0x7E1, 0x7E9, timeout=0.2) as client:
             ready.set()
-            while not done.is_set() and len(answers) < 20:
+            while not done.is_set() and len(answers) < ROUNDS:
                 try:
                     answers.append(read_dids(client, DESCRIPTION, [0x0101, 0x0110]))
                     for key in ("request_timeout", "p2_timeout", "p2_star_timeout"):
-                        client.set_config(key, 1.0)
+                        client.set_config(key, 5.0)
                     client.tester_present()
                 except NegativeResponseException as exc:
                     if answers or exc.response.code != 0x22:  # conditionsNotCorrect: no control period yet
