@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["check_output_path", "read_input_file"]
+__all__ = ["check_output_path", "read_input_file", "user_cache_dir"]
 
 
 def read_input_file(path: Path, what: str, error: type[InputError]) -> str:
@@ -68,3 +68,9 @@ _PROBE_REASONS = {
     errno.ENOSPC: "no space left",
     errno.EDQUOT: "disk quota exceeded",
 }
+
+
+def user_cache_dir(*parts: str) -> Path:
+    """``dsg-hil/PARTS`` in the user's cache directory (``$XDG_CACHE_HOME``, by default ``~/.cache``)."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base, "dsg-hil", *parts)

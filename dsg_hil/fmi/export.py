@@ -28,7 +28,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..common.errors import InputError, RunError
-from ..common.files import check_output_path
+from ..common.files import check_output_path, user_cache_dir
 
 __all__ = ["MODELS", "PARAMS_RESOURCE", "REAL_SUFFIX", "SHIM_SOURCE", "compiler", "export_fmu", "has_shim",
            "shim_binary"]
@@ -131,19 +131,12 @@ def compiler() -> list[str] | None:
     return ["cc"] if shutil.which("cc") else None
 
 
-def _cache() -> Path:
-    """Where compiled shims are kept: ``dsg-hil/fmi-shim`` in the user's cache directory (``$XDG_CACHE_HOME``, by
-    default ``~/.cache``)."""
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "dsg-hil" / "fmi-shim"
-
-
 def shim_binary() -> tuple[Path | None, str]:
     """The compiled shim (compiled into the user's cache the first time, one file per digest of ``shim.c`` and its
     flags), and ``""``; or None and why there is none (no compiler, a failed compilation)."""
     source = SHIM_SOURCE.read_bytes()
     key = hashlib.sha256(source + " ".join(_CFLAGS).encode()).hexdigest()[:16]  # the source and how it is compiled
-    path = _cache() / f"shim-{key}.so"
+    path = user_cache_dir("fmi-shim") / f"shim-{key}.so"
     if _is_x86_64_elf(path):
         return path, ""
     cc = compiler()

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ..common.files import user_cache_dir
 from . import params as _params
 
 __all__ = ["Compiled", "cache_dir", "compiled", "constants", "record"]
@@ -37,8 +38,7 @@ def cache_dir() -> str:
     given = os.environ.get("NUMBA_CACHE_DIR")
     if given:
         return given
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "dsg-hil", "numba")
+    return str(user_cache_dir("numba"))
 
 _RECORDS: dict[type, type] = {}
 _OF_GROUP: dict[int, tuple] = {}  # id(group) -> record, while the group lives
