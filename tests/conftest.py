@@ -17,8 +17,9 @@ os.environ.setdefault("PYTHONSAFEPATH", "1")
 
 def pytest_configure(config):
     register_plugin(config)
-    config.addinivalue_line("markers", "slow: a minute or so: the 100-s cases against solve_ivp; building a wheel "
-                                       "(needs the package index for setuptools)")
+    config.addinivalue_line("markers", "slow: over about 3 s on a 2-core machine (closed loops, sweeps, processes, "
+                                       "the 100-s cases against solve_ivp, building a wheel): the compiled build's "
+                                       "run has them, the Contributing run (-m 'not slow or wheel') leaves them out")
     config.addinivalue_line("markers", "wheel: builds a wheel of the checkout (pip, mypyc) and tests it; run where "
                                        "dsg-hil is installed editable from the checkout (the contributors' run): a "
                                        "regular install's run tests that install itself, and leaves them out "

@@ -77,6 +77,7 @@ def test_version_is_single_sourced():
         assert 'dynamic = ["version"]' in text and 'version = { attr = "dsg_hil.__version__" }' in text
 
 
+@pytest.mark.slow
 def test_marker_expressions_do_not_bring_back_the_vcan_tests():
     """tests/conftest.py deselects the vcan tests for any -m that does not name vcan (not a configured -m)."""
     e2e = str(resources.files("dsg_hil.e2e"))

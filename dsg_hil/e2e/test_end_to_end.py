@@ -185,19 +185,6 @@ def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
     assert max(cmd.decode(data)["P_CL_Cmd"] for _, ident, data in answers if ident == cmd.frame_id) > 0.1  # CL
 
 
-def test_dsg_hil_run_starts_the_tcu_as_a_process(outdir, duration):
-    summary = outdir / "run.summary.json"
-    log = outdir / "run.log"
-    proc = subprocess.Popen([console("dsg-hil"), "run", *BUS, "--duration", str(min(duration, 5.0)), "--log", str(log),
-                             "--summary", str(summary), "--reply-timeout", "60", "--startup-timeout", f"{STARTUP:g}"],
-                            stderr=subprocess.PIPE, text=True)
-    err = finish_while_progressing(proc, log)
-    assert proc.returncode == 0, err
-    data = json.loads(summary.read_text())
-    assert data["interface"] == "socketcan:vcan0" and data["frames"]["received"] > 0
-    assert log.read_text().splitlines()[0].split()[1] == "vcan0"
-
-
 def test_lockstep_over_vcan_is_bit_for_bit_reproducible(lockstep, outdir, duration):
     """A second lockstep run with separate processes on vcan0 writes the same plant log, byte for byte."""
     run_pair(outdir, "lockstep2", "lockstep", duration, extra=("--log", str(outdir / "lockstep2.plant.log")))
@@ -205,13 +192,21 @@ def test_lockstep_over_vcan_is_bit_for_bit_reproducible(lockstep, outdir, durati
     assert len(first) > 10_000 and (outdir / "lockstep2.plant.log").read_bytes() == first
 
 
-def test_the_tutorial_s_run_on_vcan0(tmp_path, duration):
-    """docs/tutorials/vcan.md's run: plant and the bundled TCU as two processes on vcan0, with a log (the page's
-    command, with the suite's --duration); every frame accepted, the log written."""
-    summary = tmp_path / "s.json"
-    proc = subprocess.run([console("dsg-hil"), "run", "--interface", "socketcan", "--channel", "vcan0", "--log",
-                           str(tmp_path / "run.log"), "--duration", str(duration), "--summary", str(summary)],
-                          capture_output=True, text=True, timeout=STARTUP + 60 * duration)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    frames = json.loads(summary.read_text())["frames"]
-    assert frames["rejected"] == 0 and frames["received"] > 0 and (tmp_path / "run.log").stat().st_size > 0
+def test_the_tutorial_s_run_starts_the_tcu_as_a_process_on_vcan0(outdir, duration):
+    """docs/tutorials/vcan.md's run: ``dsg-hil run`` on vcan0 starts the bundled TCU as an ecu-stub process and
+    drives it; every frame accepted, the log written on vcan0 (the page's command, with the suite's --duration).
+
+    The suite's waits replace the defaults (60 s for the TCU's first frame, 5 s for each reply), which are a real
+    machine's: under emulation beside 4 CPU hogs the TCU process alone can take minutes to import (``STARTUP``)."""
+    summary = outdir / "run.summary.json"
+    log = outdir / "run.log"
+    proc = subprocess.Popen([console("dsg-hil"), "run", "--interface", "socketcan", "--channel", "vcan0", "--log",
+                             str(log), "--duration", str(duration), "--summary", str(summary),
+                             "--reply-timeout", "60", "--startup-timeout", f"{STARTUP:g}"],
+                            stderr=subprocess.PIPE, text=True)
+    err = finish_while_progressing(proc, log)
+    assert proc.returncode == 0, err
+    data = json.loads(summary.read_text())
+    assert data["interface"] == "socketcan:vcan0" and data["creep_time_s"] > 0  # the TCU process drove the creep
+    assert data["frames"]["rejected"] == 0 and data["frames"]["received"] > 0
+    assert log.read_text().splitlines()[0].split()[1] == "vcan0"

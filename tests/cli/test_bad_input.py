@@ -146,6 +146,7 @@ def test_unwritable_validate_outputs_fail_before_the_run(tmp_path, capsys):
     one_error_line(capsys, "--plots", "not a writable directory")
 
 
+@pytest.mark.slow
 def test_a_dbc_signal_without_range_has_the_range_of_its_bits(tmp_path, capsys):
     """[0|0] is the common way to say "no range": cantools reads None; the codec clamps to and checks against
     what the bits carry (16 bits signed, scale 0.001: -32.768 .. 32.767 m/s) instead of crashing."""
@@ -419,6 +420,7 @@ def run_bad(where: Path, program: str, argv: list[str]) -> tuple[subprocess.Comp
     return proc, proc.stderr.strip().splitlines()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("program, argv, bad, form, needle", CASES,
                          ids=[f"{c[0]} {' '.join(c[1][:1])} {c[2]}: {c[4][:30]}" for c in CASES])
 def test_every_command_line_rejects_bad_input_with_exit_2_and_one_line(tmp_path, program, argv, bad, form, needle):
@@ -449,12 +451,14 @@ def test_a_bad_parameter_file_writes_no_log(tmp_path):
                                             "directory)"]
 
 
+@pytest.mark.slow
 def test_report_makes_no_output_directory_for_bad_input(tmp_path):
     write_inputs(tmp_path)
     proc, err = run_bad(tmp_path, "dsg-hil", ["report", "--from-log", "garbage.log", "--out", "new"])
     assert proc.returncode == 2 and len(err) == 1
 
 
+@pytest.mark.slow
 def test_report_checks_its_options_before_the_validation(tmp_path):
     write_inputs(tmp_path)
     proc, err = run_bad(tmp_path, "dsg-hil", ["report", "--duration", "-1", "--out", "outdir"])

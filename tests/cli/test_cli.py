@@ -12,6 +12,7 @@ import pytest
 from dsg_hil.cli import main
 
 
+@pytest.mark.slow
 def test_validate_writes_json_and_plots(tmp_path, capsys):
     """--json into a directory not made yet: made, as for every output (issue 35, 4: a raw Errno 2 after the run)."""
     rc = main(["validate", "--json", str(tmp_path / "nodir" / "v.json"), "--plots", str(tmp_path / "plots")])
@@ -85,6 +86,7 @@ def test_help_explains_every_command():
         assert proc.returncode == 0 and "usage:" in proc.stdout and len(proc.stdout) > 200
 
 
+@pytest.mark.slow
 def test_run_on_virtual_writes_log_and_summary(tmp_path):
     log, summary = tmp_path / "run.log", tmp_path / "summary.json"
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "--interface", "virtual", "--duration", "4",

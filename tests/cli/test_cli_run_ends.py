@@ -51,6 +51,7 @@ def wait_for(proc: subprocess.Popen, text: str, timeout: float = 120.0) -> list[
     pytest.fail(f"never saw {text!r}: {''.join(lines)}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, code, reason", [(signal.SIGINT, 130, "interrupted"),
                                                (signal.SIGTERM, 143, "terminated")])
 def test_signal_ends_the_run_with_summary_and_log(tmp_path, sig, code, reason):
@@ -144,6 +145,7 @@ def udp_lockstep(tmp_path: Path, during=None) -> tuple[dict, str]:
     return json.loads((tmp_path / "s.json").read_text()), tcu_err
 
 
+@pytest.mark.slow
 def test_lockstep_across_two_processes_over_udp_multicast(tmp_path, reference_log):
     """ecu-stub and dsg-hil plant as separate processes: the plant's log is that of the in-process run."""
     summary, _ = udp_lockstep(tmp_path)
@@ -164,6 +166,7 @@ def assert_records_agree(tmp_path: Path) -> None:
     assert len(tcu) > 1000 and sorted(tcu) == sorted(plant)
 
 
+@pytest.mark.slow
 def test_a_stalled_tcu_costs_retries_not_the_log(tmp_path, reference_log):
     """The TCU process stopped for a second mid-run (a starved process): the plant re-sends the tick, the TCU,
     woken, answers the tick and its repeats; the plant counts the repeats as duplicates, and logs the frames of
@@ -183,6 +186,7 @@ def test_a_stalled_tcu_costs_retries_not_the_log(tmp_path, reference_log):
     assert_records_agree(tmp_path)
 
 
+@pytest.mark.slow
 def test_a_known_fault_on_the_tcus_answers_is_no_lost_peer(tmp_path):
     """The README's fault across processes: ``run -i udp_multicast`` passes ``drop:TCU_CMD`` to the ecu-stub it
     starts, which drops its answers (and their repeats) to the ten ticks of the window. The run finishes (exit 0):
@@ -205,6 +209,7 @@ def test_a_known_fault_on_the_tcus_answers_is_no_lost_peer(tmp_path):
     assert (tmp_path / "udp.log").read_bytes() == (tmp_path / "local.log").read_bytes()
 
 
+@pytest.mark.slow
 def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
     """The TCU process killed mid-run: the plant says so in one line, exits 1 and writes the summary so far."""
     bus = udp_bus()
@@ -255,6 +260,7 @@ def test_ecu_stub_ends_on_a_signal_with_the_same_codes_as_dsg_hil(sig, status):
     assert tcu.returncode == status and "ecu-stub: sent 0 frames" in err, err
 
 
+@pytest.mark.slow
 def test_a_real_time_plant_that_never_hears_a_tcu_fails(tmp_path):
     """Real time with nobody on the bus (a mistyped channel): exit 1 and a line saying so, not a clean-looking
     run; the summary is written, stop reason no_peer (issue 20, item 5: it exited 0)."""
@@ -270,6 +276,7 @@ def test_a_real_time_plant_that_never_hears_a_tcu_fails(tmp_path):
 FAULT = ["--duration", "1", "--fault", "drop:TCU_CMD@0.2-0.3"]  # ten ticks in a row unanswered, one fallback
 
 
+@pytest.mark.slow
 def test_one_warning_per_run_of_unanswered_ticks_and_quiet_prints_none():
     loud = subprocess.run([*DSG_HIL, "run", *FAULT], capture_output=True, text=True, timeout=300)
     assert loud.returncode == 0, loud.stderr

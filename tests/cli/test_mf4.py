@@ -28,6 +28,7 @@ def test_an_mf4_log_holds_the_frames_of_the_candump_log(tmp_path):
     assert len(mf4) > 500 and mf4 == candump
 
 
+@pytest.mark.slow
 def test_without_asammdf_an_mf4_log_is_one_error_naming_the_extra(tmp_path):
     proc = subprocess.run([sys.executable, "-c", WITHOUT_ASAMMDF, "run", "--duration", "1", "--log", "r.mf4",
                            "--summary", "s.json"], cwd=tmp_path, capture_output=True, text=True, timeout=120)

@@ -81,6 +81,7 @@ def test_run_signalled_as_soon_as_main_runs(tmp_path, sig, code, reason):
     assert_summary(tmp_path / "s.json", reason, periods=False)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("library", ["_multiarray_umath", "llvmlite"])  # numpy loading; numba (the plant compiled)
 @pytest.mark.parametrize("sig, code, reason", SIGNALS)
 def test_run_signalled_while_it_sets_up(tmp_path, sig, code, reason, library):
@@ -103,6 +104,7 @@ def test_run_without_summary_signalled_at_once_writes_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, code, reason", SIGNALS)
 def test_plant_signalled_at_once_and_once_it_said_where(tmp_path, sig, code, reason):
     bus = udp_bus()

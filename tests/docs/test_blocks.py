@@ -110,6 +110,7 @@ def test_same_line_tells_a_rounding_from_a_change():
 SUMMARY_TOLERANCE = {"tcu_stop_time_s": 0.01, "T_CL_at_first_CH_limit_c": 0.05, "T_CL_at_stop_c": 0.05}
 
 
+@pytest.mark.slow
 def test_the_quick_start_run_prints_what_the_readme_shows(tmp_path):
     """'dsg-hil run' as the quick start runs it, with the output files of the first tutorial's command (which the
     logs guide's is a part of): the README's lines, but the pace, are the run's (lockstep: the same lines but for a
@@ -149,6 +150,7 @@ def test_the_parameters_guide_runs(tmp_path):
     assert changed.returncode == 0 and row[1:4] == ["9000", "kg", "override"] and "(was 7840" in " ".join(row)
 
 
+@pytest.mark.slow
 def test_the_fault_guide_s_python_block_gives_the_counts_it_shows(tmp_path):
     """The block's last line shows the summary's fault counts in a comment: the run gives those."""
     (_, block), = [(p, b) for p, b in blocks("python") if p.name == "faults.md"]

@@ -22,6 +22,7 @@ def example() -> str:
     return block
 
 
+@pytest.mark.slow
 def test_the_guide_s_pytest_example_passes(tmp_path: Path) -> None:
     pytest.importorskip("udsoncan")
     (tmp_path / "test_my_dtc.py").write_text(example(), encoding="utf-8")

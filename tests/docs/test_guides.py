@@ -62,6 +62,7 @@ def udp_words(page_channel: str, page_port: str) -> dict[str, str]:
 
 # -- faults, interfaces ----------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_the_fault_guide_s_run_runs(tmp_path: Path) -> None:
     """Its first line: two faults on the in-process loop; the run counts them (the other two lines need a real
     bus and vcan0: parsed by test_blocks.py)."""
@@ -76,6 +77,7 @@ def test_the_fault_guide_s_run_runs(tmp_path: Path) -> None:
     assert all(count > 0 for count in faults["injected"].values())
 
 
+@pytest.mark.slow
 def test_the_interfaces_guide_s_run_runs(tmp_path: Path) -> None:
     (line,) = sh_block("docs/how-to/interfaces.md", "dsg-hil run -i udp_multicast")
     done = run(line, tmp_path)
@@ -84,6 +86,7 @@ def test_the_interfaces_guide_s_run_runs(tmp_path: Path) -> None:
     assert summary["frames"]["rejected"] == 0 and (tmp_path / "run.log").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_the_interfaces_guide_s_two_sides_start_as_shown(tmp_path: Path) -> None:
     """The plant started as shown prints its line and the TCU's command (with its own group and port); that
     command, run, answers its ticks: the plant's first progress line comes. Both are then stopped."""
@@ -122,6 +125,7 @@ def test_the_interfaces_guide_s_two_sides_start_as_shown(tmp_path: Path) -> None
 
 # -- diagnostics ------------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_the_diag_guide_s_session_prints_what_it_shows(tmp_path: Path) -> None:
     """ecu-stub in the background, the plant with its stuck speed, then the tester's dtc, read, clear and dtc: each
     prints the page's output (the freeze frame's numbers within their last digit)."""
@@ -204,6 +208,7 @@ def test_the_binding_check_prints_the_guide_s_values(tmp_path: Path) -> None:
     check_shown(shown, done.stdout)
 
 
+@pytest.mark.slow
 def test_the_binding_guide_s_run_moves_both_ends(tmp_path: Path) -> None:
     """Its first line with another matrix and its binding for my_ecu's (the renamed pair of
     tests/sim/test_binding_run.py: every name and ID other, km/h, kPa, K): the in-process ecu-stub on that matrix
@@ -314,6 +319,7 @@ def test_the_ecu_tutorial_s_protection_tables_are_the_arxml_s() -> None:
         assert protection_for(message, table["protection"]) == protection_for(message), name
 
 
+@pytest.mark.slow
 def test_the_ecu_tutorial_s_runs_and_rejects(tmp_path: Path) -> None:
     """The lock-step run on the example's pair: every frame taken. The run with the CRC fault, then the page's
     Python on its summary: it prints the page's line (the TCU_CMD frames rejected for their CRC)."""
@@ -380,6 +386,7 @@ def test_the_layout_tree_is_the_checkout_s() -> None:
 EXAMPLE_README = "dbc/examples/dct_fd/README.md"
 
 
+@pytest.mark.slow
 def test_the_example_readme_s_run_and_plot(tmp_path: Path) -> None:
     """The dct_fd README's first block as written, from the repository's root: the pair passes the check, the 40-s
     creep runs on it (ecu-stub in the process, on dct_fd), nothing rejected, CL then CH, CL engaged 50 ms later
@@ -403,6 +410,7 @@ def test_the_example_readme_s_run_and_plot(tmp_path: Path) -> None:
     assert (tmp_path / "creep.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_the_example_readme_s_two_processes(tmp_path: Path) -> None:
     """The README's two-process block on a fresh udp_multicast group and port: ecu-stub in the background on dct_fd,
     the plant's lock-step run against it, nothing rejected at either end."""
@@ -432,6 +440,7 @@ def test_the_example_readme_s_two_processes(tmp_path: Path) -> None:
     assert [p["clutch"] for p in result["phases"]] == ["CL"]
 
 
+@pytest.mark.slow
 def test_the_arxml_readme_s_check_and_run(tmp_path: Path) -> None:
     """The ARXML example's README block as written, from the repository's root: the pair passes the check, and the
     10-s creep on it (ecu-stub in the process, its E2E profiles and data IDs from the ARXML) rejects nothing and
@@ -446,6 +455,7 @@ def test_the_arxml_readme_s_check_and_run(tmp_path: Path) -> None:
     assert [p["clutch"] for p in summary["phases"]] == ["CL"]
 
 
+@pytest.mark.slow
 def test_the_sweep_tutorial_s_sweep_runs_and_ends_as_the_page_says(tmp_path: Path) -> None:
     """The tutorial's eight-run sweep as written (its results directory in a temporary one): it ends with the
     verdict the page quotes, and writes the page it names."""
@@ -462,6 +472,7 @@ def test_the_sweep_tutorial_s_sweep_runs_and_ends_as_the_page_says(tmp_path: Pat
     assert (tmp_path / "sweep" / "sweep.md").is_file()
 
 
+@pytest.mark.slow
 def test_the_paper_tutorial_s_two_reports_run(tmp_path: Path) -> None:
     """The tutorial's two report commands as written, in a temporary directory: the whole report, then the creep
     part from a recorded log (the first report's own, for the page's ecu.asc); each writes its report.md and says

@@ -27,6 +27,7 @@ def block(language: str) -> str:
     return found
 
 
+@pytest.mark.slow
 def test_the_guide_s_script_prints_what_it_shows(tmp_path: Path) -> None:
     pytest.importorskip("pyxcp")
     pytest.importorskip("pya2l")

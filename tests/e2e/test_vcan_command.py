@@ -181,6 +181,7 @@ def test_a_vm_that_never_boots_fails_the_run_after_its_boots(tmp_path):
     assert not _alive(tmp_path / "child2")
 
 
+@pytest.mark.slow
 def test_the_time_limit_holds_after_the_boot(tmp_path):
     """Booted but never done: killed at ``timeout`` (boots included), not booted again."""
     plan, outdir = _fake_vm(tmp_path, hangs=0)

@@ -47,6 +47,7 @@ def counted(err: str, corrupted: int) -> bool:
     return corrupted <= rejected_by_crc(err) <= corrupted + int(duplicates.group(1))
 
 
+@pytest.mark.slow
 def test_quiet_prints_the_counts_alone(tmp_path):
     bus = udp_bus()
     loud, corrupted = serve(bus, tmp_path)
@@ -58,6 +59,7 @@ def test_quiet_prints_the_counts_alone(tmp_path):
     assert counted(quiet, corrupted)  # the counts say what the warnings would have
 
 
+@pytest.mark.slow
 def test_dsg_hil_run_quiet_passes_it_to_the_ecu_stub_it_starts(tmp_path):
     """Two processes over udp_multicast: 'dsg-hil run -q' prints nothing of its own, its ecu-stub the counts alone
     (it printed its 'listening' line too)."""

@@ -37,6 +37,7 @@ def recorded(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_identifies_the_clutch_constants_and_writes_a_calibration(recorded, tmp_path, capsys):
     out = tmp_path / "new" / "cal.toml"  # a missing directory is made, as check_output_path promises
     assert main([str(recorded), "--write", str(out), "--provenance", "recorded at commit abc1234"]) == 0
@@ -93,6 +94,7 @@ def test_each_identification_run_documents_one_command_and_the_heavy_ones_set_th
         assert sets == ([f"vehicle.m={vehicle.m_max_kg:g}"] if heavy else []), path.name
 
 
+@pytest.mark.slow
 def test_the_shipped_predictor_stays_within_its_own_error_bound_on_the_current_plant(tmp_path, capsys):
     """A stale calibration (the plant changed, the calibration not re-identified) fails here: the identification
     runs recorded in lock-step now, with the shipped calibration, and its predictor replayed over them."""
@@ -159,6 +161,7 @@ def test_a_mu_sample_is_taken_at_a_steady_slip_only():
     assert list(mu_samples([d]).n) == [100.0, 109.0]
 
 
+@pytest.mark.slow
 def test_cross_validation_scores_each_smoothing_on_held_out_runs():
     import numpy as np
 
@@ -174,6 +177,7 @@ def test_cross_validation_scores_each_smoothing_on_held_out_runs():
     assert cv[1000.0] > cv[1.0]  # a flat map misses the pressure dependence on the held-out runs
 
 
+@pytest.mark.slow
 def test_a_fit_whose_torque_falls_with_pressure_is_refused():
     """Samples whose mu falls faster than 1/P (mu P from 0.15 at 0.5 MPa to 0.03 at 1.5 MPa): the fitted map would
     give two pressures for one torque, so the fit is refused naming where (a LogError: exit 2, nothing written)."""
@@ -193,6 +197,7 @@ def test_a_fit_whose_torque_falls_with_pressure_is_refused():
     assert torque_falls(fm) is None
 
 
+@pytest.mark.slow
 def test_map_only_logs_enter_the_map_and_the_command(recorded, tmp_path, capsys):
     out = tmp_path / "cal.toml"
     assert main([str(recorded), "--map-only", str(recorded), "--write", str(out)]) == 0

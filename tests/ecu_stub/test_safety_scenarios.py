@@ -186,6 +186,7 @@ def test_sweep_found_a_stuck_zero_vehicle_speed_does_not_drive_the_vehicle_to_ov
     assert s["max_speed_creep_mps"] <= v_desired + LIMITS["overspeed_mps"]
 
 
+@pytest.mark.slow
 def test_sweep_found_a_stuck_zero_vehicle_speed_on_a_light_vehicle_does_not_overspeed_before_the_vote():
     """VehicleSpeed stuck at 0 for 3.8 s, a light vehicle (5,086 kg) creeping at 0.187 m/s on 0.1 rad (found by a
     1,000-run sample of the shipped space, r00450): in the 0.15 s the vote needs for its 40 mm the speed controller,
@@ -204,6 +205,7 @@ def test_sweep_found_a_stuck_zero_vehicle_speed_on_a_light_vehicle_does_not_over
     assert s["max_speed_creep_mps"] <= 1.2 * v_desired  # drivability: within the +-20 % band through the fault
 
 
+@pytest.mark.slow
 def test_search_found_a_stuck_zero_vehicle_speed_under_a_light_brake_drag_is_replaced_at_the_step():
     """VehicleSpeed stuck at 0 for 0.21 s while the driver's foot rests on the pedal at 0.6 % (found by the 500-trial
     search, s00080): with any pedal counted as braking the step was left to the vote, and the vehicle reached
@@ -265,6 +267,7 @@ def test_sample_found_a_clutch_whose_partner_cannot_carry_is_used_to_the_monitor
     assert s["rollback_guarded_m"] <= LIMITS["rollback_m"]
 
 
+@pytest.mark.slow
 def test_sample_found_withdrawing_creep_after_an_overheat_stop_keeps_the_vehicle_held():
     """Creep-request toggles without the brake, 5.0 t on 0.234 rad, stopped for overheat at 46.7 s (found by the
     5,000-run sample, r01017): leaving STOPPED_OVERHEAT for IDLE the TCU cleared its brake request for one cycle
@@ -411,6 +414,7 @@ def test_proof_found_stop_and_go_whose_creep_never_settles_rolls_back_at_its_fir
     assert 0.0 < first and second - first <= 0.001
 
 
+@pytest.mark.slow
 def test_sample_found_withdrawing_creep_without_the_brake_on_a_steep_grade_ramps_the_clutch_out():
     """5.4 t creeping at 0.055 m/s on 0.24 rad, the request withdrawn without the brake (found by the 5,000-run sample
     on 387ed20, r02487): IDLE opened the clutch at once and the brake request reached the brakes with the next
@@ -615,6 +619,7 @@ def test_proof_found_an_oil_gain_beginning_late_in_the_settling_keeps_the_true_p
     assert max(s["max_plate_temp_c"].values()) <= T_SAFE_C and s["min_margin_c"]["truth"] >= 0.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fault", [
     "gain:PLANT_OIL_TEMP.T_OilCL@1.035-,value=0.9272",  # before: 258.57 degC
     "gain:PLANT_OIL_TEMP.T_OilCL@0.5-,value=0.9",  # 10 %, before the creep begins; before: 268.22 degC

@@ -347,6 +347,7 @@ def test_without_a_sensor_fault_no_check_trips():
     assert set(counts["implausible"].values()) == {0}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signal", sorted(STUCK))
 def test_a_stuck_thermal_input_keeps_the_true_plate_under_t_safe(signal):
     """Before the checks, on 20 s from CH at 245 degC (a start CH is no longer taken over from, since the handover
@@ -393,6 +394,7 @@ OFFSETS = {  # issue's findings on the default scenario; the true plate on this 
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(OFFSETS))
 def test_an_offset_the_old_checks_let_through_keeps_the_true_plate_under_t_safe(name):
     """Each offset from 2 s on lay within the tolerance of the checks before (oil 10 K against a balance that
@@ -492,6 +494,7 @@ KEYON = {  # from t = 0; (faults, the start (T_CL, T_CH), the run's length, the 
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(KEYON))
 def test_an_oil_sensor_wrong_from_key_on_keeps_the_true_plate_under_t_safe(name):
     """Wrong from t = 0, an oil reading took the plate estimate down with it (unobservable once running): on the

@@ -10,6 +10,7 @@ import zipfile
 from pathlib import Path
 
 from fmpy import read_model_description
+import pytest
 
 from dsg_hil import __version__
 
@@ -37,6 +38,7 @@ def _tampered(fmu: Path, out: Path, entry: str, change) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_the_fmu_carries_its_version_and_digest_and_a_host_with_other_variables_refuses_it(fmus, tmp_path):
     md = read_model_description(str(fmus["plant"]))
     script = zipfile.ZipFile(fmus["plant"]).read("resources/dsg_hil_plant.py").decode("utf-8")
@@ -119,6 +121,7 @@ print(json.dumps({"measured": measured, "declared": declared, "moved": moved, "l
 """
 
 
+@pytest.mark.slow
 def test_the_model_structure_declares_the_feedthrough_measured(fmus):
     for model, path in fmus.items():
         md = read_model_description(str(path))

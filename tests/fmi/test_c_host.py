@@ -90,6 +90,7 @@ def c_host(tmp_path_factory) -> Path:
     return folder
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("logging_on", [1, 0])
 def test_a_c_host_lives_past_its_exit(c_host, fmus, tmp_path, logging_on):
     with zipfile.ZipFile(fmus["tcu"]) as fmu:

@@ -10,6 +10,8 @@ import sys
 from importlib import resources
 from pathlib import Path
 
+import pytest
+
 from dsg_hil.cli import main
 from dsg_hil.fmi.tcu import ValueTables, tcu_outputs
 from dsg_hil.protocol.binding import load_binding
@@ -28,6 +30,7 @@ def frames(log: Path) -> list[str]:
     return log.read_text(encoding="utf-8").splitlines()[1:]
 
 
+@pytest.mark.slow
 def test_a_controller_fmu_on_the_example_matrix_sends_ecu_stub_s_frames_bit_for_bit(fmus, tmp_path):
     ref, fmu = tmp_path / "ecu_stub.asc", tmp_path / "fmu.asc"
     common = ["-i", "virtual", "--duration", "2", "--dbc", str(DBC), "--binding", str(BINDING), "-q"]

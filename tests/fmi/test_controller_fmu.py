@@ -19,6 +19,7 @@ from .conftest import run_python
 HANDOVER_BY_S = 40.0  # the shipped creep hands CL over to CH at 33 s: the runs below cover it
 
 
+@pytest.mark.slow
 def test_ecu_stub_s_controller_as_an_fmu_gives_the_same_frames_bit_for_bit(fmus, tmp_path):
     ref, fmu, summary = tmp_path / "ecu_stub.log", tmp_path / "fmu.log", tmp_path / "fmu.json"
     common = ["-i", "virtual", "--duration", f"{HANDOVER_BY_S:g}"]
@@ -66,6 +67,7 @@ print(json.dumps({"t": r.t, "T_CL": r.T_CL, "T_CH": r.T_CH, "handovers": r.hando
 """
 
 
+@pytest.mark.slow
 def test_plant_fmu_and_controller_fmu_in_fmpy_give_the_creep_of_dsg_hil_run(fmus):
     """A shortened creep (to the first handover and past it: the full 240 s take about a minute in FMPy)."""
     cosim = run_python(COSIMULATE, str(fmus["plant"]), str(fmus["tcu"]), f"{HANDOVER_BY_S:g}")
@@ -80,6 +82,7 @@ def test_plant_fmu_and_controller_fmu_in_fmpy_give_the_creep_of_dsg_hil_run(fmus
     assert len(summary.handovers) == 1
 
 
+@pytest.mark.slow
 def test_the_pytest_fixture_runs_a_controller_fmu_by_its_path(fmus, tmp_path):
     """dsg_hil_run("my_tcu.fmu") (run_plant, which the fixture calls): ecu-stub's controller as an FMU gives the
     bundled ecu-stub's frames, bit for bit, and the same summary."""

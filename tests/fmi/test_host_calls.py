@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import os
 
+import pytest
+
 from dsg_hil.fmi.export import has_shim
 
 from .conftest import OPEN_INSTANCE, run_python
@@ -88,6 +90,7 @@ print(json.dumps({"results": results, "late": late, "after": after, "fresh": fre
 """
 
 
+@pytest.mark.slow
 def test_ten_failing_calls_in_a_row_then_a_second_instance_and_the_host_lives(fmus):
     out = run_python(MISUSE, str(fmus["plant"]), env=freed_unmapped())  # asserts the process's exit status 0
     expected = {"a NaN input": "P_CL_Cmd = nan", "an input out of the DBC's range": "P_CL_Cmd = 1000.0",
@@ -134,6 +137,7 @@ print(json.dumps({"results": results, "log_b": log_b}))
 """
 
 
+@pytest.mark.slow
 def test_a_host_that_leaves_its_instances_to_the_exit_lives(fmus):
     """PythonFMU's binary wrote to freed memory at the end of every process that had instantiated it (two copies
     of it here), freed instances or not; dsg-hil's slaves end its state at Python's exit, before that."""

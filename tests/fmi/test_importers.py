@@ -43,6 +43,7 @@ print(json.dumps({"rows": rows}))
 """
 
 
+@pytest.mark.slow
 def test_libcosim_and_fmpy_run_the_plant_fmu_to_the_same_bit(fmus):
     names = [s.name for s in PLANT_OUTPUTS]
     args = (str(fmus["plant"]), json.dumps(SCRIPT), json.dumps(names), str(STOP))
@@ -120,6 +121,7 @@ print(json.dumps({"rows": rows}))
 """
 
 
+@pytest.mark.slow
 def test_libcosim_and_fmpy_co_simulate_the_plant_and_tcu_fmus_to_the_same_bit(fmus):
     args = (str(fmus["plant"]), str(fmus["tcu"]))
     fmpy = np.array(run_python(PAIR, *args, "fmpy", "300")["rows"])

@@ -58,6 +58,7 @@ print(json.dumps({"counts": counts}))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["plant", "tcu"])
 def test_instances_keep_the_slave_module_s_namespace_and_the_process_ends_cleanly(fmus, model):
     counts = run_python(COUNT, str(fmus[model]))["counts"]  # run_python: exit status 0, through Python's shutdown
@@ -115,6 +116,7 @@ controller.close()
 """
 
 
+@pytest.mark.slow
 def test_a_pythonfmu_fmu_of_a_user_is_made_good_by_the_host_and_not_by_fmpy_alone(user_fmu):
     fmpy = run_python(AROUND, str(user_fmu), "fmpy")
     assert fmpy["after"] == fmpy["before"] - 1, f"PythonFMU's binary no longer releases the reference: {fmpy}"

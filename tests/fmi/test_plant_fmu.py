@@ -8,6 +8,7 @@ import json
 import numpy as np
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
+import pytest
 
 from dsg_hil.common.units import CV
 from dsg_hil.fmi.signals import PLANT_INPUTS, PLANT_OUTPUTS
@@ -154,6 +155,7 @@ print(json.dumps({"first": first, "again": again, "T_start": T_start, "odd": odd
 """
 
 
+@pytest.mark.slow
 def test_the_fmu_state_rolls_the_whole_plant_back(fmus):
     result = run_python(ROLLBACK, str(fmus["plant"]))
     assert result["first"] == result["again"]

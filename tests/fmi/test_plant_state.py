@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from fmpy import read_model_description
 
+import pytest
+
 from .conftest import OPEN_INSTANCE, run_python
 
 # (t_start [s], P_CL_Cmd [MPa], BrakePedal [%]), held: the brake released at 0.3 s, CL engaged at 0.5 s (stuck
@@ -65,6 +67,7 @@ print(json.dumps({"windows": windows, "moved": moved, "mass": mass, "reset": aga
 """
 
 
+@pytest.mark.slow
 def test_replay_after_any_roll_back_point_is_bit_for_bit(fmus):
     import json
 

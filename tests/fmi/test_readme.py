@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "how-to" / "fmi.md"
 
 
@@ -16,6 +18,7 @@ def fmpy_snippet() -> str:
     return next(block for block in blocks if "simulate_fmu(" in block)
 
 
+@pytest.mark.slow
 def test_the_guide_s_fmpy_snippet_runs(tmp_path):
     import os
 

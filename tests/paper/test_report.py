@@ -66,6 +66,7 @@ def run(tmp_path_factory):
     return base, base / "out", cases
 
 
+@pytest.mark.slow
 def test_report_writes_every_figure_the_page_and_report_json(run):
     _, out, _ = run
     for name in FIGURES:
@@ -140,6 +141,7 @@ def test_the_phase_table_agrees_with_the_summary_from_the_launch_on(run):
         assert a["T_CL_end_c"] == pytest.approx(b["T_CL_end_c"], abs=0.5)
 
 
+@pytest.mark.slow
 def test_from_log_of_the_recorded_run_gives_the_same_numbers(run, monkeypatch):
     base, out, cases = run
     monkeypatch.setattr(report_cmd, "run_validation", lambda params, **kw: cases)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import importlib
 from dataclasses import fields, is_dataclass
 
+import pytest
+
 from dsg_hil.physics import jit
 from dsg_hil.physics import params as params_module
 from dsg_hil.physics.engine import governor
@@ -62,6 +64,7 @@ def test_constants_hold_arrays_and_group_fields_by_name(params):
         jit.constants({"r_w": 1.0}, params.vehicle)
 
 
+@pytest.mark.slow
 def test_the_plant_step_compiled_equals_its_source_interpreted(params):
     """The plant's whole step (stick/slip of all three contacts, mu at mid-step, mean pressures) run as machine
     code and by the interpreter from the same state: the same state to rounding."""
@@ -81,6 +84,7 @@ def test_the_plant_step_compiled_equals_its_source_interpreted(params):
         np.testing.assert_allclose(b[:N_S], plant._b[:N_S], rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_the_compiled_code_is_cached_outside_the_package(tmp_path):
     """numba's cache files are not in pip's record of an install: written into the installed package, they outlive
     'pip uninstall' as a dsg_hil namespace directory that hides a later 'pip install -e .' (CI failed so). They go

@@ -158,6 +158,7 @@ def run_two_processes(dbc: Path, binding: Path, duration: float,
     return plant, tcu_err
 
 
+@pytest.mark.slow
 def test_plant_and_ecu_stub_as_two_processes_on_the_renamed_matrix(tmp_path, runs):
     """``dsg-hil plant`` and ``ecu-stub``, each given ``--dbc renamed.dbc --binding renamed.binding.toml``, on
     udp_multicast: the creep of the in-process run (lock-step is the same whatever the bus)."""

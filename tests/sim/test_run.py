@@ -29,6 +29,7 @@ def comparable(summary: dict) -> dict:
     return {k: v for k, v in summary.items() if k not in RUN_SPECIFIC}
 
 
+@pytest.mark.slow
 def test_the_entry_points_give_the_same_summary_key_for_key(tmp_path):
     cli_path = tmp_path / "cli.json"
     subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-i", "virtual", "--duration", str(DURATION),
@@ -123,6 +124,7 @@ def test_default_tcu_is_the_bundled_ecu_stub():
     assert RunConfig().tcu == ECU_STUB
 
 
+@pytest.mark.slow
 def test_the_tutorial_example_runs(tmp_path):
     page = Path(__file__).resolve().parents[2] / "docs" / "tutorials" / "python.md"
     block = re.search(r"```python\n(.*?)```", page.read_text(encoding="utf-8"), re.S)
@@ -134,6 +136,7 @@ def test_the_tutorial_example_runs(tmp_path):
     assert (tmp_path / "run.asc").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_the_set_up_is_frozen_for_the_run_and_thawed_after():
     """setup_frozen: the objects made before the run out of the collector's way during it (gc.freeze), back after
     (a sweep worker's next run collects this one's cycles); someone else's freeze left as it was."""

@@ -128,6 +128,7 @@ def same_creep(a: dict, b: dict, delay: float) -> None:
     assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0
 
 
+@pytest.mark.slow
 def test_every_frame_is_in_its_message_s_format(runs):
     _, (other, frames, _, _) = runs
     seen = {}
@@ -273,6 +274,7 @@ def test_a_creep_on_the_renumbered_matrix_is_the_example_s(tmp_path):
     assert a["phases"] and a == b
 
 
+@pytest.mark.slow
 def test_ecu_stub_on_the_example_matrix_in_real_time():
     """The same pair in real time, in one process on python-can's virtual bus (ecu-stub on its own clock, no
     SIM_Step frames): short, no assertion on timing; nothing rejected at either end, ecu-stub reads every sensor
@@ -291,6 +293,7 @@ def test_ecu_stub_on_the_example_matrix_in_real_time():
     assert not any(m.arbitration_id == other.db.get_message_by_name("SIM_Step").frame_id for m in run.frames)
 
 
+@pytest.mark.slow
 def test_plant_and_ecu_stub_as_two_processes_on_the_example_matrix(tmp_path, runs):
     """``dsg-hil plant`` and ``ecu-stub``, each given ``--dbc dct_fd.dbc --binding dct_fd.binding.toml``, on
     udp_multicast (CAN FD frames, the bus opened for them by both): lock-step is the same whatever the bus, so the

@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import can
+import pytest
 
 from dsg_hil.protocol.bus import UDP_MULTICAST, add_bus_arguments, bus_args, bus_config, fresh_udp_group, open_bus
 
@@ -20,6 +21,7 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+@pytest.mark.slow
 def test_run_on_udp_multicast_starts_the_tcu_as_a_process_that_answers(tmp_path):
     summary = tmp_path / "s.json"
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-i", UDP_MULTICAST, "--duration", "3",
@@ -66,6 +68,7 @@ def test_tcu_without_the_group_says_what_to_pass():
     assert proc.stderr.startswith("error: ") and "--bus-kwargs port=" in proc.stderr
 
 
+@pytest.mark.slow
 def test_virtual_is_per_process_and_says_so():
     proc = subprocess.run([sys.executable, "-m", "ecu_stub", "-i", "virtual", "--duration", "0.1"],
                           capture_output=True, text=True)

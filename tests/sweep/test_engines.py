@@ -43,6 +43,7 @@ def embedded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess
     return where / "out", proc
 
 
+@pytest.mark.slow
 def test_a_dozen_runs_on_the_embedded_local_cluster(embedded):
     out, proc = embedded
     assert proc.returncode in (0, 3), proc.stderr[-3000:]
@@ -72,6 +73,7 @@ def bench(script: str, *args: str) -> subprocess.CompletedProcess[str]:
                           timeout=600, env=sweep_env(), cwd=REPO)
 
 
+@pytest.mark.slow
 def test_the_benches_over_a_sweep_read_it_and_repeat_its_runs(embedded):
     """bench/safety_findings.py counts the table; bench/rerun_sweep_runs.py runs two of its runs again on this tree
     (the sweep's own worker) and gets their rows again, key for key; a run that is not there is exit 2, one line."""
@@ -136,6 +138,7 @@ def local_cluster(n_workers: int, nanny: bool = True) -> Iterator[tuple[str, lis
                 p.kill()
 
 
+@pytest.mark.slow
 def test_the_same_sweep_on_a_real_cluster_gives_the_same_rows(embedded, tmp_path):
     """dask scheduler + two dask worker processes (the engine's own CLI), reached by --scheduler."""
     (tmp_path / "small.toml").write_text(SMALL, encoding="utf-8")
@@ -163,6 +166,7 @@ def _busy_worker(address: str, workers: list[subprocess.Popen[bytes]], deadline:
     raise AssertionError("no worker ever ran one of the sweep's runs")
 
 
+@pytest.mark.slow
 def test_a_lost_workers_runs_are_retried_not_lost(embedded, tmp_path):
     """One of two workers (no nanny to restart it) is killed with SIGKILL while it runs one of the sweep's runs:
     the other worker runs it again; every run is in the table exactly once, with the rows of the embedded sweep."""

@@ -39,6 +39,7 @@ def kill_after_three_runs(argv: list[str], out: Path, poll_s: float = 0.1) -> No
         proc.wait()
 
 
+@pytest.mark.slow
 def test_a_sweep_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tmp_path):
     space = tmp_path / "small.toml"
     space.write_text(SMALL, encoding="utf-8")
@@ -57,6 +58,7 @@ def test_a_sweep_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tm
     assert sorted(ids) == sorted(name.removesuffix(".json") for name in after)  # each once, none lost
 
 
+@pytest.mark.slow
 def test_ctrl_c_ends_a_sweep_with_one_line_and_no_worker_tracebacks(tmp_path):
     """Ctrl-C (SIGINT to the sweep's whole process group, as a terminal sends it) once the cluster is up: exit 130,
     'error: interrupted', and no traceback from the workers (each printed 32 lines of one before)."""
@@ -89,6 +91,7 @@ def _error_line(proc: subprocess.CompletedProcess[str]) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 def test_resume_with_a_larger_n_extends_a_sobol_sweep_with_only_the_missing_runs(tmp_path):
     space = tmp_path / "sobol.toml"
     space.write_text(SMALL.replace("seed = 7", 'seed = 7\nsampler = "sobol"'), encoding="utf-8")
@@ -117,6 +120,7 @@ def test_resume_with_a_larger_n_extends_a_sobol_sweep_with_only_the_missing_runs
     assert len(read_table(out)) == 5
 
 
+@pytest.mark.slow
 def test_resume_refuses_another_n_of_a_latin_hypercube_and_another_space_and_writes_nothing(tmp_path):
     space = tmp_path / "small.toml"
     space.write_text(SMALL, encoding="utf-8")
@@ -150,6 +154,7 @@ target = "tests.sweep.unsafe:Slipper"
 """
 
 
+@pytest.mark.slow
 def test_the_search_finds_a_planted_violation_within_its_budget(tmp_path):
     space = tmp_path / "planted.toml"
     space.write_text(SEARCH, encoding="utf-8")
@@ -232,6 +237,7 @@ def test_every_part_has_one_schema_whether_a_run_s_first_ch_slip_is_null_or_not(
     assert pa.concat_tables(parts).num_rows == 3
 
 
+@pytest.mark.slow
 def test_a_sweep_whose_runs_all_fail_is_not_a_pass(tmp_path):
     """Runs that fail (here the controller under test raises) are not judged: no violation, but no pass either.
     Exit 1, the verdict line counts them and names the first error; each row keeps its error."""
@@ -251,6 +257,7 @@ def test_a_sweep_whose_runs_all_fail_is_not_a_pass(tmp_path):
 LATENT = "\n[latent]\nper_run = [0, 2]\nscale = [0.1, 2.5]\n"  # drawn by trial index, not proposed
 
 
+@pytest.mark.slow
 def test_a_search_killed_midway_resumes_with_nothing_repeated_and_nothing_lost(tmp_path):
     """A search SIGKILLed after >= 3 stored trials and resumed: the stored trials count against the budget, their
     files stay as they were, the new ones continue the run indices (s00000..s00015, each once, the latent faults
@@ -366,6 +373,7 @@ def test_a_search_does_not_resume_onto_a_sampled_sweep_or_past_its_budget(tmp_pa
         run_search(space, out, budget=16, resume=True)
 
 
+@pytest.mark.slow
 def test_a_resumed_search_runs_first_the_indices_that_were_in_flight_when_it_was_killed(tmp_path):
     """Killed with several runs in flight, a search leaves gaps in its indices: the resumed one runs those first,
     then the next, so that its indices end as an uninterrupted search's (s00000..s00004), each run once."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import logging
 
+import pytest
+
 from dsg_hil.sweep.worker import RUN_LOGGERS, runs_quiet
 
 
@@ -20,6 +22,7 @@ def test_runs_quiet_silences_the_runs_warnings_and_restores_them():
     assert runner.isEnabledFor(logging.WARNING)
 
 
+@pytest.mark.slow
 def test_a_stop_held_by_the_tcu_in_a_fault_window_is_its_safe_reaction_not_a_standstill():
     """A 1,000-run sample of the shipped space (r00142): PLANT_SPEEDS dropped for 4.5 s while creeping downhill; the
     TCU went to FAULT and braked the vehicle to rest 0.1 s into the fault, which the verdict called a standstill

@@ -81,6 +81,7 @@ def test_a_command_line_through_the_fixture(dsg_hil_run):
     assert_commands_flowed(run.summary)
 
 
+@pytest.mark.slow
 def test_a_controller_fmu_through_dsg_hil_run(tmp_path):
     pytest.importorskip("fmpy", reason="the fmi extra (in the test extra): pip install '.[fmi]'")
     done = dsg_hil("fmu", "export", "--model", "tcu", "--out", "tcu.fmu", cwd=tmp_path)

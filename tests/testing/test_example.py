@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "tutorials" / "pytest.md"
 # a checkout on PYTHONPATH has no entry point: register the plugin as tests/conftest.py does
 CONFTEST = '''
@@ -32,6 +34,7 @@ def run_pytest(directory: Path, *options: str) -> subprocess.CompletedProcess[st
                           cwd=directory, capture_output=True, text=True, timeout=900)
 
 
+@pytest.mark.slow
 def test_the_readme_example_passes(tmp_path):
     (tmp_path / "test_my_ecu.py").write_text(readme_example(), encoding="utf-8")
     proc = run_pytest(tmp_path)

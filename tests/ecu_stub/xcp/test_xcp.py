@@ -292,6 +292,7 @@ def test_lockstep_frames_bit_for_bit_with_the_slave_idle(quiet):
     assert run_frames(tcu=with_slave) == quiet
 
 
+@pytest.mark.slow
 def test_the_a2l_parses_with_pya2ldb_and_lists_the_memory_map(tmp_path):
     pya2l = pytest.importorskip("pya2l", reason="the A2L reader of the tests (extra 'xcp')")
     from pya2l import model

@@ -6,6 +6,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from dsg_hil.cli import main
 
 FAULTS = ["--fault", "corrupt_crc:TCU_CMD@2-2.1", "--fault", "drop:PLANT_SPEEDS@2.2-2.3,p=0.5", "--fault-seed", "1"]
@@ -25,6 +27,7 @@ def test_run_with_faults_logs_the_same_frames_every_time(tmp_path):
     assert summary["command_fallback"]["events"] == 1
 
 
+@pytest.mark.slow
 def test_run_passes_the_tcu_faults_to_the_ecu_stub_it_starts(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "run", "-i", "udp_multicast", "--duration", "1",
                            "--fault", "corrupt_crc:TCU_CMD@0.5-0.52", "--summary", str(tmp_path / "s.json")],
