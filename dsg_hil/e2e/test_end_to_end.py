@@ -27,7 +27,6 @@ from .conftest import (
     first_transmissions,
     frames_over_cycle,
     parse_candump,
-    run_pair,
     sent_by,
 )
 
@@ -185,19 +184,13 @@ def test_canplayer_replay_drives_a_tcu(db, lockstep, outdir):
     assert max(cmd.decode(data)["P_CL_Cmd"] for _, ident, data in answers if ident == cmd.frame_id) > 0.1  # CL
 
 
-def test_lockstep_over_vcan_is_bit_for_bit_reproducible(lockstep, outdir, duration):
-    """A second lockstep run with separate processes on vcan0 writes the same plant log, byte for byte."""
-    run_pair(outdir, "lockstep2", "lockstep", duration, extra=("--log", str(outdir / "lockstep2.plant.log")))
-    first = (outdir / "lockstep.plant.log").read_bytes()
-    assert len(first) > 10_000 and (outdir / "lockstep2.plant.log").read_bytes() == first
-
-
-def test_the_tutorial_s_run_starts_the_tcu_as_a_process_on_vcan0(outdir, duration):
-    """docs/tutorials/vcan.md's run: ``dsg-hil run`` on vcan0 starts the bundled TCU as an ecu-stub process and
-    drives it; every frame accepted, the log written on vcan0 (the page's command, with the suite's --duration).
+@pytest.fixture(scope="module")
+def tutorial_run(outdir, duration):
+    """docs/tutorials/vcan.md's run: ``dsg-hil run`` on vcan0, which starts the bundled TCU as an ecu-stub process
+    (the page's command, with the suite's --duration); returns (summary, log path).
 
     The suite's waits replace the defaults (60 s for the TCU's first frame, 5 s for each reply), which are a real
-    machine's: under emulation beside 4 CPU hogs the TCU process alone can take minutes to import (``STARTUP``)."""
+    machine's: under emulation on a busy machine the TCU process alone can take minutes to import (``STARTUP``)."""
     summary = outdir / "run.summary.json"
     log = outdir / "run.log"
     proc = subprocess.Popen([console("dsg-hil"), "run", "--interface", "socketcan", "--channel", "vcan0", "--log",
@@ -206,7 +199,20 @@ def test_the_tutorial_s_run_starts_the_tcu_as_a_process_on_vcan0(outdir, duratio
                             stderr=subprocess.PIPE, text=True)
     err = finish_while_progressing(proc, log)
     assert proc.returncode == 0, err
-    data = json.loads(summary.read_text())
-    assert data["interface"] == "socketcan:vcan0" and data["creep_time_s"] > 0  # the TCU process drove the creep
+    return json.loads(summary.read_text()), log
+
+
+def test_the_tutorial_s_run_starts_the_tcu_as_a_process_on_vcan0(tutorial_run):
+    """The run drives the TCU process it started: a creep, every frame accepted, the log written on vcan0."""
+    data, log = tutorial_run
+    assert data["interface"] == "socketcan:vcan0" and data["creep_time_s"] > 0
     assert data["frames"]["rejected"] == 0 and data["frames"]["received"] > 0
     assert log.read_text().splitlines()[0].split()[1] == "vcan0"
+
+
+def test_lockstep_over_vcan_is_bit_for_bit_reproducible(lockstep, tutorial_run, outdir):
+    """Two lock-step runs on vcan0, each with plant and TCU in separate processes, started two ways (``dsg-hil
+    plant`` beside ``ecu-stub``; ``dsg-hil run``, which starts ecu-stub itself), write the same plant log, byte for
+    byte."""
+    first = (outdir / "lockstep.plant.log").read_bytes()
+    assert len(first) > 10_000 and tutorial_run[1].read_bytes() == first
