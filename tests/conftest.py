@@ -17,7 +17,7 @@ os.environ.setdefault("PYTHONSAFEPATH", "1")
 
 def pytest_configure(config):
     register_plugin(config)
-    config.addinivalue_line("markers", "slow: over about 3 s on a 2-core machine (closed loops, sweeps, processes, "
+    config.addinivalue_line("markers", "slow: over about 1.5 s on a 2-core machine (closed loops, sweeps, processes, "
                                        "the 100-s cases against solve_ivp, building a wheel): the compiled build's "
                                        "run has them, the Contributing run (-m 'not slow or wheel') leaves them out")
     config.addinivalue_line("markers", "wheel: builds a wheel of the checkout (pip, mypyc) and tests it; run where "

@@ -82,6 +82,7 @@ def sources() -> list[tuple[Path, Path]]:
     return [(p, root) for root in (PACKAGE, ECU_STUB) for p in sorted(root.rglob("*.py"))]
 
 
+@pytest.mark.slow
 def test_every_part_imports_only_what_the_table_allows():
     bad = []
     for path, root in sources():

@@ -24,6 +24,7 @@ def softer(where: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_the_calibration_given_is_the_one_the_tcu_runs(tmp_path):
     cal = softer(tmp_path)
     for name, extra in (("default", []), ("same", ["--calibration", str(DEFAULT_CALIBRATION)]),

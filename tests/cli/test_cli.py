@@ -80,6 +80,7 @@ def test_garbled_parameter_file(tmp_path):
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "friction.A_stribeck" in proc.stderr
 
 
+@pytest.mark.slow
 def test_help_explains_every_command():
     for cmd in ([], ["validate"], ["params"], ["calibrate"], ["run"], ["plant"], ["dbc"], ["vcan"]):
         proc = subprocess.run([sys.executable, "-m", "dsg_hil", *cmd, "--help"], capture_output=True, text=True)
@@ -110,6 +111,7 @@ def test_dbc_command_prints_bus_load(capsys):
     assert "TCU_CMD" in out and "total at 500 kbit/s" in out
 
 
+@pytest.mark.slow
 def test_ecu_stub_help_and_bad_interface():
     proc = subprocess.run([sys.executable, "-m", "ecu_stub", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "creep strategy" in proc.stdout
@@ -122,6 +124,7 @@ def test_ecu_stub_help_and_bad_interface():
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow
 def test_plant_alone_on_virtual_warns_and_fails_for_want_of_a_tcu(tmp_path):
     """Nobody can hear a plant alone on 'virtual': warned at start, and a real-time run that heard no TCU frame
     ends with exit 1 and the reason (the warning again), the summary's counts written."""
@@ -136,6 +139,7 @@ def test_plant_alone_on_virtual_warns_and_fails_for_want_of_a_tcu(tmp_path):
     assert frames["sent"] > 0 and frames["received"] == frames["retries"] == frames["unanswered_ticks"] == 0
 
 
+@pytest.mark.slow
 def test_plant_prints_the_tcu_command_for_its_bus():
     proc = subprocess.run([sys.executable, "-m", "dsg_hil", "plant", "-i", "udp_multicast", "--duration", "0.2"],
                           capture_output=True, text=True)

@@ -234,6 +234,7 @@ def test_dead_tcu_ends_a_lockstep_run_as_peer_lost(tmp_path):
 
 
 
+@pytest.mark.slow
 def test_no_tcu_at_all_ends_with_a_summary(tmp_path):
     """No TCU answers the presence probe: one line, exit 1, and the summary all the same (stop reason no_peer)."""
     bus = udp_bus()

@@ -22,6 +22,7 @@ def complete(*words: str) -> list[str]:
     return subprocess.run(["bash", "-c", shell], capture_output=True, text=True, check=True).stdout.split()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("bash") is None, reason="no bash here")
 def test_bash_completes_commands_and_their_options():
     assert complete("dsg-hil", "re") == ["report"]

@@ -52,6 +52,7 @@ def ecu(tmp_path_factory):
         tcu.wait(timeout=60)
 
 
+@pytest.mark.slow
 def test_dtc_with_status_and_freeze_frame_read_clear_and_none_left(ecu, capsys, tmp_path):
     out_json = tmp_path / "dtcs.json"
     assert main(["diag", "dtc", *ecu, "--json", str(out_json)]) == 0

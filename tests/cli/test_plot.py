@@ -25,6 +25,7 @@ def test_every_panel_signal_of_a_run_is_read_from_its_log(run_log):
     assert times[0] == 0.0 and times[-1] == pytest.approx(2.99, abs=0.02) and max(speeds) > 0.1  # it crept
 
 
+@pytest.mark.slow
 def test_plot_writes_the_image_by_its_extension(run_log, tmp_path, capsys):
     assert main(["plot", str(run_log), "-o", str(tmp_path / "run.png")]) == 0
     assert (tmp_path / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -41,6 +42,7 @@ def test_a_log_of_another_bus_is_one_error_and_no_image(tmp_path, capsys):
     assert not (tmp_path / "other.png").exists()
 
 
+@pytest.mark.slow
 def test_a_log_of_another_matrix_is_plotted_through_its_binding(tmp_path, capsys):
     """A run on the dct_fd example (CAN FD, AUTOSAR E2E Profiles 5 and 11, a multiplexed message, other units:
     km/h, bar with an offset, K): with ``--binding`` every panel's quantity is read from the signal that carries

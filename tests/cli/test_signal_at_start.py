@@ -70,6 +70,7 @@ def assert_summary(path: Path, reason: str, periods: bool) -> dict:
     return summary
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, code, reason", SIGNALS)
 def test_run_signalled_as_soon_as_main_runs(tmp_path, sig, code, reason):
     """The first moment main handles signals (it parses the options, imports the command): no period runs,

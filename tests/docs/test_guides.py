@@ -271,6 +271,7 @@ def ecu_words(tmp_path: Path) -> dict[str, str]:
     return {"dbc/examples/arxml/tcu.arxml": str(ECU_EXAMPLE / "tcu.arxml")}
 
 
+@pytest.mark.slow
 def test_the_ecu_tutorial_s_skeleton_and_check_run(tmp_path: Path) -> None:
     """binding init writes the skeleton whose lines the page shows; binding check on the example's binding prints
     the page's table and last line; without T_CL_pred it exits 2 with the page's line."""
@@ -347,6 +348,7 @@ def test_the_ecu_tutorial_s_vcan_lines_are_the_vcan_suite_s() -> None:
     assert sh_block(ECU_PAGE, "ecu-stub -i socketcan") == [test_connect_ecu.ECU_LINE, test_connect_ecu.PLANT_LINE]
 
 
+@pytest.mark.slow
 def test_the_xcp_guide_s_commands_run(tmp_path: Path) -> None:
     """The first line serves XCP on the DBC's default IDs (on a fresh group and port; stopped once it says so); the
     A2L line writes the file. The third, on vcan0, is parsed by test_blocks.py."""

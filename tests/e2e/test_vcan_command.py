@@ -158,6 +158,7 @@ def _alive(pid_file) -> bool:
     return True
 
 
+@pytest.mark.slow
 def test_a_vm_that_hangs_at_boot_is_killed_and_booted_again(tmp_path, capsys):
     plan, _ = _fake_vm(tmp_path, hangs=1)
     said: list[str] = []
@@ -173,6 +174,7 @@ def test_a_vm_that_hangs_at_boot_is_killed_and_booted_again(tmp_path, capsys):
     assert "booting, try 1" in console and "booting, try 2" in console and "test passed" in console
 
 
+@pytest.mark.slow
 def test_a_vm_that_never_boots_fails_the_run_after_its_boots(tmp_path):
     plan, _ = _fake_vm(tmp_path, hangs=9)
     with pytest.raises(vcan.VcanError, match="did not start the command within 1 s in 2 boots") as exc:

@@ -224,6 +224,7 @@ def test_search_found_a_stuck_zero_vehicle_speed_under_a_light_brake_drag_is_rep
     assert s["max_speed_creep_mps"] <= 1.2 * v_desired  # before: 0.548 m/s
 
 
+@pytest.mark.slow
 def test_sample_found_a_clutch_that_cannot_carry_the_vehicle_stops_it_rather_than_stall_under_creep():
     """11.0 t on 0.175 rad at 1,486 r/min, creep requested (found by the 5,000-run sample of the shipped space,
     r00468): CL reached its limit after 13 s and handed over to CH, whose gear needs 1.73 times CL's torque; at its
@@ -301,6 +302,7 @@ def _frame_fault(kind: str, start: float, end: float) -> str:
     return f'[[fault]]\nkind = "{kind}"\ntarget = "TCU_CMD"\nstart_s = {start}\nend_s = {end}\n'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, seconds, grade, before_m", [("drop", 2.0, GRADE, 0.843),
                                                              ("corrupt_crc", 3.0, GRADE, 2.083),
                                                              ("freeze_counter", 5.0, 0.243, 0.117)])
@@ -346,6 +348,7 @@ def _search_stop_and_go():
     return creep(60.0, events, grade=0.211, idle=962.0, mass=10544.16 / 7840.0)
 
 
+@pytest.mark.slow
 def test_stop_and_go_beyond_the_prefill_s_design_does_not_roll_back_at_the_brake_releases():
     """The fixed pre-fill (sized for +30 % on 0.2 rad) let the vehicle roll back at every brake release, up to
     13.5 mm/s here (51 mm over the search's 240 s); the pre-fill for the grade read at the standstill
@@ -354,6 +357,7 @@ def test_stop_and_go_beyond_the_prefill_s_design_does_not_roll_back_at_the_brake
     assert s["rollback_mps"] >= -ROLLBACK_MAX_MPS and s["rollback_m"] <= 0.005
 
 
+@pytest.mark.slow
 def test_stop_and_go_beyond_the_prefill_s_design_keeps_the_speed_within_20_percent_through_its_handover():
     """The same run's CL -> CH handover at 36.7 s, CL at 243 degC: through the crossover the thermal monitor
     released CL faster than its share (its bound), and the on-coming CH took only its planned share, so the wheel

@@ -509,6 +509,7 @@ def test_an_oil_sensor_wrong_from_key_on_keeps_the_true_plate_under_t_safe(name)
     assert summary["creep_time_s"] > 5.0  # the other clutch, or the flagged one from its hottest start, creeps
 
 
+@pytest.mark.slow
 def test_an_oil_sensor_reading_high_from_key_on_costs_the_other_pack_not_the_plate():
     """A reading too high is the safe side for its own plate; at key-on it makes the other pack's reading look low:
     that one is then predicted adiabatic (availability, not safety)."""

@@ -78,6 +78,7 @@ os._exit(0)
 """
 
 
+@pytest.mark.slow
 def test_the_refusal_names_both_versions(fmus, tmp_path):
     script = zipfile.ZipFile(fmus["plant"]).read("resources/dsg_hil_plant.py").decode("utf-8")
     version, digest = re.search(r'exported = \("([^"]+)", "([0-9a-f]{16})"\)', script).groups()

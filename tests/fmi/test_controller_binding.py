@@ -43,6 +43,7 @@ def test_a_controller_fmu_on_the_example_matrix_sends_ecu_stub_s_frames_bit_for_
     assert sum(f" {TCU_DEMAND} " in line for line in sent) >= 190  # the FMU's commands, every 10 ms, on dct_fd's ID
 
 
+@pytest.mark.slow
 def test_the_fmu_s_state_and_clutch_numbers_are_the_binding_s(fmus, tmp_path):
     """On a matrix numbering the states otherwise (the binding's ``values``), the adapter reads the FMU's State and
     ActiveClutch in the matrix's numbers: 'Creeping' is 3 there (CREEP is 2 in the shipped DBC)."""
@@ -73,6 +74,7 @@ def test_the_fmu_s_state_and_clutch_numbers_are_the_binding_s(fmus, tmp_path):
     assert built == {"states": io.state_values, "clutches": io.clutch_values, "cycle": 0.01, "command": "TCU_Demand"}
 
 
+@pytest.mark.slow
 def test_a_binding_without_a_quantity_the_tcu_reads_stops_a_controller_fmu_at_start(fmus, tmp_path):
     """As for the bundled ecu-stub: exit 2, one line naming the binding file and the quantity, nothing written
     (before: "message PLANT_ENGINE is not in the DBC", the shipped DBC's messages looked for)."""

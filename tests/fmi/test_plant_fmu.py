@@ -109,6 +109,7 @@ print(json.dumps({"t": result["time"].tolist(), "values": [result[n].tolist() fo
 """
 
 
+@pytest.mark.slow
 def test_fmpy_reproduces_the_in_process_plant_to_the_last_bit(fmus):
     names = [s.name for s in PLANT_OUTPUTS]
     fmu = run_python(SIMULATE, str(fmus["plant"]), json.dumps(SCRIPT), json.dumps(names), str(STOP))

@@ -117,6 +117,7 @@ print(json.dumps({"off": off, "log_off": log_off, "on": on, "log_on": log, "ende
 """
 
 
+@pytest.mark.slow
 @needs_compiler
 def test_a_refused_call_is_an_error_with_logging_off_and_the_shim_is_not_finalised(fmus):
     out = run_python(LOGGING, str(fmus["plant"]))

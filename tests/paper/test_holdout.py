@@ -42,6 +42,7 @@ def test_a_determined_leave_one_out_refits_within_the_calibrations_bounds(params
         assert r.error == pytest.approx(r.predicted - r.published)
 
 
+@pytest.mark.slow
 def test_an_underdetermined_leave_one_out_fixes_a_quantity_at_its_table1_prior(params, scenario):
     """mu_CH: two unknowns (A, the CH slip), one number left: A is fixed at table1's value and named."""
     block = next(b for b in BLOCKS if b.calibration == "stribeck")
@@ -52,6 +53,7 @@ def test_an_underdetermined_leave_one_out_fixes_a_quantity_at_its_table1_prior(p
         assert [q for q, _ in r.refit] == ["scenario creep speed"]
 
 
+@pytest.mark.slow
 def test_sensitivity_keeps_calibrated_columns_and_only_influential_assumed_ones(params, scenario):
     unused = Quantity("hydraulics.tau", ("hydraulics.tau",))  # the reduced model has no pressure lag
     oil = Quantity("oil.c_p", ("oil.c_p",))  # the cooling flows' heat capacity

@@ -166,6 +166,7 @@ def test_an_asc_log_written_by_python_can_gives_the_same_numbers(run):
     assert read_log(asc, db).metrics == read_log(out / "creep.log", db).metrics
 
 
+@pytest.mark.slow
 def test_a_log_without_tcu_status_gives_the_creep_numbers_and_figures(run):
     """A third-party ECU sends no TCU_STATUS: nothing but the predictions and the TCU's handovers is lost."""
     base, out, _ = run
@@ -192,6 +193,7 @@ def _cli(*argv: str) -> subprocess.CompletedProcess:
                           timeout=120)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, content, message", [
     ("missing.log", None, "log file not found"),
     ("garbled.log", "this is not a CAN log\n", "cannot read the log"),
@@ -208,6 +210,7 @@ def test_bad_log_is_one_error_line_before_any_run(tmp_path, name, content, messa
     assert str(log) in proc.stderr
 
 
+@pytest.mark.slow
 def test_unwritable_out_is_checked_before_the_run(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
@@ -216,6 +219,7 @@ def test_unwritable_out_is_checked_before_the_run(tmp_path):
     assert proc.stderr.startswith("error: --out ") and "not a writable directory" in proc.stderr
 
 
+@pytest.mark.slow
 def test_a_log_without_sim_frames_gives_the_figures_without_truth(run):
     """A real ECU's log has no SIM_* frames: Fig. 8 says so instead of drawing an empty chart."""
     base, out, _ = run

@@ -51,6 +51,7 @@ def test_state_integral_matches_fine_steps(params):
 ONES = np.ones(3)  # v_ramp: unused where limit = cap (Coulomb friction)
 
 
+@pytest.mark.slow
 def test_contacts_stick_when_they_can_and_slip_at_capacity_otherwise():
     W = np.array([[-0.1, -0.005, 0.0], [-0.005, -0.04, 0.0], [0.0, 0.0, -1e-4]])
     v_free = np.array([2.0, -1.0, 0.3])

@@ -57,6 +57,7 @@ def main_c(frames) -> str:
     return "\n".join([*lines, "    return 0;", "}", ""])
 
 
+@pytest.mark.slow
 def test_generated_c_compiles_and_packs_and_unpacks_as_cantools(tmp_path):
     with resources.as_file(DEFAULT_DBC) as dbc:
         subprocess.run([sys.executable, "-m", "cantools", "generate_c_source", str(dbc), "--output-directory",

@@ -177,6 +177,7 @@ def test_plant_and_ecu_stub_as_two_processes_on_the_renamed_matrix(tmp_path, run
     assert b["frames"]["rejected"] == b["frames"]["unanswered_ticks"] == 0
 
 
+@pytest.mark.slow
 def test_run_config_gives_the_pair_to_an_ecu_stub_process(tmp_path, runs):
     """RunConfig(dbc=..., binding=...) on udp_multicast starts ecu-stub as a process with --dbc and --binding (the
     files' absolute paths): it answers on the renamed matrix, and the creep is the shipped one."""

@@ -208,6 +208,7 @@ def test_a_command_answering_no_tick_is_rejected_as_echo(clean, late):
     assert f["lost"] == 0 and pair.frames == clean.frames
 
 
+@pytest.mark.slow
 def test_tcu_answering_two_presence_probes_starts_cleanly(clean):
     """Regression: a TCU slower than the probe interval answered two probes, restarting its counter on each, so
     its tick-0 answer repeated counter 0 and the run aborted. Now both probes get the same answer, byte for

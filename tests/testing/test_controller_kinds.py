@@ -50,6 +50,7 @@ class Hold:
         return {"P_CL_Cmd": self.P_CL_MPA, "P_CH_Cmd": 0.0}
 
 
+@pytest.mark.slow
 def test_the_bundled_ecu_stub_through_dsg_hil_run(tmp_path):
     done = dsg_hil("run", "-q", "--duration", str(SECONDS), "--summary", "s.json", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
@@ -76,6 +77,7 @@ def test_a_python_object_with_step_through_the_fixture(dsg_hil_run):
     assert run.truth["P_CL"].max() > 0.5 * Hold.P_CL_MPA * 1e6  # the plant's pressure followed it [Pa]
 
 
+@pytest.mark.slow
 def test_a_command_line_through_the_fixture(dsg_hil_run):
     run = dsg_hil_run([sys.executable, "-m", "ecu_stub", "{bus_args}"], duration=SECONDS, log=None)
     assert_commands_flowed(run.summary)

@@ -53,6 +53,7 @@ def test_signals_at_holds_the_last_frame():
     assert np.array_equal(s.at("M.x", np.array([-0.01, 0.0, 0.05, 0.1, 5.0])), [np.nan, 1, 1, 2, 2], equal_nan=True)
 
 
+@pytest.mark.slow
 def test_ecu_stub_as_a_process_on_udp_multicast_gives_the_in_process_frames(dsg_hil_run, bundled):
     run = dsg_hil_run(ECU_STUB, duration=3.0)
     assert "ecu-stub: listening on udp_multicast:239.255." in run.controller_output.read_text()
@@ -97,6 +98,7 @@ def test_params_faults_and_scenario_are_arguments(dsg_hil_run):
         run_plant(duration=0.1, params={"vehicle.mass": 1.0}, log=None)
 
 
+@pytest.mark.slow
 def test_a_controller_process_that_never_answers_fails_clearly(tmp_path):
     silent = ControllerProcess([sys.executable, "-c", "import time; time.sleep(60)"])
     with pytest.raises(PeerTimeout, match="no TCU answered.*still running"):

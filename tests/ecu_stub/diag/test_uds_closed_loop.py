@@ -96,6 +96,7 @@ def test_an_oil_sensor_low_from_key_on_confirms_its_dtc_at_once(dsg_hil_run):
     assert_matches_truth(dtcs["P1715"].freeze_frame, result.truth, skip=("T_OilCL",))
 
 
+@pytest.mark.slow
 def test_overheat_stop_and_vehicle_hold(dsg_hil_run):
     hot = dsg_hil_run(scenario=worst_case(10.0, [(1.0, True, 0.0, V_CREEP)], T_CL=228.0, T_CH=247.0, T_oil=130.0),
                       log=None)
@@ -203,6 +204,7 @@ def _talker(bus_config, answers, errors):
     return talk
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("interface", ["virtual", "udp_multicast"])
 def test_uds_while_the_creep_runs_leaves_its_frames_bit_for_bit(interface):
     """A tester talks to ecu-stub during a lock-step run (in this process on python-can's virtual bus; as a process

@@ -325,6 +325,7 @@ def test_the_a2l_parses_with_pya2ldb_and_lists_the_memory_map(tmp_path):
     assert CAL_BASE == min(v.address for v in cal_values())
 
 
+@pytest.mark.slow
 def test_the_ecu_stub_process_serves_xcp_and_writes_its_a2l(tmp_path):
     """``ecu-stub --xcp`` on udp_multicast with other IDs (its receive filters pass the master's): pyxcp connects
     and reads a calibration value; ``ecu-stub --a2l`` writes the A2L of those IDs and exits 0."""
