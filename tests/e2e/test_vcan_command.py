@@ -27,6 +27,30 @@ def test_vm_plan_brings_up_vcan_and_reports_the_status(tmp_path, monkeypatch):
     assert f"echo $? > {tmp_path / 'rc'}" in script and "output.txt" in script
 
 
+def test_the_vm_reads_python_s_directories_through_a_cached_view(tmp_path, monkeypatch):
+    """vng's root is 9p without a cache (every stat and read of every import goes to the host): the plan exports
+    the root once more and the VM binds the interpreter's, the venv's and the checkout's directories from a
+    cache=loose mount of it, then its writable log directory back on top where it lay inside one of them."""
+    monkeypatch.setattr(vcan, "_tool", lambda name, hint: f"/usr/bin/{name}")
+    monkeypatch.setattr(vcan.sys, "base_prefix", "/usr")
+    monkeypatch.setattr(vcan.sys, "prefix", "/work/ck/.venv")
+    monkeypatch.setattr(vcan.Path, "is_dir", lambda self: str(self) != "/gone")
+    outdir = Path("/work/ck/logs")
+    env = {"PYTHONPATH": os.pathsep.join(["/work/ck/src", "/gone", "", "/tmp/co", "/", "/run/x", "/opt/lib"])}
+    assert vcan.cached_dirs(Path("/work/ck"), env) == ["/opt/lib", "/usr", "/work/ck"]
+    plan = vcan.vm_plan(["true"], outdir, tmp_path / "vmlinuz", env, Path("/work/ck"))
+    export = next(a for a in plan.argv if a.startswith("--qemu-opts="))
+    assert f"mount_tag={vcan.CACHED_TAG}" in export and "readonly=on" in export
+    assert plan.argv.index(export) < plan.argv.index("--exec")
+    steps = plan.script.split("; ")
+    view = next(s for s in steps if "cache=loose" in s)
+    assert steps.index(view) < next(i for i, s in enumerate(steps) if s.startswith("cd "))
+    assert f"cache=loose {vcan.CACHED_TAG} " in view and "mount --bind /work/ck/logs /run/dsg-hil-out" in view
+    assert "/run/dsg-hil-host/work/ck /work/ck" in view and "/run/dsg-hil-host/usr /usr" in view
+    assert view.index("--bind /run/dsg-hil-host/work/ck ") < view.index("mount --bind /run/dsg-hil-out /work/ck/logs")
+    assert "/tmp" not in view and "/gone" not in view and "/run/x" not in view and "reading it uncached" in view
+
+
 def test_the_kernel_command_line_stays_short_whatever_the_command(tmp_path, monkeypatch):
     """vng passes --exec on the kernel's command line (2048 bytes on x86; a longer one panicked the VM's kernel at
     boot): the command, its environment and the load's wrapper go in the script file, never there."""
