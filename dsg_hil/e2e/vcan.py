@@ -197,9 +197,9 @@ def cached_dirs(cwd: Path, env: dict[str, str]) -> list[str]:
             continue
         dirs.append(str(path))
     kept: list[str] = []
-    for path in sorted(set(dirs)):  # a parent sorts before its children
-        if not any(Path(path).is_relative_to(parent) for parent in kept):
-            kept.append(path)
+    for name in sorted(set(dirs)):  # a parent sorts before its children
+        if not any(Path(name).is_relative_to(parent) for parent in kept):
+            kept.append(name)
     return kept
 
 
