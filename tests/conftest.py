@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import logging
 import os
 import re
 
@@ -42,6 +43,28 @@ def register_plugin(config) -> None:
 @pytest.fixture(scope="session")
 def params():
     return load_params()
+
+
+@pytest.fixture(autouse=True)
+def fresh_process_logging():
+    """Each test starts and ends with the logging a fresh process has: a command run in the test's process
+    (``main([..., "-q"])``, in a test or a module's fixture) sets the ``dsg_hil``/``ecu_stub`` loggers' level, the
+    tester libraries' and the quiet flag of the progress lines for good (busopts.setup_logging, diag_cmd._log_uds),
+    and a later test in that process would not see the warnings it checks. Which tests ran before in one process is
+    pytest-xdist's to decide (dsg_hil.sim.runner's 'TCU_CMD missing' warning went missing after
+    tests/cli/test_diag_cmd.py's 'dsg-hil plant -q' on the same worker)."""
+    _fresh_logging()
+    yield
+    _fresh_logging()
+
+
+def _fresh_logging() -> None:
+    from dsg_hil.cli.common import set_quiet  # noqa: PLC0415
+    from dsg_hil.cli.diag_cmd import UDS_LOGGERS  # noqa: PLC0415
+
+    for name in ("dsg_hil", "ecu_stub", *UDS_LOGGERS):  # NOTSET in a fresh process (none is set on import)
+        logging.getLogger(name).setLevel(logging.NOTSET)
+    set_quiet(False)
 
 
 @pytest.hookimpl(trylast=True)  # after dsg_hil/e2e/conftest.py has marked its tests
