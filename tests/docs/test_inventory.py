@@ -200,7 +200,7 @@ ENTRIES = [
     E("docs/how-to/dask.md", "dsg-hil sweep SPACE.toml --scheduler", PARSED, why="the user's space and cluster"),
     E("docs/how-to/dask.md", "dsg-hil sweep SPACE.toml --out DIR --resume", PARSED,
       why="the user's space and an earlier sweep's folder (tests/sweep/test_resume_search.py resumes one)"),
-    E("docs/how-to/run-tests.md", "pytest && dsg-hil vcan --install --load 2", RUN, (".ci/run",),
+    E("docs/how-to/run-tests.md", "pytest -n auto && dsg-hil vcan --install --load 2", RUN, (".ci/run",),
       "the README's second quick-start command, as CI runs it"),
     E("docs/how-to/run-tests.md", "dsg-hil vcan --load 4 -- python bench/vcan_timing.py", VCAN,
       ("bench/vcan_timing.py",),

@@ -183,7 +183,7 @@ def test_the_readme_is_a_landing_page_with_the_fixed_commands():
 
     assert len(readme.splitlines()) <= 150
     assert first_sh("Quick start") == ["pip install . && dsg-hil run",
-                                       "pip install '.[dev]' && pytest && dsg-hil vcan --install --load 2"]
+                                       "pip install '.[dev]' && pytest -n auto && dsg-hil vcan --install --load 2"]
     assert first_sh("Contributing") == [
         "pip install -e '.[dev]' && ruff check . && mypy && pytest -m \"not slow or wheel\""]
     assert readme.count(" -e ") == 1
