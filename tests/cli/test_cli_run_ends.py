@@ -22,6 +22,9 @@ from ecu_stub.runner import TCU_USES
 DSG_HIL = [sys.executable, "-m", "dsg_hil"]
 ECU_STUB = [sys.executable, "-m", "ecu_stub"]
 REPLY_TIMEOUT = "10"  # [s] a live TCU on a loaded machine was once starved 1 s (a run ended as peer_lost at t=5.4 s)
+# [s] ecu-stub ends once the plant is this long silent: well above a loaded machine's pauses (at 2 s, a plant starved
+# mid-run under pytest -n 2 beside a sweep lost its TCU: 'TCU silent for 5 s at lock-step tick 59')
+TCU_IDLE_EXIT = "10"
 
 
 def terminal_signals() -> None:
@@ -124,13 +127,14 @@ def udp_lockstep(tmp_path: Path, during=None) -> tuple[dict, str]:
     """ecu-stub and dsg-hil plant (lockstep) as processes on a multicast group of their own; ``during(tcu,
     plant)`` runs while both are up. Returns the plant's summary and the TCU's stderr."""
     bus = udp_bus()
-    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2", "--log", str(tmp_path / "tcu.log")],
+    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", TCU_IDLE_EXIT, "--log", str(tmp_path / "tcu.log")],
                            stderr=subprocess.PIPE, text=True)
     assert tcu.stderr is not None  # stderr=PIPE
     try:
         assert "listening on udp_multicast" in tcu.stderr.readline()
         plant = subprocess.Popen([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", UDP_DURATION,
-                                  "--log", str(tmp_path / "plant.log"), "--summary", str(tmp_path / "s.json")],
+                                  "--reply-timeout", REPLY_TIMEOUT, "--log", str(tmp_path / "plant.log"),
+                                  "--summary", str(tmp_path / "s.json")],
                                  stderr=subprocess.PIPE, text=True)
         if during is not None:
             during(tcu, plant)

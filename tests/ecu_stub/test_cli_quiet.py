@@ -10,7 +10,7 @@ import subprocess
 import pytest
 
 from ecu_stub.cli import _parse_args
-from tests.cli.test_cli_run_ends import DSG_HIL, ECU_STUB, udp_bus
+from tests.cli.test_cli_run_ends import DSG_HIL, ECU_STUB, REPLY_TIMEOUT, TCU_IDLE_EXIT, udp_bus
 
 FAULT = "corrupt_crc:PLANT_ENGINE@0.5-0.6"  # plant frames the TCU rejects: a warning each, counted as crc
 
@@ -18,11 +18,12 @@ FAULT = "corrupt_crc:PLANT_ENGINE@0.5-0.6"  # plant frames the TCU rejects: a wa
 def serve(bus: list[str], tmp_path, *extra: str) -> tuple[str, int]:
     """ecu-stub's stderr for a 1-s lockstep run of the plant with FAULT (the plant waits for it to answer), and how
     many frames the plant corrupted."""
-    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", "2", *extra], stderr=subprocess.PIPE, text=True)
+    tcu = subprocess.Popen([*ECU_STUB, *bus, "--idle-exit", TCU_IDLE_EXIT, *extra], stderr=subprocess.PIPE, text=True)
     summary = tmp_path / f"plant{len(extra)}.json"
     try:
         plant = subprocess.run([*DSG_HIL, "plant", *bus, "--mode", "lockstep", "--duration", "1", "--fault", FAULT,
-                                "-q", "--summary", str(summary)], capture_output=True, text=True, timeout=600)
+                                "--reply-timeout", REPLY_TIMEOUT, "-q", "--summary", str(summary)], capture_output=True,
+                               text=True, timeout=600)
         err = tcu.communicate(timeout=120)[1]
     finally:
         if tcu.poll() is None:
