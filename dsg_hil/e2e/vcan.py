@@ -28,9 +28,8 @@ from ..common.errors import InputError, RunError
 
 __all__ = ["BOOTED", "BOOT_TAIL", "CACHED_TAG", "CONSOLE", "ENV_DURATION", "ENV_OUTDIR", "ENV_REQUIRE", "ENV_WHERE",
            "RUN_SCRIPT", "SYSTEM_PACKAGES", "VCAN", "VcanError", "VmPlan", "cached_dirs", "compiled_code_env",
-           "create_vcan",
-           "find_kernel", "install_system_packages", "missing_system_packages", "output_tail", "run_in_vm",
-           "vcan_present", "vm_plan", "warm_compiled_code", "with_load"]
+           "create_vcan", "find_kernel", "install_system_packages", "missing_system_packages", "output_tail",
+           "run_in_vm", "vcan_present", "vm_plan", "warm_compiled_code", "with_load"]
 
 VCAN = "vcan0"
 BOOTED = "booted"  # written in outdir by the VM as it starts the command (the boot watchdog's sign)
@@ -185,7 +184,7 @@ def cached_dirs(cwd: Path, env: dict[str, str]) -> list[str]:
     process goes to the host, through QEMU's main loop. Measured in the VM (QEMU TCG, 2-core host, idle): a
     0.1-s ``dsg-hil run`` took 34 s (user 15 s, sys 5.5 s) uncached, 21-22 s (user 12.5 s, sys 4.7 s) through a
     ``cache=loose`` view once warm; ``import numpy`` 6.4-7.4 s against 3.1-3.5 s; the vcan suite beside 2 CPU hogs
-    2,553 s against 986 s (17 passed both). Nothing on the host changes these
+    2,553 s against 584 s (17 passed both, each alone on the machine). Nothing on the host changes these
     directories while the VM runs, which is what ``cache=loose`` assumes (no coherence with the host)."""
     candidates = [sys.base_prefix, sys.prefix, str(cwd), *env.get("PYTHONPATH", "").split(os.pathsep)]
     dirs: list[str] = []
@@ -233,12 +232,12 @@ def vm_plan(command: list[str], outdir: Path, kernel: Path, env: dict[str, str],
         f"( {' '.join(shlex.quote(c) for c in command)}; echo $? > {shlex.quote(str(outdir / 'rc'))} ) 2>&1"
         f" | tee {shlex.quote(str(outdir / 'output.txt'))}",
     ])
+    # The host's root once more under CACHED_TAG, for the cached view (vng's own root mount is 9p's cache=none).
+    export = (f"-fsdev local,id={CACHED_TAG},path=/,security_model=none,readonly=on,multidevs=remap "
+              f"-device virtio-9p-pci,fsdev={CACHED_TAG},mount_tag={CACHED_TAG}")
     # The script goes in a file: vng passes --exec on the kernel's command line, whose 2048 bytes (x86) a long
     # command overflows, and this kernel then panics in its first second (a fortify check on the command line,
     # 'kernel BUG at lib/string_helpers.c') with QEMU idle for good: the hangs of the suite under --load.
-    # the host's root once more under CACHED_TAG, for the cached view (vng's own root mount is 9p's cache=none)
-    export = (f"-fsdev local,id={CACHED_TAG},path=/,security_model=none,readonly=on,multidevs=remap "
-              f"-device virtio-9p-pci,fsdev={CACHED_TAG},mount_tag={CACHED_TAG}")
     argv = [vng, "--disable-kvm", "--verbose", "--rwdir", str(outdir), "--run", str(kernel), "--memory", memory,
             "--cpus", str(cpus), f"--qemu-opts={export}", "--exec", f"sh {shlex.quote(str(outdir / RUN_SCRIPT))}"]
     return VmPlan(argv, outdir, script + "\n")
