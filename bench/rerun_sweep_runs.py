@@ -2,8 +2,10 @@
 faults and controller the sweep gave it) through the sweep's own worker (``dsg_hil.sweep.worker.run_task``), its
 row then and now side by side for the keys asked. For a summary metric added after the sweep ran (e.g.
 ``handover_deviation_unbraked_pct``), or to see what a change of the TCU did to the runs a sweep found.
+``--without-latent``: each run without its latent sensor faults (the sample's ``latent`` input), all else as
+drawn: what those faults did to it.
 
-    python bench/rerun_sweep_runs.py OUT [ID ...] [--beyond KEY=LIMIT] [--keys K,K,...] [--json]
+    python bench/rerun_sweep_runs.py OUT [ID ...] [--beyond KEY=LIMIT] [--keys K,K,...] [--without-latent] [--json]
 
 IDs: run IDs or their ``rNNNNN`` prefix (``sNNNNN``: a search's trials); ``--beyond KEY=LIMIT``: also every run
 whose row then had ``KEY`` above ``LIMIT`` (e.g. ``handover_deviation_pct=20``). Reads ``OUT/runs`` and
@@ -45,12 +47,24 @@ def records(out: Path, ids: list[str], beyond: tuple[str, float] | None) -> list
     return [json.loads(files[stem].read_text()) for stem in sorted(chosen)]
 
 
+def without_latent(task: dict[str, Any]) -> dict[str, Any]:
+    """``task`` without its latent sensor faults: its ``latent`` input emptied and their ``--fault`` strings taken
+    out of its faults (the frame fault and everything else as drawn; the same run ID)."""
+    from dsg_hil.sweep.latent import latent_faults  # noqa: PLC0415 - the sweep package, after the arguments
+
+    latent = set(latent_faults(task["inputs"].get("latent")))
+    faults = [f for f in task["faults"] if f not in latent]
+    return {**task, "inputs": {**task["inputs"], "latent": ""}, "faults": faults}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out", type=Path, help="the sweep's --out directory")
     ap.add_argument("ids", nargs="*", help="run IDs (or their rNNNNN / sNNNNN prefix)")
     ap.add_argument("--beyond", metavar="KEY=LIMIT", help="also the runs whose row had KEY above LIMIT")
     ap.add_argument("--keys", default=DEFAULT_KEYS, help=f"row keys to show, then and now (default {DEFAULT_KEYS})")
+    ap.add_argument("--without-latent", action="store_true",
+                    help="run each without its latent sensor faults (the frame fault and all else as drawn)")
     ap.add_argument("--json", action="store_true", help="one JSON object per run instead of lines")
     args = ap.parse_args(argv)
     beyond = None
@@ -76,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
 
     keys = [k for k in args.keys.split(",") if k]
     for rec in chosen:
-        now = run_task(rec["task"])["row"]
+        now = run_task(without_latent(rec["task"]) if args.without_latent else rec["task"])["row"]
         then = rec["row"]
         if args.json:
             print(json.dumps({"run_id": rec["run_id"], "then": {k: then.get(k) for k in keys},

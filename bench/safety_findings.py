@@ -1,9 +1,10 @@
 """The safety argument's evidence from a sweep's table (``dsg-hil sweep dsg_hil/data/sweeps/safety.toml``, finished or
 interrupted): the verdict's counts and violations, the hottest true plate and the smallest margins, the overheat
 stops' hotter plate (used to >= 235 degC before giving up?), roll-back (distance, and speed against the 10-mm/s
-drivability target, split by whether a frame fault was injected), the speed through handovers against +-20 % (all,
-and without the driver's pedal in the handover's window, those without a frame fault listed), the top speed over
-the desired one, and FAULT outside the injected faults' windows.
+drivability target, split by whether a frame fault was injected; those without one inside the operating range listed
+with their latent sensor faults: ``bench/rerun_sweep_runs.py OUT ID --without-latent`` shows what those did), the
+speed through handovers against +-20 % (all, and without the driver's pedal in the handover's window, those without
+a frame fault listed), the top speed over the desired one, and FAULT outside the injected faults' windows.
 
     python bench/safety_findings.py OUT [--json]
 
@@ -37,6 +38,8 @@ def findings(out: Path) -> dict:
     stops = [r for r in judged if r["stop_reason"] == "STOPPED_OVERHEAT"]
     hotter = [(max(r["max_plate_temp_c.CL"], r["max_plate_temp_c.CH"]), r["run_id"]) for r in stops]
     fast = [r for r in judged if r["rollback_mps"] is not None and -r["rollback_mps"] > ROLLBACK_DRIVABLE_MPS]
+    fast_in_range = sorted((r["rollback_mps"], r["run_id"], r.get("in.latent") or "") for r in fast
+                           if not r["in.fault"] and r["verdict"] != "outside_range")
     over = max(judged, key=lambda r: r["v_max_mps"] - r["v_desired_max_mps"])
     ratio = [r["v_max_mps"] / r["v_desired_max_mps"] for r in judged if r["v_desired_max_mps"]]
     predicted = [r["min_margin_c.predicted"] for r in judged if r.get("min_margin_c.predicted") is not None]
@@ -59,7 +62,8 @@ def findings(out: Path) -> dict:
         "rollback_guarded_max_m": max(r["rollback_guarded_m"] or 0.0 for r in judged),
         f"rollback_faster_than_{ROLLBACK_DRIVABLE_MPS * 1000:g}mm_s": {
             "runs": len(fast), "with_a_frame_fault": sum(bool(r["in.fault"]) for r in fast),
-            "worst_without": min((r["rollback_mps"] for r in fast if not r["in.fault"]), default=None)},
+            "worst_without": min((r["rollback_mps"] for r in fast if not r["in.fault"]), default=None),
+            "in_range_without": [list(x) for x in fast_in_range]},  # (mps, run, latent): launches the claim covers
         "top_speed_over_desired_max_mps": round(over["v_max_mps"] - over["v_desired_max_mps"], 4),
         "top_speed_over_desired_run": over["run_id"],
         "top_speed_above_1.2x_desired_runs": sum(x > 1.2 for x in ratio),

@@ -129,3 +129,37 @@ def test_a_recorded_result_has_its_date_machine_command_and_figures(tmp_path):
     assert len(record["date"]) == 10 and positive(record["wall_s"])
     (case,) = record["results"]["cases"]
     assert case["case"] == "none" and case["stop_reason"] == "STOPPED_OVERHEAT" and case["implausible"] == {}
+
+
+def test_rerun_sweep_runs_without_latent_takes_out_the_latent_faults_only(tmp_path):
+    """A 2-s run of the shipped space with a drawn latent fault and a frame fault, recorded as a sweep records it:
+    ``--without-latent`` runs it again with the frame fault and without the latent one."""
+    from dsg_hil.protocol.faults import parse_fault
+    from dsg_hil.sweep.latent import latent_faults
+    from dsg_hil.sweep.space import SAFETY_SPACE, load_space
+    from dsg_hil.sweep.worker import run_task
+
+    space = load_space(SAFETY_SPACE)
+    inputs = {"grade_rad": 0.1, "engine_speed_rpm": 800.0, "initial.T_clutch_c": 100.0, "initial.T_oil_c": 100.0,
+              "params.vehicle.m": 7840.0, "driver.behaviour": "creep", "driver.desired_speed_mps": 0.2,
+              "duration_s": 2.0, "fault": "drop:TCU_CMD", "fault_at_s": 1.0, "fault_duration_s": 0.5}
+    index, values = next((i, v) for i in range(100) if len(latent_faults((v := space.with_latent(i, inputs))["latent"]))
+                         == 1 and parse_fault(v["latent"]).start_s < 1.5)
+    (latent,) = latent_faults(values["latent"])
+    task = space.task(index, values)
+    assert len(task["faults"]) == 2 and latent in task["faults"]
+    then = run_task(task)["row"]
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / f"{task['run_id']}.json").write_text(json.dumps({"run_id": task["run_id"], "row": then,
+                                                                         "task": task}), encoding="utf-8")
+    env = {key: value for key, value in os.environ.items() if key != "PYTHONSAFEPATH"}
+    proc = subprocess.run([sys.executable, str(BENCH / "rerun_sweep_runs.py"), str(tmp_path), f"r{index:05d}",
+                           "--without-latent", "--keys", "in.latent,in.fault,faults", "--json"],
+                          capture_output=True, text=True, timeout=600, cwd=BENCH, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    pair = json.loads(proc.stdout)
+    assert pair["run_id"] == task["run_id"] and pair["then"]["in.latent"] == latent and pair["now"]["in.latent"] == ""
+    assert pair["now"]["in.fault"] == pair["then"]["in.fault"] == "drop:TCU_CMD"
+    injected_then, injected_now = (json.loads(pair[k]["faults"])["injected"] for k in ("then", "now"))
+    assert parse_fault(latent).describe() in injected_then and parse_fault(latent).describe() not in injected_now
+    assert any(key.startswith("drop:TCU_CMD") for key in injected_now), injected_now
