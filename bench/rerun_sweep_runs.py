@@ -3,9 +3,11 @@ faults and controller the sweep gave it) through the sweep's own worker (``dsg_h
 row then and now side by side for the keys asked. For a summary metric added after the sweep ran (e.g.
 ``handover_deviation_unbraked_pct``), or to see what a change of the TCU did to the runs a sweep found.
 ``--without-latent``: each run without its latent sensor faults (the sample's ``latent`` input), all else as
-drawn: what those faults did to it.
+drawn: what those faults did to it; ``--latent 'F; F'``: with these instead (``--fault`` syntax), e.g. a fault's
+value moved to its threshold.
 
-    python bench/rerun_sweep_runs.py OUT [ID ...] [--beyond KEY=LIMIT] [--keys K,K,...] [--without-latent] [--json]
+    python bench/rerun_sweep_runs.py OUT [ID ...] [--beyond KEY=LIMIT] [--keys K,K,...]
+                                     [--without-latent | --latent 'F; F'] [--json]
 
 IDs: run IDs or their ``rNNNNN`` prefix (``sNNNNN``: a search's trials); ``--beyond KEY=LIMIT``: also every run
 whose row then had ``KEY`` above ``LIMIT`` (e.g. ``handover_deviation_pct=20``). Reads ``OUT/runs`` and
@@ -47,14 +49,22 @@ def records(out: Path, ids: list[str], beyond: tuple[str, float] | None) -> list
     return [json.loads(files[stem].read_text()) for stem in sorted(chosen)]
 
 
-def without_latent(task: dict[str, Any]) -> dict[str, Any]:
-    """``task`` without its latent sensor faults: its ``latent`` input emptied and their ``--fault`` strings taken
-    out of its faults (the frame fault and everything else as drawn; the same run ID)."""
-    from dsg_hil.sweep.latent import latent_faults  # noqa: PLC0415 - the sweep package, after the arguments
+def with_latent(task: dict[str, Any], latent: str) -> dict[str, Any]:
+    """``task`` with the latent sensor faults ``latent`` (``--fault`` strings joined by ``;``, as a sample draws
+    them; ``""``: none) in place of its own: its ``latent`` input and their ``--fault`` strings replaced, the frame
+    fault and everything else as drawn, the same run ID. A ValueError names a string that is not a fault."""
+    from dsg_hil.protocol.faults import FaultError, parse_fault  # noqa: PLC0415 - after the arguments are checked
+    from dsg_hil.sweep.latent import latent_faults  # noqa: PLC0415
 
-    latent = set(latent_faults(task["inputs"].get("latent")))
-    faults = [f for f in task["faults"] if f not in latent]
-    return {**task, "inputs": {**task["inputs"], "latent": ""}, "faults": faults}
+    new = latent_faults(latent)
+    for fault in new:
+        try:
+            parse_fault(fault)
+        except FaultError as exc:
+            raise ValueError(f"--latent: {exc}") from exc
+    own = set(latent_faults(task["inputs"].get("latent")))
+    faults = [f for f in task["faults"] if f not in own] + new
+    return {**task, "inputs": {**task["inputs"], "latent": "; ".join(new)}, "faults": faults}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -63,8 +73,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("ids", nargs="*", help="run IDs (or their rNNNNN / sNNNNN prefix)")
     ap.add_argument("--beyond", metavar="KEY=LIMIT", help="also the runs whose row had KEY above LIMIT")
     ap.add_argument("--keys", default=DEFAULT_KEYS, help=f"row keys to show, then and now (default {DEFAULT_KEYS})")
-    ap.add_argument("--without-latent", action="store_true",
-                    help="run each without its latent sensor faults (the frame fault and all else as drawn)")
+    latent = ap.add_mutually_exclusive_group()
+    latent.add_argument("--without-latent", action="store_true",
+                        help="run each without its latent sensor faults (the frame fault and all else as drawn)")
+    latent.add_argument("--latent", metavar="'F; F'",
+                        help="run each with these latent sensor faults (--fault syntax) instead of its own")
     ap.add_argument("--json", action="store_true", help="one JSON object per run instead of lines")
     args = ap.parse_args(argv)
     beyond = None
@@ -86,11 +99,17 @@ def main(argv: list[str] | None = None) -> int:
     if not chosen:
         print("rerun_sweep_runs: no run chosen: give IDs or --beyond", file=sys.stderr)
         return 2
+    latent = "" if args.without_latent else args.latent
+    try:
+        tasks = {rec["run_id"]: rec["task"] if latent is None else with_latent(rec["task"], latent) for rec in chosen}
+    except ValueError as exc:
+        print(f"rerun_sweep_runs: {exc}", file=sys.stderr)
+        return 2
     from dsg_hil.sweep.worker import run_task  # noqa: PLC0415 - after the arguments are checked
 
     keys = [k for k in args.keys.split(",") if k]
     for rec in chosen:
-        now = run_task(without_latent(rec["task"]) if args.without_latent else rec["task"])["row"]
+        now = run_task(tasks[rec["run_id"]])["row"]
         then = rec["row"]
         if args.json:
             print(json.dumps({"run_id": rec["run_id"], "then": {k: then.get(k) for k in keys},

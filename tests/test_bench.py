@@ -131,9 +131,10 @@ def test_a_recorded_result_has_its_date_machine_command_and_figures(tmp_path):
     assert case["case"] == "none" and case["stop_reason"] == "STOPPED_OVERHEAT" and case["implausible"] == {}
 
 
-def test_rerun_sweep_runs_without_latent_takes_out_the_latent_faults_only(tmp_path):
+def test_rerun_sweep_runs_replaces_the_latent_faults_only(tmp_path):
     """A 2-s run of the shipped space with a drawn latent fault and a frame fault, recorded as a sweep records it:
-    ``--without-latent`` runs it again with the frame fault and without the latent one."""
+    ``--without-latent`` runs it again with the frame fault and without the latent one, ``--latent`` with another
+    in its place; a latent fault that does not parse is exit 2, one line, nothing run."""
     from dsg_hil.protocol.faults import parse_fault
     from dsg_hil.sweep.latent import latent_faults
     from dsg_hil.sweep.space import SAFETY_SPACE, load_space
@@ -153,13 +154,24 @@ def test_rerun_sweep_runs_without_latent_takes_out_the_latent_faults_only(tmp_pa
     (tmp_path / "runs" / f"{task['run_id']}.json").write_text(json.dumps({"run_id": task["run_id"], "row": then,
                                                                          "task": task}), encoding="utf-8")
     env = {key: value for key, value in os.environ.items() if key != "PYTHONSAFEPATH"}
-    proc = subprocess.run([sys.executable, str(BENCH / "rerun_sweep_runs.py"), str(tmp_path), f"r{index:05d}",
-                           "--without-latent", "--keys", "in.latent,in.fault,faults", "--json"],
-                          capture_output=True, text=True, timeout=600, cwd=BENCH, env=env)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    pair = json.loads(proc.stdout)
-    assert pair["run_id"] == task["run_id"] and pair["then"]["in.latent"] == latent and pair["now"]["in.latent"] == ""
-    assert pair["now"]["in.fault"] == pair["then"]["in.fault"] == "drop:TCU_CMD"
-    injected_then, injected_now = (json.loads(pair[k]["faults"])["injected"] for k in ("then", "now"))
-    assert parse_fault(latent).describe() in injected_then and parse_fault(latent).describe() not in injected_now
-    assert any(key.startswith("drop:TCU_CMD") for key in injected_now), injected_now
+
+    def rerun(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, str(BENCH / "rerun_sweep_runs.py"), str(tmp_path), f"r{index:05d}",
+                               "--keys", "in.latent,in.fault,faults", "--json", *args],
+                              capture_output=True, text=True, timeout=600, cwd=BENCH, env=env)
+
+    other = "offset:PLANT_VEHICLE.VehicleSpeed@0.5-,value=0.01"
+    for args, now_latent in ((["--without-latent"], ""), (["--latent", other], other)):
+        proc = rerun(*args)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        pair = json.loads(proc.stdout)
+        assert pair["run_id"] == task["run_id"] and pair["then"]["in.latent"] == latent
+        assert pair["now"]["in.latent"] == now_latent
+        assert pair["now"]["in.fault"] == pair["then"]["in.fault"] == "drop:TCU_CMD"
+        injected_then, injected_now = (json.loads(pair[k]["faults"])["injected"] for k in ("then", "now"))
+        assert parse_fault(latent).describe() in injected_then and parse_fault(latent).describe() not in injected_now
+        assert any(key.startswith("drop:TCU_CMD") for key in injected_now), injected_now
+        assert (parse_fault(other).describe() in injected_now) == bool(now_latent), injected_now
+    bad = rerun("--latent", "offset:PLANT_VEHICLE.VehicleSpeed@x-,value=1")
+    assert bad.returncode == 2 and bad.stdout == "" and len(bad.stderr.strip().splitlines()) == 1
+    assert bad.stderr.startswith("rerun_sweep_runs: --latent: ") and "start_s must be a number" in bad.stderr

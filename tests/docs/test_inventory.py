@@ -232,7 +232,7 @@ ENTRIES = [
        "tests/sweep/test_engines.py::test_the_benches_over_a_sweep_read_it_and_repeat_its_runs"),
       "the proof run: 10,000 runs and a 1,000-trial search, many hours on two cores"),
     E("docs/safety.md", "python bench/rerun_sweep_runs.py batch-105 r00954 --without-latent", STUDY,
-      ("tests/test_bench.py::test_rerun_sweep_runs_without_latent_takes_out_the_latent_faults_only",),
+      ("tests/test_bench.py::test_rerun_sweep_runs_replaces_the_latent_faults_only",),
       "a run of the proof's seed 105, whose folder the proof run writes"),
 ]
 
