@@ -73,10 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("ids", nargs="*", help="run IDs (or their rNNNNN / sNNNNN prefix)")
     ap.add_argument("--beyond", metavar="KEY=LIMIT", help="also the runs whose row had KEY above LIMIT")
     ap.add_argument("--keys", default=DEFAULT_KEYS, help=f"row keys to show, then and now (default {DEFAULT_KEYS})")
-    latent = ap.add_mutually_exclusive_group()
-    latent.add_argument("--without-latent", action="store_true",
+    replace = ap.add_mutually_exclusive_group()
+    replace.add_argument("--without-latent", action="store_true",
                         help="run each without its latent sensor faults (the frame fault and all else as drawn)")
-    latent.add_argument("--latent", metavar="'F; F'",
+    replace.add_argument("--latent", metavar="'F; F'",
                         help="run each with these latent sensor faults (--fault syntax) instead of its own")
     ap.add_argument("--json", action="store_true", help="one JSON object per run instead of lines")
     args = ap.parse_args(argv)
