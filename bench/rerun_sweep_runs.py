@@ -49,22 +49,29 @@ def records(out: Path, ids: list[str], beyond: tuple[str, float] | None) -> list
     return [json.loads(files[stem].read_text()) for stem in sorted(chosen)]
 
 
-def with_latent(task: dict[str, Any], latent: str) -> dict[str, Any]:
-    """``task`` with the latent sensor faults ``latent`` (``--fault`` strings joined by ``;``, as a sample draws
-    them; ``""``: none) in place of its own: its ``latent`` input and their ``--fault`` strings replaced, the frame
-    fault and everything else as drawn, the same run ID. A ValueError names a string that is not a fault."""
+def latent_list(latent: str) -> list[str]:
+    """The ``--fault`` strings of ``--latent`` (joined by ``;``, as a sample draws them; ``""``: none), each parsed
+    once; a ValueError names one that is not a fault."""
     from dsg_hil.protocol.faults import FaultError, parse_fault  # noqa: PLC0415 - after the arguments are checked
     from dsg_hil.sweep.latent import latent_faults  # noqa: PLC0415
 
-    new = latent_faults(latent)
-    for fault in new:
+    faults = latent_faults(latent)
+    for fault in faults:
         try:
             parse_fault(fault)
         except FaultError as exc:
             raise ValueError(f"--latent: {exc}") from exc
+    return faults
+
+
+def with_latent(task: dict[str, Any], latent: list[str]) -> dict[str, Any]:
+    """``task`` with the latent sensor faults ``latent`` (:func:`latent_list`) in place of its own: its ``latent``
+    input and their ``--fault`` strings replaced, the frame fault and everything else as drawn, the same run ID."""
+    from dsg_hil.sweep.latent import latent_faults  # noqa: PLC0415 - after the arguments are checked
+
     own = set(latent_faults(task["inputs"].get("latent")))
-    faults = [f for f in task["faults"] if f not in own] + new
-    return {**task, "inputs": {**task["inputs"], "latent": "; ".join(new)}, "faults": faults}
+    faults = [f for f in task["faults"] if f not in own] + latent
+    return {**task, "inputs": {**task["inputs"], "latent": "; ".join(latent)}, "faults": faults}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -99,9 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     if not chosen:
         print("rerun_sweep_runs: no run chosen: give IDs or --beyond", file=sys.stderr)
         return 2
-    latent = "" if args.without_latent else args.latent
     try:
-        tasks = {rec["run_id"]: rec["task"] if latent is None else with_latent(rec["task"], latent) for rec in chosen}
+        latent = [] if args.without_latent else None if args.latent is None else latent_list(args.latent)
     except ValueError as exc:
         print(f"rerun_sweep_runs: {exc}", file=sys.stderr)
         return 2
@@ -109,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
 
     keys = [k for k in args.keys.split(",") if k]
     for rec in chosen:
-        now = run_task(tasks[rec["run_id"]])["row"]
+        now = run_task(rec["task"] if latent is None else with_latent(rec["task"], latent))["row"]
         then = rec["row"]
         if args.json:
             print(json.dumps({"run_id": rec["run_id"], "then": {k: then.get(k) for k in keys},

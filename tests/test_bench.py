@@ -136,17 +136,13 @@ def test_rerun_sweep_runs_replaces_the_latent_faults_only(tmp_path):
     ``--without-latent`` runs it again with the frame fault and without the latent one, ``--latent`` with another
     in its place; a latent fault that does not parse is exit 2, one line, nothing run."""
     from dsg_hil.protocol.faults import parse_fault
-    from dsg_hil.sweep.latent import latent_faults
     from dsg_hil.sweep.space import SAFETY_SPACE, load_space
     from dsg_hil.sweep.worker import run_task
+    from tests.sweep.test_latent import SHORT_CREEP, one_early_latent_fault
 
     space = load_space(SAFETY_SPACE)
-    inputs = {"grade_rad": 0.1, "engine_speed_rpm": 800.0, "initial.T_clutch_c": 100.0, "initial.T_oil_c": 100.0,
-              "params.vehicle.m": 7840.0, "driver.behaviour": "creep", "driver.desired_speed_mps": 0.2,
-              "duration_s": 2.0, "fault": "drop:TCU_CMD", "fault_at_s": 1.0, "fault_duration_s": 0.5}
-    index, values = next((i, v) for i in range(100) if len(latent_faults((v := space.with_latent(i, inputs))["latent"]))
-                         == 1 and parse_fault(v["latent"]).start_s < 1.5)
-    (latent,) = latent_faults(values["latent"])
+    inputs = {**SHORT_CREEP, "fault": "drop:TCU_CMD", "fault_at_s": 1.0, "fault_duration_s": 0.5}
+    index, values, latent = one_early_latent_fault(space, inputs)
     task = space.task(index, values)
     assert len(task["faults"]) == 2 and latent in task["faults"]
     then = run_task(task)["row"]

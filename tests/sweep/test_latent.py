@@ -135,16 +135,26 @@ def test_the_verdict_counts_violating_runs_by_their_latent_faults():
     assert latent_counts(rows[2:]) == ""  # a space without latent faults: nothing said
 
 
+# a 2-s creep of the safety space's inputs, without a frame fault
+SHORT_CREEP = {"grade_rad": 0.1, "engine_speed_rpm": 800.0, "initial.T_clutch_c": 100.0, "initial.T_oil_c": 100.0,
+               "params.vehicle.m": 7840.0, "driver.behaviour": "creep", "driver.desired_speed_mps": 0.2,
+               "duration_s": 2.0, "fault": ""}
+
+
+def one_early_latent_fault(space, inputs) -> tuple[int, dict, str]:
+    """The first sample index at which ``space`` draws one latent fault for ``inputs`` beginning before 1.5 s, the
+    values with it, and its ``--fault`` string."""
+    index, values = next((i, v) for i in range(100) if len(latent_faults((v := space.with_latent(i, inputs))["latent"]))
+                         == 1 and parse_fault(v["latent"]).start_s < 1.5)
+    (text,) = latent_faults(values["latent"])
+    return index, values, text
+
+
 def test_a_run_with_a_drawn_latent_fault_injects_it():
     from dsg_hil.sweep.worker import run_task
 
     space = load_space(SAFETY_SPACE)
-    inputs = {"grade_rad": 0.1, "engine_speed_rpm": 800.0, "initial.T_clutch_c": 100.0, "initial.T_oil_c": 100.0,
-              "params.vehicle.m": 7840.0, "driver.behaviour": "creep", "driver.desired_speed_mps": 0.2,
-              "duration_s": 2.0, "fault": ""}
-    index, values = next((i, v) for i in range(100) if len(latent_faults((v := space.with_latent(i, inputs))["latent"]))
-                         == 1 and parse_fault(v["latent"]).start_s < 1.5)
-    (text,) = latent_faults(values["latent"])
+    index, values, text = one_early_latent_fault(space, SHORT_CREEP)
     task = space.task(index, values)
     assert task["faults"] == [text]
     result = run_task(task)
